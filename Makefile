@@ -1,0 +1,33 @@
+# snapjump — every target builds what it needs from scratch (a clean clone needs only Python >= 3.11).
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: install run test bench stress clean
+
+install: $(STAMP)
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+run: install
+	$(BIN)/snapjump -v sweep configs/paper_grid.yaml -o results/paper_grid.parquet
+	$(BIN)/snapjump rank results/paper_grid.parquet -o results/ranked.parquet --plots results/
+
+test: install
+	$(BIN)/python -m pytest -q -x --durations=15
+
+bench: install
+	$(BIN)/python -m bench.run_bench
+
+stress: install
+	$(BIN)/python -m pytest -q -m stress tests/
+
+clean:
+	rm -rf $(VENV) build *.egg-info results bench/out .pytest_cache
+	find . -name __pycache__ -type d -prune -exec rm -rf {} +
+	find . -name '*.nbi' -delete -o -name '*.nbc' -delete

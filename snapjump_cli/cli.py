@@ -1,0 +1,73 @@
+"""The ``snapjump`` command group. Each command lives in ``snapjump_cli/commands/<name>.py``
+and is imported only when it is run (``snapjump --help`` stays fast)."""
+from __future__ import annotations
+
+import importlib
+import logging
+import sys
+from typing import Sequence
+
+import click
+
+from snapjump_cli import __version__
+
+COMMANDS = {
+    "mesh": "Build and mesh one scene (design or single cap); print its geometry.",
+    "curve": "Trace one scene's pressure-volume path and report its snap metrics.",
+    "sweep": "Solve a YAML grid of designs in parallel into a parquet file (resumable).",
+    "rank": "Apply the jump model to sweep results and rank the designs by jump height.",
+}
+
+
+class LazyGroup(click.Group):
+    """A click group whose sub-commands are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return list(COMMANDS)
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name not in COMMANDS:
+            return None
+        mod = importlib.import_module(f"snapjump_cli.commands.{name}")
+        return mod.command
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        with formatter.section("Commands"):
+            formatter.write_dl(sorted(COMMANDS.items()))
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="snapjump")
+@click.option("-v", "--verbose", count=True, help="More log output (-v info, -vv debug).")
+@click.option("-q", "--quiet", is_flag=True, help="Only warnings and errors.")
+def cli(verbose: int, quiet: bool) -> None:
+    """snapjump: design snapping inflatable soft jumpers.
+
+    Axisymmetric incompressible-Gent FE of two spherical caps inflated under volume control,
+    traced with arc-length continuation through its limit points (Gorissen et al., Sci. Robot.
+    2020), and a mass-spring model that turns the snap into a jump height.
+    """
+    level = logging.DEBUG if verbose >= 2 else logging.INFO if verbose == 1 else logging.WARNING
+    if quiet:
+        level = logging.WARNING
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    logging.getLogger("snapjump_cli").setLevel(level)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the CLI; returns the exit code (0 ok, 1 failure, 2 bad input)."""
+    try:
+        cli.main(args=list(argv) if argv is not None else None, prog_name="snapjump", standalone_mode=False)
+    except click.exceptions.Exit as e:
+        return int(e.exit_code or 0)
+    except click.ClickException as e:  # UsageError, BadParameter, ... -> exit 2 (one line, no traceback)
+        e.show()
+        return 2 if e.exit_code in (1, 2) and isinstance(e, (click.UsageError, click.BadParameter)) else e.exit_code
+    except click.exceptions.Abort:
+        click.echo("Aborted!", err=True)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
