@@ -1,0 +1,107 @@
+"""Exact cavity volume of an axisymmetric boundary and its first and second derivatives.
+
+The cavity volume is ``V(x) = pi * sum_e integral_e r^2 dy + offset`` over oriented boundary
+edges (see :mod:`snapjump_cli.meshdata`). Along an edge with Lagrange shape functions ``N_a(s)``
+(2 nodes: linear, 3 nodes ordered start, end, mid: quadratic) the integrand ``r(s)^2 y'(s)`` is a
+polynomial of degree <= 5, so 3-point Gauss quadrature is exact for both edge orders. Because V is
+a scalar function of the nodal positions, the load ``p dV/dx`` has the symmetric load stiffness
+``p d2V/dx2``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+_GP = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
+_GW = np.array([5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0])
+
+
+@njit(cache=True)
+def _edge_shape(s: float, nen: int, N: np.ndarray, dN: np.ndarray) -> None:
+    if nen == 2:
+        N[0] = 0.5 * (1.0 - s)
+        N[1] = 0.5 * (1.0 + s)
+        dN[0] = -0.5
+        dN[1] = 0.5
+    else:  # start, end, mid
+        N[0] = 0.5 * s * (s - 1.0)
+        N[1] = 0.5 * s * (s + 1.0)
+        N[2] = 1.0 - s * s
+        dN[0] = s - 0.5
+        dN[1] = s + 0.5
+        dN[2] = -2.0 * s
+
+
+@njit(cache=True)
+def cavity_volume(x: np.ndarray, edges: np.ndarray) -> float:
+    """``pi * sum integral r^2 dy`` over the oriented ``edges`` of the node positions ``x`` (n, 2)."""
+    nen = edges.shape[1]
+    N = np.empty(nen)
+    dN = np.empty(nen)
+    v = 0.0
+    for e in range(edges.shape[0]):
+        for q in range(3):
+            _edge_shape(_GP[q], nen, N, dN)
+            r = 0.0
+            dy = 0.0
+            for a in range(nen):
+                r += N[a] * x[edges[e, a], 0]
+                dy += dN[a] * x[edges[e, a], 1]
+            v += _GW[q] * r * r * dy
+    return np.pi * v
+
+
+@njit(cache=True)
+def cavity_volume_derivatives(x: np.ndarray, edges: np.ndarray):
+    """Volume, gradient and Hessian entries of the cavity volume.
+
+    Returns
+    -------
+    V : float
+    grad : (n, 2) float64
+        ``dV/dx`` per node and component.
+    hrows, hcols, hvals : int64, int64, float64 arrays
+        COO triplets of ``d2V/dx2`` in the global dof numbering ``2*node + component``
+        (duplicates are to be summed).
+    """
+    nen = edges.shape[1]
+    ne = edges.shape[0]
+    N = np.empty(nen)
+    dN = np.empty(nen)
+    grad = np.zeros((x.shape[0], 2))
+    nh = ne * (2 * nen) * (2 * nen)
+    hr = np.empty(nh, np.int64)
+    hc = np.empty(nh, np.int64)
+    hv = np.zeros(nh)
+    he = np.zeros((2 * nen, 2 * nen))
+    v = 0.0
+    k = 0
+    for e in range(ne):
+        he[:, :] = 0.0
+        for q in range(3):
+            _edge_shape(_GP[q], nen, N, dN)
+            r = 0.0
+            dy = 0.0
+            for a in range(nen):
+                r += N[a] * x[edges[e, a], 0]
+                dy += dN[a] * x[edges[e, a], 1]
+            w = np.pi * _GW[q]
+            v += w * r * r * dy
+            for a in range(nen):
+                na = edges[e, a]
+                grad[na, 0] += w * 2.0 * r * N[a] * dy
+                grad[na, 1] += w * r * r * dN[a]
+                for b in range(nen):
+                    # d2/dr_a dr_b = 2 N_a N_b y',  d2/dr_a dy_b = 2 r N_a N'_b
+                    he[2 * a, 2 * b] += w * 2.0 * N[a] * N[b] * dy
+                    he[2 * a, 2 * b + 1] += w * 2.0 * r * N[a] * dN[b]
+                    he[2 * b + 1, 2 * a] += w * 2.0 * r * N[a] * dN[b]
+        for a in range(nen):
+            for ca in range(2):
+                for b in range(nen):
+                    for cb in range(2):
+                        hr[k] = 2 * edges[e, a] + ca
+                        hc[k] = 2 * edges[e, b] + cb
+                        hv[k] = he[2 * a + ca, 2 * b + cb]
+                        k += 1
+    return v, grad, hr, hc, hv
