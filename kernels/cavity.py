@@ -105,3 +105,64 @@ def cavity_volume_derivatives(x: np.ndarray, edges: np.ndarray):
                         hv[k] = he[2 * a + ca, 2 * b + cb]
                         k += 1
     return v, grad, hr, hc, hv
+
+
+@njit(cache=True)
+def _edge_terms(x, nodes, N, dN, ge, he):
+    """Volume of one edge; fills its gradient ``ge`` (2 nen) and Hessian ``he`` (2 nen, 2 nen)."""
+    nen = nodes.shape[0]
+    ge[:] = 0.0
+    he[:, :] = 0.0
+    v = 0.0
+    for q in range(3):
+        _edge_shape(_GP[q], nen, N, dN)
+        r = 0.0
+        dy = 0.0
+        for a in range(nen):
+            r += N[a] * x[nodes[a], 0]
+            dy += dN[a] * x[nodes[a], 1]
+        w = np.pi * _GW[q]
+        v += w * r * r * dy
+        for a in range(nen):
+            ge[2 * a] += w * 2.0 * r * N[a] * dy
+            ge[2 * a + 1] += w * r * r * dN[a]
+            for b in range(nen):
+                he[2 * a, 2 * b] += w * 2.0 * N[a] * N[b] * dy
+                t = w * 2.0 * r * N[a] * dN[b]
+                he[2 * a, 2 * b + 1] += t
+                he[2 * b + 1, 2 * a] += t
+    return v
+
+
+@njit(cache=True)
+def cavity_assemble(x, edges, edge_dofs, edge_pos, coef, want, g_out, data_out):
+    """Cavity volume; adds ``dV/du`` into ``g_out`` (free dofs) and, for ``want >= 2``,
+    ``coef * d2V/du2`` into the CSR values ``data_out``.
+
+    Parameters
+    ----------
+    x : (n, 2) current node positions
+    edges : (m, nen) oriented cavity edges
+    edge_dofs : (m, 2 nen) free-dof index of each edge dof (-1 if constrained)
+    edge_pos : (m, 2 nen, 2 nen) position of each Hessian entry in the CSR data (-1 if dropped)
+    coef : factor applied to the Hessian (``-p`` for the load stiffness)
+    """
+    m, nen = edges.shape
+    N = np.empty(nen)
+    dN = np.empty(nen)
+    ge = np.empty(2 * nen)
+    he = np.empty((2 * nen, 2 * nen))
+    v = 0.0
+    for e in range(m):
+        v += _edge_terms(x, edges[e], N, dN, ge, he)
+        for i in range(2 * nen):
+            di = edge_dofs[e, i]
+            if di < 0:
+                continue
+            g_out[di] += ge[i]
+            if want >= 2:
+                for j in range(2 * nen):
+                    pj = edge_pos[e, i, j]
+                    if pj >= 0:
+                        data_out[pj] += coef * he[i, j]
+    return v

@@ -42,7 +42,7 @@ class SolverSettings:
     bulk_ratio : kappa / mu of the volumetric penalty of the mixed formulation
     """
 
-    tol: float = 1e-9
+    tol: float = 1e-8
     ds0: float = 0.02
     ds_max: float = 0.2
     max_steps: int = 400

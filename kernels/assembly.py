@@ -1,0 +1,268 @@
+"""Element loops for the axisymmetric mixed Gent solid: energy, residual, tangent into CSR.
+
+Formulation (documented here once): a three-field Hu-Washizu element with discontinuous
+pressure and dilatation fields in the span of the element's pressure basis ``Np`` (Q4: P0,
+i.e. mean dilatation; Q9: P1 = [1, xi, eta]). Eliminating both fields at element level with the
+volumetric energy ``kappa/2 (theta - 1)^2`` gives the reduced element energy::
+
+    Pi_e(u) = sum_q W_q psi_iso(f_q)  +  kappa/2 g^T M^-1 g,
+    g_k = sum_q W_q Np_qk (J_q - 1),   M_kl = sum_q W_q Np_qk Np_ql,
+
+whose gradient and Hessian are exact (the element pressure is ``p = kappa M^-1 g`` evaluated at
+the quadrature points). ``kappa = bulk_ratio * mu`` makes the rubber incompressible to
+``|J - 1| ~ p / kappa``; the constraint is imposed on the projected dilatation only, so the
+element does not lock. ``W_q = w_q det(J0) 2 pi R_q`` carries the axisymmetric weighting: it is
+formed in :func:`reference_geometry` and nowhere else.
+
+All arrays in, all arrays out; free-dof indices of -1 denote constrained (zero) dofs.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from snapjump_kernels.gent import gent_iso
+
+
+@njit(cache=True)
+def reference_geometry(X, conn, dN_ref, N_ref, wq):
+    """Reference-configuration quadrature data of every element.
+
+    Returns
+    -------
+    dNdX : (ne, nq, nen, 2) shape-function gradients w.r.t. (R, Z)
+    Rq : (ne, nq) reference radius at the quadrature points
+    Wq : (ne, nq) integration weights ``w_q det(J0) 2 pi R_q`` (volume of revolution)
+    min_det : smallest Jacobian determinant found (<= 0 means an inverted element)
+    """
+    ne, nen = conn.shape
+    nq = wq.shape[0]
+    dNdX = np.empty((ne, nq, nen, 2))
+    Rq = np.empty((ne, nq))
+    Wq = np.empty((ne, nq))
+    min_det = np.inf
+    for e in range(ne):
+        for q in range(nq):
+            j00 = 0.0
+            j01 = 0.0
+            j10 = 0.0
+            j11 = 0.0
+            R = 0.0
+            for a in range(nen):
+                xa = X[conn[e, a], 0]
+                ya = X[conn[e, a], 1]
+                j00 += dN_ref[q, a, 0] * xa
+                j01 += dN_ref[q, a, 1] * xa
+                j10 += dN_ref[q, a, 0] * ya
+                j11 += dN_ref[q, a, 1] * ya
+                R += N_ref[q, a] * xa
+            det = j00 * j11 - j01 * j10
+            if det < min_det:
+                min_det = det
+            # inverse of [[dR/dxi, dR/deta], [dZ/dxi, dZ/deta]]
+            i00 = j11 / det
+            i01 = -j01 / det
+            i10 = -j10 / det
+            i11 = j00 / det
+            for a in range(nen):
+                dNdX[e, q, a, 0] = dN_ref[q, a, 0] * i00 + dN_ref[q, a, 1] * i10
+                dNdX[e, q, a, 1] = dN_ref[q, a, 0] * i01 + dN_ref[q, a, 1] * i11
+            Rq[e, q] = R
+            Wq[e, q] = wq[q] * det * 2.0 * np.pi * R
+    return dNdX, Rq, Wq, min_det
+
+
+@njit(cache=True)
+def pressure_mass_inverse(Wq, Np):
+    """``M^-1`` per element, ``M_kl = sum_q W_q Np_qk Np_ql``; shape (ne, np, np)."""
+    ne, nq = Wq.shape
+    npr = Np.shape[1]
+    Minv = np.empty((ne, npr, npr))
+    for e in range(ne):
+        M = np.zeros((npr, npr))
+        for q in range(nq):
+            for k in range(npr):
+                for m in range(npr):
+                    M[k, m] += Wq[e, q] * Np[q, k] * Np[q, m]
+        Minv[e] = np.linalg.inv(M)
+    return Minv
+
+
+@njit(cache=True)
+def _deformation(u, conn_e, dNdX_eq, N_q, R_q, f):
+    f[0] = 1.0
+    f[1] = 0.0
+    f[2] = 0.0
+    f[3] = 1.0
+    ur = 0.0
+    for a in range(conn_e.shape[0]):
+        n = conn_e[a]
+        f[0] += u[n, 0] * dNdX_eq[a, 0]
+        f[1] += u[n, 0] * dNdX_eq[a, 1]
+        f[2] += u[n, 1] * dNdX_eq[a, 0]
+        f[3] += u[n, 1] * dNdX_eq[a, 1]
+        ur += u[n, 0] * N_q[a]
+    f[4] = 1.0 + ur / R_q
+
+
+@njit(cache=True)
+def _bt_vec(dNdX_eq, N_q, R_q, v, out, scale):
+    """out += scale * B^T v for the 5-component vector ``v`` (B maps element dofs to f)."""
+    for a in range(dNdX_eq.shape[0]):
+        out[2 * a] += scale * (dNdX_eq[a, 0] * v[0] + dNdX_eq[a, 1] * v[1] + N_q[a] / R_q * v[4])
+        out[2 * a + 1] += scale * (dNdX_eq[a, 0] * v[2] + dNdX_eq[a, 1] * v[3])
+
+
+@njit(cache=True)
+def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, epos, want, f_out, data_out):
+    """Strain energy, and for ``want >= 1`` the internal force, for ``want >= 2`` the tangent.
+
+    Parameters
+    ----------
+    u : (n, 2) nodal displacements
+    conn : (ne, nen) connectivity; mat : (ne,) material index into ``mu``, ``jm``, ``kappa``
+    dNdX, Rq, Wq : from :func:`reference_geometry`; N_ref (nq, nen); Np (nq, np); Minv (ne, np, np)
+    edofs : (ne, 2 nen) free-dof index of each element dof, -1 if constrained
+    epos : (ne, 2 nen, 2 nen) CSR data position of each element matrix entry, -1 if dropped
+    want : 0 energy, 1 + residual, 2 + tangent
+    f_out, data_out : accumulated into (zero them before the call)
+
+    Returns
+    -------
+    (energy, ok, max_abs_J_minus_1)
+        ``ok`` is False if any quadrature point left the Gent domain (a failed iterate).
+    """
+    ne, nen = conn.shape
+    nq = Wq.shape[1]
+    npr = Np.shape[1]
+    nd = 2 * nen
+    f = np.empty(5)
+    dpsi = np.zeros(5)
+    d2psi = np.zeros((5, 5))
+    dJ = np.empty(5)
+    d2J = np.empty((5, 5))
+    Jq = np.empty(nq)
+    dJq = np.empty((nq, 5))
+    d2Jq = np.empty((nq, 5, 5))
+    fe = np.empty(nd)
+    Ke = np.empty((nd, nd))
+    G = np.empty((nd, npr))
+    g = np.empty(npr)
+    pb = np.empty(npr)
+    DB = np.empty((5, nd))
+    D = np.empty((5, 5))
+    energy = 0.0
+    maxdev = 0.0
+    for e in range(ne):
+        m_ = mat[e]
+        mu_e = mu[m_]
+        jm_e = jm[m_]
+        ka = kappa[m_]
+        fe[:] = 0.0
+        if want >= 2:
+            Ke[:, :] = 0.0
+            G[:, :] = 0.0
+        g[:] = 0.0
+        # pass 1: isochoric part, J at every point
+        for q in range(nq):
+            _deformation(u, conn[e], dNdX[e, q], N_ref[q], Rq[e, q], f)
+            ok, psi, J = gent_iso(f, mu_e, jm_e, want, dpsi, d2psi, dJ, d2J)
+            if not ok:
+                return energy, False, maxdev
+            W = Wq[e, q]
+            energy += W * psi
+            Jq[q] = J
+            dev = abs(J - 1.0)
+            if dev > maxdev:
+                maxdev = dev
+            for k in range(5):
+                dJq[q, k] = dJ[k]
+                for m in range(5):
+                    d2Jq[q, k, m] = d2J[k, m]
+            for k in range(npr):
+                g[k] += W * Np[q, k] * (J - 1.0)
+            if want >= 1:
+                _bt_vec(dNdX[e, q], N_ref[q], Rq[e, q], dpsi, fe, W)
+            if want >= 2:
+                for k in range(npr):
+                    _bt_vec(dNdX[e, q], N_ref[q], Rq[e, q], dJ, G[:, k], W * Np[q, k])
+                for k in range(5):
+                    for m in range(5):
+                        D[k, m] = W * d2psi[k, m]
+                _add_btdb(dNdX[e, q], N_ref[q], Rq[e, q], D, DB, Ke)
+        # volumetric part: pbar = kappa M^-1 g
+        vol = 0.0
+        for k in range(npr):
+            s = 0.0
+            for m in range(npr):
+                s += Minv[e, k, m] * g[m]
+            pb[k] = ka * s
+            vol += 0.5 * g[k] * pb[k]
+        energy += vol
+        if want >= 1:
+            for q in range(nq):
+                pq = 0.0
+                for k in range(npr):
+                    pq += Np[q, k] * pb[k]
+                _bt_vec(dNdX[e, q], N_ref[q], Rq[e, q], dJq[q], fe, Wq[e, q] * pq)
+                if want >= 2:
+                    for k in range(5):
+                        for m in range(5):
+                            D[k, m] = Wq[e, q] * pq * d2Jq[q, k, m]
+                    _add_btdb(dNdX[e, q], N_ref[q], Rq[e, q], D, DB, Ke)
+        if want >= 2:
+            # kappa G M^-1 G^T
+            for i in range(nd):
+                for k in range(npr):
+                    s = 0.0
+                    for m in range(npr):
+                        s += Minv[e, k, m] * G[i, m]
+                    s *= ka
+                    for j in range(nd):
+                        Ke[i, j] += s * G[j, k]
+        # scatter
+        if want >= 1:
+            for i in range(nd):
+                di = edofs[e, i]
+                if di >= 0:
+                    f_out[di] += fe[i]
+                    if want >= 2:
+                        for j in range(nd):
+                            pj = epos[e, i, j]
+                            if pj >= 0:
+                                data_out[pj] += Ke[i, j]
+    return energy, True, maxdev
+
+
+@njit(cache=True)
+def _add_btdb(dNdX_eq, N_q, R_q, D, DB, Ke):
+    """Ke += B^T D B for one quadrature point (B is sparse: 3 rows per u_r dof, 2 per u_z dof)."""
+    nen = dNdX_eq.shape[0]
+    for k in range(5):
+        for a in range(nen):
+            bx = dNdX_eq[a, 0]
+            by = dNdX_eq[a, 1]
+            bn = N_q[a] / R_q
+            DB[k, 2 * a] = D[k, 0] * bx + D[k, 1] * by + D[k, 4] * bn
+            DB[k, 2 * a + 1] = D[k, 2] * bx + D[k, 3] * by
+    for a in range(nen):
+        bx = dNdX_eq[a, 0]
+        by = dNdX_eq[a, 1]
+        bn = N_q[a] / R_q
+        for j in range(2 * nen):
+            Ke[2 * a, j] += bx * DB[0, j] + by * DB[1, j] + bn * DB[4, j]
+            Ke[2 * a + 1, j] += bx * DB[2, j] + by * DB[3, j]
+
+
+@njit(cache=True)
+def quadrature_jacobians(u, conn, dNdX, N_ref, Rq):
+    """``J`` at every quadrature point, shape (ne, nq) (a diagnostic: volume preservation)."""
+    ne = conn.shape[0]
+    nq = Rq.shape[1]
+    out = np.empty((ne, nq))
+    f = np.empty(5)
+    for e in range(ne):
+        for q in range(nq):
+            _deformation(u, conn[e], dNdX[e, q], N_ref[q], Rq[e, q], f)
+            out[e, q] = (f[0] * f[3] - f[1] * f[2]) * f[4]
+    return out

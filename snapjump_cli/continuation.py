@@ -1,0 +1,264 @@
+"""Arc-length continuation (modified Riks) over a small problem interface.
+
+The continuation sees only (see :mod:`snapjump_cli.model`): ``n``, ``residual(u, p)``,
+``measures(u, p)`` and ``factor_bordered(u, p, c_u, c_p)``. The arc length is measured in the
+space of scaled path measures ``zeta = (V / s_V, p / s_p, w / s_w)`` (cavity volume, pressure,
+pole displacement), so a step means the same thing for every design and neither u nor p
+dominates it. Each step is a Riks step: the corrector stays on the hyperplane orthogonal to the
+unit tangent ``t`` at the previous point, ``t . (zeta - zeta_0) = ds``, solved together with the
+equilibrium equations as one bordered system ``[[K_T, dR/dp], [c_u^T, c_p]]``, which stays
+regular at limit points in pressure and in volume. The tangent at a converged point solves the
+same system with right-hand side ``[0, 1]``; its orientation follows the previous tangent
+automatically (``t_prev . t_new > 0``).
+
+Step control: the step grows when Newton converges fast and the tangent turns little, and is cut
+back (halved, then retried) on a failed corrector, a Gent-domain violation or a tangent that
+turns by more than ``max_turn_deg`` (which would skip small folds; SPEC pitfall b).
+"""
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Problem", "PathPoint", "Path", "ContinuationFailed", "ContinuationSettings", "trace", "Tracer"]
+
+
+class Problem(Protocol):
+    n: int
+
+    def residual(self, u: np.ndarray, p: float) -> np.ndarray | None: ...
+
+    def measures(self, u: np.ndarray, p: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+    def factor_bordered(self, u: np.ndarray, p: float, c_u: np.ndarray, c_p: float): ...
+
+
+class ContinuationFailed(RuntimeError):
+    """The path could not be continued; the message gives the cause."""
+
+
+@dataclass(frozen=True)
+class ContinuationSettings:
+    """Scaled-unit settings of :func:`trace` (see :class:`snapjump_cli.settings.SolverSettings`)."""
+
+    scales: tuple[float, float, float]
+    tol: float = 1e-8
+    ds0: float = 0.05
+    ds_max: float = 0.5
+    ds_min: float = 1e-7
+    max_steps: int = 400
+    max_newton: int = 8
+    max_turn_deg: float = 10.0
+    n_opt: int = 4
+
+
+@dataclass
+class PathPoint:
+    """A converged equilibrium state with its unit tangent in measure space."""
+
+    u: np.ndarray
+    p: float
+    zeta: np.ndarray  # scaled measures (V/sV, p/sp, w/sw)
+    tangent: np.ndarray  # d zeta / ds (unit)
+    du_ds: np.ndarray  # du/ds
+    dp_ds: float
+    s: float  # arc length from the start
+    newton: int = 0
+
+
+@dataclass
+class Path:
+    points: list[PathPoint] = field(default_factory=list)
+    n_newton: int = 0
+    n_rejected: int = 0
+    stop_reason: str = ""
+
+
+class Tracer:
+    """Stateful helper around a problem: Newton corrections and tangents.
+
+    Parameters
+    ----------
+    problem : the problem interface
+    settings : continuation settings
+    """
+
+    def __init__(self, problem: Problem, settings: ContinuationSettings) -> None:
+        self.pb = problem
+        self.cfg = settings
+        self.sc = np.asarray(settings.scales, float)
+        self.n_newton = 0
+
+    # ---- measures -----------------------------------------------------------------------------
+    def zeta(self, u, p):
+        z, dz_du, dz_dp = self.pb.measures(u, p)
+        return z / self.sc, dz_du / self.sc[:, None], dz_dp / self.sc
+
+    def tangent(self, u: np.ndarray, p: float, t_prev: np.ndarray):
+        """Unit tangent at a converged state, oriented along ``t_prev`` (in measure space)."""
+        z, dz_du, dz_dp = self.zeta(u, p)
+        c_u = t_prev @ dz_du
+        c_p = float(t_prev @ dz_dp)
+        solver = self.pb.factor_bordered(u, p, c_u, c_p)
+        if solver is None:
+            raise ContinuationFailed("singular or invalid bordered matrix at a converged state")
+        rhs = np.zeros(self.pb.n + 1)
+        rhs[-1] = 1.0
+        x = solver.solve(rhs)
+        v, q = x[:-1], x[-1]
+        dz = dz_du @ v + dz_dp * q
+        nrm = float(np.linalg.norm(dz))
+        if not np.isfinite(nrm) or nrm == 0.0:
+            raise ContinuationFailed("degenerate tangent (no change of volume, pressure or pole)")
+        return dz / nrm, v / nrm, q / nrm, z
+
+    def correct(self, u, p, z0, t, ds, target=None):
+        """Newton on ``R = 0`` and a linear constraint in measure space.
+
+        With ``target=None`` the constraint is the Riks hyperplane ``t . (zeta - z0) = ds``;
+        with ``target=(k, value)`` it fixes one scaled measure, ``zeta_k = value``.
+
+        Returns ``(u, p, iterations)`` or ``None`` on failure.
+        """
+        cfg = self.cfg
+        u = u.copy()
+        ref = None
+        step_small = False
+        for it in range(1, cfg.max_newton + 1):
+            R = self.pb.residual(u, p)
+            if R is None:
+                return None
+            z, dz_du, dz_dp = self.zeta(u, p)
+            if target is None:
+                h = float(t @ (z - z0) - ds)
+                c_u = t @ dz_du
+                c_p = float(t @ dz_dp)
+            else:
+                k, val = target
+                h = float(z[k] - val)
+                c_u = dz_du[k]
+                c_p = float(dz_dp[k])
+            # residual scale: the pressure load |p| |dV/du| (floored at 1e-3 of the pressure scale)
+            ref = float(np.linalg.norm(dz_du[0])) * self.sc[0] * max(abs(p), 1e-3 * self.sc[1])
+            rn = float(np.linalg.norm(R)) / ref
+            if it > 1 and abs(h) < cfg.tol * max(1.0, abs(ds)):
+                # converged: small residual, or a negligible correction with the residual at its
+                # round-off floor (which grows with the bulk modulus of the mixed element)
+                if rn < cfg.tol or (step_small and rn < 100.0 * cfg.tol):
+                    self.n_newton += it - 1
+                    return u, p, it - 1
+            solver = self.pb.factor_bordered(u, p, c_u, c_p)
+            if solver is None:
+                return None
+            x = solver.solve(np.concatenate([-R, [-h]]))
+            du, dp = x[:-1], x[-1]
+            if not (np.all(np.isfinite(du)) and np.isfinite(dp)):
+                return None
+            u += du
+            p += dp
+            step_small = float(np.linalg.norm(dz_du @ du + dz_dp * dp)) < 1e-12
+            # converged on the increment as well (quadratic convergence: one more residual check)
+        R = self.pb.residual(u, p)
+        if R is not None and ref is not None and np.linalg.norm(R) / ref < cfg.tol:
+            self.n_newton += cfg.max_newton
+            return u, p, cfg.max_newton
+        return None
+
+    def step(self, pt: PathPoint, ds: float):
+        """One predictor-corrector step of length ``ds`` from ``pt``; ``PathPoint`` or ``None``."""
+        u0 = pt.u + ds * pt.du_ds
+        p0 = pt.p + ds * pt.dp_ds
+        res = self.correct(u0, p0, pt.zeta, pt.tangent, ds)
+        if res is None:
+            return None
+        u, p, it = res
+        try:
+            t, v, q, z = self.tangent(u, p, pt.tangent)
+        except ContinuationFailed:
+            return None
+        return PathPoint(u, p, z, t, v, q, pt.s + ds, it)
+
+
+def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0) -> PathPoint:
+    """The first path point (a converged state, e.g. the stress-free reference), oriented so
+    that the cavity volume increases."""
+    t_prev = np.array([1.0, 0.0, 0.0])
+    t, v, q, z = tracer.tangent(u0, p0, t_prev)
+    return PathPoint(u0.copy(), p0, z, t, v, q, 0.0, 0)
+
+
+def turn_angle(t1: np.ndarray, t2: np.ndarray) -> float:
+    """Angle between two unit tangents, degrees."""
+    return math.degrees(math.acos(max(-1.0, min(1.0, float(t1 @ t2)))))
+
+
+def trace(
+    problem: Problem,
+    settings: ContinuationSettings,
+    stop: Callable[[Path], str | None],
+    u0: np.ndarray | None = None,
+    tracer: Tracer | None = None,
+) -> Path:
+    """Trace the equilibrium path from the stress-free state until ``stop(path)`` returns a reason.
+
+    Parameters
+    ----------
+    problem : the problem interface
+    settings : continuation settings (scaled units)
+    stop : called after every accepted step; a non-empty string ends the trace (the reason)
+    u0 : initial displacement (default zeros)
+
+    Raises
+    ------
+    ContinuationFailed
+        if the step had to be cut below ``ds_min`` (the message names the cause and state)
+    """
+    cfg = settings
+    tr = tracer or Tracer(problem, settings)
+    if u0 is None:
+        u0 = np.zeros(problem.n)
+    path = Path()
+    path.points.append(start_point(tr, u0))
+    ds = cfg.ds0
+    while True:
+        if len(path.points) > cfg.max_steps:
+            path.stop_reason = "max_steps"
+            break
+        pt = path.points[-1]
+        new = tr.step(pt, ds)
+        if new is not None:
+            ang = turn_angle(pt.tangent, new.tangent)
+            if ang > cfg.max_turn_deg and ds > 4 * cfg.ds_min:
+                new = None
+                cause = f"tangent turned {ang:.1f} deg"
+            else:
+                path.points.append(new)
+                path.n_newton = tr.n_newton
+                reason = stop(path)
+                if reason:
+                    path.stop_reason = reason
+                    break
+                grow = math.sqrt(cfg.n_opt / max(new.newton, 1))
+                if ang > 0:
+                    grow = min(grow, 0.5 * cfg.max_turn_deg / ang)
+                ds = min(cfg.ds_max, ds * min(2.0, max(0.5, grow)))
+                continue
+        else:
+            cause = "corrector did not converge"
+        path.n_rejected += 1
+        ds *= 0.5
+        log.debug("step rejected (%s); ds -> %.3g", cause, ds)
+        if ds < cfg.ds_min:
+            z = pt.zeta * tr.sc
+            raise ContinuationFailed(
+                f"step cut below ds_min={cfg.ds_min:g} ({cause}) at V={z[0]:.6g}, p={z[1]:.6g} (scaled), "
+                f"after {len(path.points) - 1} steps"
+            )
+    path.n_newton = tr.n_newton
+    return path
