@@ -1,0 +1,684 @@
+"""Structured quadrilateral meshes of the axisymmetric scenes (gmsh, in-process).
+
+Every cap is one transfinite, recombined surface bounded by the symmetry axis, two circular arcs
+(its lower and upper surfaces) and its base segment; the ring under an inner cap is a row of
+transfinite rectangles whose top face is split wherever a cap base starts or ends, so that all
+glued interfaces share their nodes (the geometric points and curves are shared, hence the mesh is
+conforming by construction). Order 2 gives 9-node quads (``Mesh.SecondOrderIncomplete = 0``) whose
+mid-edge nodes lie on the exact arcs.
+
+Density (``MeshSettings``): ``nt`` elements through each cap's thickness; along each arc the
+element length is at most ``aspect * t / nt``; the ring gets ``ceil(t_ring / h)`` elements through
+its thickness (``h = t_i / nt``) and free ring faces at most ``aspect`` times the ring's element
+thickness along them.
+
+Cross-section points of a design (paper S1, Fig. S1/S2): 1, 2 inner poles (lower, upper), 3, 4
+outer poles, 5 outer cap's outer base corner, 6 the shared corner of both caps, 7 inner cap's inner
+base corner, 8-9-10 ring corners. When ``x5 > x10`` (a thick, shallow outer cap overhangs the ring)
+the outer cap's base is split at ``x10`` and its part beyond ``x10`` is a free surface.
+
+Edge sets other than ``cavity`` run from the pole towards the base (surfaces) or towards +r
+(``ground``, ``base``). Single caps: ``inner_upper`` / ``inner_lower`` are the only cap's surfaces
+(as ``pole_lower`` / ``pole_upper`` are its poles); an outer cap alone also has them under
+``outer_upper`` / ``outer_lower``.
+"""
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from snapjump_cli.geometry import CapScene, Design, cap_points, cap_volumes, design_points, design_volumes
+from snapjump_cli.meshdata import REGION_INNER_CAP, REGION_OUTER_CAP, REGION_RING, Mesh
+from snapjump_cli.settings import MeshSettings
+
+__all__ = [
+    "mesh_scene",
+    "write_mesh",
+    "element_volumes",
+    "solid_volumes",
+    "jacobian_dets",
+    "boundary_volume",
+    "gmsh_session",
+    "MESH_SUFFIXES",
+    "SNAP_TOL",
+]
+
+log = logging.getLogger(__name__)
+
+#: File formats :func:`write_mesh` understands.
+MESH_SUFFIXES = (".msh", ".vtu")
+#: Relative (to R_i) distance under which x5 and x10 are taken as the same point.
+SNAP_TOL = 1e-9
+
+REGION_NAMES = {REGION_INNER_CAP: "inner_cap", REGION_RING: "ring", REGION_OUTER_CAP: "outer_cap"}
+
+
+# ------------------------------------------------------------------------------------------------
+# gmsh session
+# ------------------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def gmsh_session(model_name: str = "snapjump"):
+    """Initialise gmsh quietly (no GUI, no config files, no signal handler), yield the module and
+    always finalise it, even on error. If gmsh was already initialised by the caller, a fresh model
+    is added and removed instead of finalising."""
+    import gmsh
+
+    owner = not gmsh.isInitialized()
+    if owner:
+        gmsh.initialize(readConfigFiles=False, interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("General.Verbosity", 0)
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.model.add(model_name)
+        yield gmsh
+    finally:
+        if owner:
+            gmsh.finalize()
+        else:  # pragma: no cover - only when embedded in a caller's gmsh session
+            with contextlib.suppress(Exception):
+                gmsh.model.remove()
+
+
+# ------------------------------------------------------------------------------------------------
+# Shape functions (gmsh node order) and element integrals
+# ------------------------------------------------------------------------------------------------
+_Q9_REF = np.array(
+    [[-1, -1], [1, -1], [1, 1], [-1, 1], [0, -1], [1, 0], [0, 1], [-1, 0], [0, 0]], dtype=float
+)
+
+
+def _lagrange1d(order: int, nodes1d: np.ndarray, s: np.ndarray):
+    """Values and derivatives of the 1D Lagrange polynomial attached to coordinate ``nodes1d``."""
+    if order == 1:
+        L = 0.5 * (1.0 + nodes1d[None, :] * s[:, None])
+        dL = 0.5 * nodes1d[None, :] * np.ones_like(s)[:, None]
+        return L, dL
+    c = nodes1d[None, :]
+    ss = s[:, None]
+    L = np.where(c == 0, 1.0 - ss**2, 0.5 * ss * (ss + c))
+    dL = np.where(c == 0, -2.0 * ss, ss + 0.5 * c)
+    return L, dL
+
+
+def _shape(order: int, xi: np.ndarray, eta: np.ndarray):
+    """``N`` (nq, nen) and ``dN`` (nq, nen, 2) of Q4 / Q9 in gmsh order at points (xi, eta)."""
+    ref = _Q9_REF[:4] if order == 1 else _Q9_REF
+    Lx, dLx = _lagrange1d(order, ref[:, 0], xi)
+    Ly, dLy = _lagrange1d(order, ref[:, 1], eta)
+    N = Lx * Ly
+    dN = np.stack([dLx * Ly, Lx * dLy], axis=-1)
+    return N, dN
+
+
+def _gauss(order: int):
+    if order == 1:
+        g = np.array([-1.0, 1.0]) / math.sqrt(3.0)
+        w = np.array([1.0, 1.0])
+    else:
+        g = np.array([-math.sqrt(0.6), 0.0, math.sqrt(0.6)])
+        w = np.array([5.0, 8.0, 5.0]) / 9.0
+    xi, eta = np.meshgrid(g, g, indexing="ij")
+    ww = np.outer(w, w)
+    return xi.ravel(), eta.ravel(), ww.ravel()
+
+
+def _geometry_at_gauss(nodes: np.ndarray, elements: np.ndarray, order: int):
+    xi, eta, w = _gauss(order)
+    N, dN = _shape(order, xi, eta)
+    X = nodes[elements]  # (ne, nen, 2)
+    r = np.einsum("qa,ea->eq", N, X[:, :, 0])
+    J = np.einsum("qak,eai->eqik", dN, X)
+    det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+    return r, det, w
+
+
+def jacobian_dets(nodes: np.ndarray, elements: np.ndarray, order: int) -> np.ndarray:
+    """Jacobian determinants ``det(d(r, y)/d(xi, eta))`` at the Gauss points, shape (ne, nq)
+    (2x2 points for Q4, 3x3 for Q9). Positive everywhere for a valid counter-clockwise mesh."""
+    return _geometry_at_gauss(np.asarray(nodes, float), np.asarray(elements), order)[1]
+
+
+def boundary_volume(nodes: np.ndarray, edges: np.ndarray) -> float:
+    """``pi * sum over edges of integral r^2 dy`` (numpy twin of ``snapjump_kernels.cavity.
+    cavity_volume``; 3-point Gauss is exact for linear and quadratic edges)."""
+    s = np.array([-math.sqrt(0.6), 0.0, math.sqrt(0.6)])
+    w = np.array([5.0, 8.0, 5.0]) / 9.0
+    if edges.shape[1] == 2:
+        N = np.stack([0.5 * (1 - s), 0.5 * (1 + s)], axis=1)
+        dN = np.tile([-0.5, 0.5], (3, 1))
+    else:  # start, end, mid
+        N = np.stack([0.5 * s * (s - 1), 0.5 * s * (s + 1), 1 - s * s], axis=1)
+        dN = np.stack([s - 0.5, s + 0.5, -2 * s], axis=1)
+    X = nodes[edges]  # (m, nen, 2)
+    r = np.einsum("qa,ma->mq", N, X[:, :, 0])
+    dy = np.einsum("qa,ma->mq", dN, X[:, :, 1])
+    return float(np.pi * ((r * r * dy) @ w).sum())
+
+
+def element_volumes(mesh: Mesh) -> np.ndarray:
+    """Solid volume of revolution of each element, ``sum_q w_q 2 pi r detJ`` [m^3].
+
+    Exact for the isoparametric geometry: the integrand is a polynomial of degree <= 3 (Q4) or
+    <= 5 (Q9) in each reference coordinate, integrated by 2x2 / 3x3 Gauss points.
+    """
+    r, det, w = _geometry_at_gauss(mesh.nodes, mesh.elements, mesh.order)
+    return 2.0 * np.pi * (r * det) @ w
+
+
+def solid_volumes(mesh: Mesh) -> dict[str, float]:
+    """Meshed solid volumes: ``inner_solid`` (inner cap + ring) and ``outer_solid`` [m^3]."""
+    v = element_volumes(mesh)
+    outer = mesh.region == REGION_OUTER_CAP
+    return {"inner_solid": float(v[~outer].sum()), "outer_solid": float(v[outer].sum())}
+
+
+# ------------------------------------------------------------------------------------------------
+# Geometry construction (built-in kernel; shared points and curves => conforming)
+# ------------------------------------------------------------------------------------------------
+def _count(length: float, size: float) -> int:
+    """Number of elements so that each is at most ``size`` long (at least 1)."""
+    return max(1, int(math.ceil(length / size - 1e-9)))
+
+
+class _Builder:
+    def __init__(self, gmsh):
+        self.gmsh = gmsh
+        self.geo = gmsh.model.geo
+        self.surfaces: list[tuple[int, int, int]] = []  # (tag, region, material)
+        self.curve_ends: dict[int, tuple[int, int]] = {}
+        self.coords: dict[int, tuple[float, float]] = {}
+
+    def point(self, x: float, y: float) -> int:
+        tag = self.geo.addPoint(float(x), float(y), 0.0)
+        self.coords[tag] = (float(x), float(y))
+        return tag
+
+    def line(self, p: int, q: int, n: int) -> int:
+        c = self.geo.addLine(p, q)
+        self.geo.mesh.setTransfiniteCurve(c, int(n) + 1)
+        self.curve_ends[c] = (p, q)
+        return c
+
+    def arc(self, p: int, centre: int, q: int, n: int) -> int:
+        c = self.geo.addCircleArc(p, centre, q)
+        self.geo.mesh.setTransfiniteCurve(c, int(n) + 1)
+        self.curve_ends[c] = (p, q)
+        return c
+
+    def surface(self, loop: list[int], corners: list[int], region: int, material: int) -> int:
+        cl = self.geo.addCurveLoop(loop)
+        s = self.geo.addPlaneSurface([cl])
+        self.geo.mesh.setTransfiniteSurface(s, "Left", corners)
+        self.geo.mesh.setRecombine(2, s)
+        self.surfaces.append((s, region, material))
+        return s
+
+    def cap(self, p_lo, p_up, p_bin, p_bout, centre, base_curves, lower_arc, upper_arc, axis, region, material):
+        """Cap surface bounded by lower arc (p_lo -> p_bin), base curves (p_bin -> p_bout, in
+        order), upper arc (p_up -> p_bout) and axis (p_lo -> p_up); counter-clockwise loop."""
+        loop = [lower_arc, *base_curves, -upper_arc, -axis]
+        return self.surface(loop, [p_lo, p_bin, p_bout, p_up], region, material)
+
+    def rect(self, bottom, right, top, left, corners, region, material):
+        """Rectangle; ``bottom`` runs left->right, ``right``/``left`` run upwards, ``top`` runs
+        left->right. ``corners`` = (bottom-left, bottom-right, top-right, top-left)."""
+        return self.surface([bottom, right, -top, -left], list(corners), region, material)
+
+
+class _CapGeom:
+    """Analytic data of one cap: sphere centre height, radii of its faces, base height."""
+
+    def __init__(self, cy: float, R: float, eta: float, yb: float):
+        self.cy, self.a, self.b, self.yb = cy, R * (1 - 0.5 / eta), R * (1 + 0.5 / eta), yb
+        self.t = R / eta
+        self.x_in = math.sqrt(max(self.a**2 - (yb - cy) ** 2, 0.0))
+        self.x_out = math.sqrt(max(self.b**2 - (yb - cy) ** 2, 0.0))
+
+    def arc_count(self, nt: int, aspect: float) -> int:
+        phi_a = math.atan2(self.x_in, self.yb - self.cy)
+        phi_b = math.atan2(self.x_out, self.yb - self.cy)
+        return _count(max(self.a * phi_a, self.b * phi_b), aspect * self.t / nt)
+
+
+def _build(b: _Builder, scene: Design | CapScene, s: MeshSettings) -> dict:
+    """Create the geometry and its transfinite constraints; return the bookkeeping needed to
+    extract node and edge sets (point tags, curve tags with their start points)."""
+    nt, aspect = int(s.nt), float(s.aspect)
+    bk: dict = {"points": {}, "edge_sets": {}, "node_curves": {}, "info": {}}
+    P, E = bk["points"], bk["edge_sets"]
+
+    if isinstance(scene, Design):
+        d = scene
+        pts = design_points(d)
+        yb = pts["7"][1]
+        ci = _CapGeom(0.0, d.R_i, d.eta_i, yb)
+        co = _CapGeom(d.Delta, d.R_o, d.eta_o, yb)
+        x6 = pts["6i"][0]
+        x5, x10 = pts["5"][0], pts["10"][0]
+        tol = SNAP_TOL * d.R_i
+        overhang = x5 > x10 + tol
+        coincide = abs(x5 - x10) <= tol
+        nt_i = nt
+        nt_o = max(nt, 2) if overhang else nt
+        h = ci.t / nt_i
+        n_ring = _count(d.t_ring, h)
+        h_ring = d.t_ring / n_ring
+        na_i, na_o = ci.arc_count(nt_i, aspect), co.arc_count(nt_o, aspect)
+
+        for k in ("1", "2", "3", "4", "5", "7", "8", "9", "10"):
+            if k == "10" and coincide:
+                continue
+            P[k] = b.point(*pts[k])
+        P["6"] = b.point(*pts["6i"])
+        if coincide:
+            P["10"] = P["5"]
+        c_i, c_o = b.point(0.0, 0.0), b.point(0.0, d.Delta)
+        y_g = pts["8"][1]
+        P["11"] = b.point(x6, y_g)  # ring bottom below point 6
+
+        # inner cap
+        ax_i = b.line(P["1"], P["2"], nt_i)
+        lo_i = b.arc(P["1"], c_i, P["7"], na_i)
+        up_i = b.arc(P["2"], c_i, P["6"], na_i)
+        base_i = b.line(P["7"], P["6"], nt_i)
+        b.cap(P["1"], P["2"], P["7"], P["6"], c_i, [base_i], lo_i, up_i, ax_i, REGION_INNER_CAP, 0)
+        # outer cap
+        ax_o = b.line(P["3"], P["4"], nt_o)
+        lo_o = b.arc(P["3"], c_o, P["6"], na_o)
+        up_o = b.arc(P["4"], c_o, P["5"], na_o)
+        if overhang:
+            n1 = min(max(int(round(nt_o * (x10 - x6) / (x5 - x6))), 1), nt_o - 1)
+            base_o = [b.line(P["6"], P["10"], n1), b.line(P["10"], P["5"], nt_o - n1)]
+            top_ring = [(base_o[0], P["6"], P["10"], n1)]
+        else:
+            base_o = [b.line(P["6"], P["5"], nt_o)]
+            top_ring = [(base_o[0], P["6"], P["5"], nt_o)]
+            if not coincide:
+                n_free = _count(x10 - x5, aspect * h_ring)
+                top_ring.append((b.line(P["5"], P["10"], n_free), P["5"], P["10"], n_free))
+        b.cap(P["3"], P["4"], P["6"], P["5"], c_o, base_o, lo_o, up_o, ax_o, REGION_OUTER_CAP, 1)
+        # ring: [x7, x6] under the inner cap base, then the pieces of the top face beyond x6
+        ground = _ring(b, P, (base_i, P["7"], P["6"], nt_i), top_ring, P["8"], P["11"], P["9"], n_ring)
+
+        E["cavity"] = [(up_i, P["2"]), (lo_o, P["6"])]
+        E["inner_upper"] = [(up_i, P["2"])]
+        E["inner_lower"] = [(lo_i, P["1"])]
+        E["outer_lower"] = [(lo_o, P["3"])]
+        E["outer_upper"] = [(up_o, P["4"])]
+        E["ground"] = ground
+        bk["node_curves"] = {"axis": [ax_i, ax_o], "ground": [c for c, _ in ground]}
+        bk["node_points"] = {"pole_lower": "1", "pole_upper": "2", "outer_pole_lower": "3",
+                             "outer_pole_upper": "4", "point6": "6"}
+        bk["dirichlet"] = {"dirichlet_y": ("points", ["6"]), "dirichlet_x": None}
+        bk["info"] = {"nt": {"inner_cap": nt_i, "ring": n_ring, "outer_cap": nt_o},
+                      "n_arc": {"inner_cap": na_i, "outer_cap": na_o},
+                      "overhang": bool(overhang), "x5_minus_x10": x5 - x10}
+        bk["scene"] = "design"
+        return bk
+
+    c = scene
+    cp = cap_points(c)
+    g = _CapGeom(0.0, c.R, c.eta, cp["base_inner"][1])
+    na = g.arc_count(nt, aspect)
+    region, material = (REGION_INNER_CAP, 0) if c.kind == "inner" else (REGION_OUTER_CAP, 1)
+    P["1"] = b.point(*cp["pole_lower"])
+    P["2"] = b.point(*cp["pole_upper"])
+    P["7"] = b.point(*cp["base_inner"])
+    P["6"] = b.point(*cp["base_outer"])
+    centre = b.point(0.0, 0.0)
+    ax = b.line(P["1"], P["2"], nt)
+    lo = b.arc(P["1"], centre, P["7"], na)
+    up = b.arc(P["2"], centre, P["6"], na)
+    base = b.line(P["7"], P["6"], nt)
+    b.cap(P["1"], P["2"], P["7"], P["6"], centre, [base], lo, up, ax, region, material)
+    info = {"nt": {REGION_NAMES[region]: nt}, "n_arc": {REGION_NAMES[region]: na}}
+    E["inner_upper"] = [(up, P["2"])]
+    E["inner_lower"] = [(lo, P["1"])]
+    E["base"] = [(base, P["7"])]
+    bk["node_curves"] = {"axis": [ax], "base": [base]}
+    bk["node_points"] = {"pole_lower": "1", "pole_upper": "2"}
+    if c.kind == "outer":
+        E["outer_upper"] = E["inner_upper"]
+        E["outer_lower"] = E["inner_lower"]
+        E["cavity"] = [(lo, P["7"])]  # base corner -> pole along the lower surface
+        bk["dirichlet"] = {"dirichlet_y": ("curves", [base]), "dirichlet_x": ("curves", [base])}
+        bk["scene"] = "cap-outer"
+    else:
+        E["cavity"] = [(up, P["2"])]  # pole -> base corner along the upper surface
+        bk["scene"] = "cap-inner"
+        if c.bc == "clamped":
+            bk["dirichlet"] = {"dirichlet_y": ("curves", [base]), "dirichlet_x": ("curves", [base])}
+        elif c.bc == "roller":
+            bk["dirichlet"] = {"dirichlet_y": ("curves", [base]), "dirichlet_x": None}
+        elif c.bc == "roller-point":
+            bk["dirichlet"] = {"dirichlet_y": ("points", ["6"]), "dirichlet_x": None}
+        else:  # ring-roller
+            bk["dirichlet"] = {"dirichlet_y": ("curves", [base]), "dirichlet_x": None}
+            h = g.t / nt
+            n_ring = _count(c.t_ring, h)
+            h_ring = c.t_ring / n_ring
+            P["8"] = b.point(*cp["ring_8"])
+            P["9"] = b.point(*cp["ring_9"])
+            P["10"] = b.point(*cp["ring_10"])
+            P["11"] = b.point(cp["base_outer"][0], cp["ring_8"][1])
+            n_free = _count(cp["ring_10"][0] - cp["base_outer"][0], aspect * h_ring)
+            free = b.line(P["6"], P["10"], n_free)
+            ground = _ring(b, P, (base, P["7"], P["6"], nt), [(free, P["6"], P["10"], n_free)],
+                           P["8"], P["11"], P["9"], n_ring)
+            E["ground"] = ground
+            bk["node_curves"]["ground"] = [cc for cc, _ in ground]
+            info["nt"]["ring"] = n_ring
+    bk["info"] = info
+    return bk
+
+
+def _ring(b: _Builder, P: dict, first_top, more_top, p8: int, p11: int, p9: int, n_ring: int):
+    """Row of transfinite rectangles under the ring's top-face pieces, left to right:
+    ``first_top`` over [x7, x6] and ``more_top``, each ``(curve, left point, right point, n)``
+    (curves run left to right; the last piece ends at point 10). ``p8``, ``p11``, ``p9`` are the
+    bottom points under x7, x6 and x10. Returns the ground edge set ``[(curve, start point)]``."""
+    tops = [first_top, *more_top]
+    y_g = b.coords[p8][1]
+    bottom = [p8, p11]
+    for top in tops[1:-1]:
+        bottom.append(b.point(b.coords[top[2]][0], y_g))
+    bottom.append(p9)
+    left_v = b.line(bottom[0], tops[0][1], n_ring)
+    ground = []
+    for k, (top, left, right, n) in enumerate(tops):
+        right_v = b.line(bottom[k + 1], right, n_ring)
+        bot = b.line(bottom[k], bottom[k + 1], n)
+        b.rect(bot, right_v, top, left_v, (bottom[k], bottom[k + 1], right, left), REGION_RING, 0)
+        ground.append((bot, bottom[k]))
+        left_v = right_v
+    return ground
+
+
+# ------------------------------------------------------------------------------------------------
+# Extraction, orientation, renumbering
+# ------------------------------------------------------------------------------------------------
+_QUAD_TYPES = {1: 3, 2: 10}  # gmsh element types: 4-node and 9-node quadrangles
+_LINE_TYPES = {1: 1, 2: 8}  # 2-node and 3-node lines (start, end, mid)
+_FLIP = {1: np.array([0, 3, 2, 1]), 2: np.array([0, 3, 2, 1, 7, 6, 5, 4, 8])}
+
+
+def _chain(edges: np.ndarray, start: int) -> np.ndarray:
+    """Order and orient the edges of a simple open curve so that it starts at node ``start``."""
+    m = edges.shape[0]
+    at: dict[int, list[int]] = {}
+    for k in range(m):
+        at.setdefault(int(edges[k, 0]), []).append(k)
+        at.setdefault(int(edges[k, 1]), []).append(k)
+    out = np.empty_like(edges)
+    used = np.zeros(m, bool)
+    node = int(start)
+    for i in range(m):
+        cand = [k for k in at.get(node, []) if not used[k]]
+        if len(cand) != 1:
+            raise RuntimeError(f"edge chain broken at node {node} ({len(cand)} continuations)")
+        k = cand[0]
+        used[k] = True
+        e = edges[k].copy()
+        if e[0] != node:
+            e[0], e[1] = e[1], e[0]
+        out[i] = e
+        node = int(e[1])
+    return out
+
+
+def _rcm(n: int, elements: np.ndarray) -> np.ndarray:
+    """Reverse Cuthill-McKee permutation (new -> old) of the node graph of ``elements``."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    nen = elements.shape[1]
+    rows = np.repeat(elements, nen, axis=1).ravel()
+    cols = np.tile(elements, (1, nen)).ravel()
+    A = coo_matrix((np.ones(rows.size, np.int8), (rows, cols)), shape=(n, n)).tocsr()
+    return np.asarray(reverse_cuthill_mckee(A, symmetric_mode=True), dtype=np.int64)
+
+
+def _half_bandwidth(elements: np.ndarray) -> int:
+    return int((elements.max(axis=1) - elements.min(axis=1)).max()) if elements.size else 0
+
+
+def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()) -> Mesh:
+    """Mesh a design (inner cap + ring + outer cap) or a single cap; see the module docstring.
+
+    Returns a :class:`~snapjump_cli.meshdata.Mesh` with compact, bandwidth-reduced (RCM) node
+    numbering, counter-clockwise elements and the node/edge sets of the scene.
+    Raises ``ValueError`` for bad mesh settings.
+    """
+    if not isinstance(scene, (Design, CapScene)):
+        raise TypeError(f"scene must be a Design or CapScene, got {type(scene).__name__}")
+    order, nt, aspect = settings.order, settings.nt, settings.aspect
+    if order not in (1, 2):
+        raise ValueError(f"mesh order must be 1 or 2, got {order!r}")
+    if isinstance(nt, bool) or not isinstance(nt, (int, np.integer)) or nt < 1:
+        raise ValueError(f"nt must be an integer >= 1, got {nt!r}")
+    if not (isinstance(aspect, (int, float)) and math.isfinite(aspect) and aspect > 0):
+        raise ValueError(f"aspect must be a finite number > 0, got {aspect!r}")
+
+    import gmsh as _gmsh  # noqa: F401  (first import is slow: keep it out of the timing)
+
+    t0 = time.perf_counter()
+    with gmsh_session() as gmsh:
+        b = _Builder(gmsh)
+        bk = _build(b, scene, settings)
+        gmsh.model.geo.synchronize()
+        gmsh.option.setNumber("Mesh.RecombineAll", 1)
+        gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 0)
+        gmsh.model.mesh.generate(2)
+        if order == 2:
+            gmsh.model.mesh.setOrder(2)
+        gmsh_version = gmsh.__version__
+
+        tags, coords, _ = gmsh.model.mesh.getNodes(returnParametricCoord=False)
+        tags = np.asarray(tags, dtype=np.int64)
+        xy = np.asarray(coords, dtype=float).reshape(-1, 3)[:, :2]
+        lookup = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
+        lookup[tags] = np.arange(tags.size)
+
+        qtype, ltype = _QUAD_TYPES[order], _LINE_TYPES[order]
+        elems, region, material = [], [], []
+        for s, reg, mat in b.surfaces:
+            types, _, ntags = gmsh.model.mesh.getElements(2, s)
+            if list(types) != [qtype]:
+                raise RuntimeError(f"surface {s}: expected only quadrangles of type {qtype}, got types {list(types)}")
+            conn = lookup[np.asarray(ntags[0], dtype=np.int64)].reshape(-1, 9 if order == 2 else 4)
+            elems.append(conn)
+            region.append(np.full(conn.shape[0], reg, np.int8))
+            material.append(np.full(conn.shape[0], mat, np.int8))
+
+        def curve_edges(c: int) -> np.ndarray:
+            types, _, ntags = gmsh.model.mesh.getElements(1, abs(c))
+            if list(types) != [ltype]:
+                raise RuntimeError(f"curve {c}: expected line elements of type {ltype}, got {list(types)}")
+            return lookup[np.asarray(ntags[0], dtype=np.int64)].reshape(-1, order + 1)
+
+        def point_node(p: int) -> int:
+            nt_, _, _ = gmsh.model.mesh.getNodes(0, p, returnParametricCoord=False)
+            return int(lookup[int(nt_[0])])
+
+        def curve_nodes(c: int) -> np.ndarray:
+            nt_, _, _ = gmsh.model.mesh.getNodes(1, abs(c), includeBoundary=True, returnParametricCoord=False)
+            return lookup[np.asarray(nt_, dtype=np.int64)]
+
+        P = bk["points"]
+        edge_sets = {
+            name: np.concatenate([_chain(curve_edges(c), point_node(p0)) for c, p0 in parts])
+            for name, parts in bk["edge_sets"].items()
+        }
+        node_sets = {name: np.unique(np.concatenate([curve_nodes(c) for c in cs]))
+                     for name, cs in bk["node_curves"].items()}
+        for name, key in bk["node_points"].items():
+            node_sets[name] = np.array([point_node(P[key])], dtype=np.int64)
+        for name in ("dirichlet_x", "dirichlet_y"):
+            spec = bk["dirichlet"][name]
+            if spec is None:
+                node_sets[name] = np.zeros(0, np.int64)
+            elif spec[0] == "points":
+                node_sets[name] = np.array([point_node(P[k]) for k in spec[1]], dtype=np.int64)
+            else:
+                node_sets[name] = np.unique(np.concatenate([curve_nodes(c) for c in spec[1]]))
+    t_gmsh = time.perf_counter() - t0
+
+    elements = np.concatenate(elems).astype(np.int64)
+    region = np.concatenate(region)
+    material = np.concatenate(material)
+
+    # every node used, none duplicated (gmsh may keep unused nodes only on points such as centres)
+    used = np.zeros(xy.shape[0], bool)
+    used[elements.ravel()] = True
+    if not used.all():
+        keep = np.flatnonzero(used)
+        remap = np.full(xy.shape[0], -1, np.int64)
+        remap[keep] = np.arange(keep.size)
+        xy = xy[keep]
+        elements = remap[elements]
+        edge_sets = {k: remap[v] for k, v in edge_sets.items()}
+        node_sets = {k: remap[v] for k, v in node_sets.items()}
+    nodes = np.ascontiguousarray(xy)
+    nodes[node_sets["axis"], 0] = 0.0
+
+    # counter-clockwise elements (positive Jacobian at every Gauss point)
+    det = jacobian_dets(nodes, elements, order)
+    neg = (det <= 0).all(axis=1)
+    elements[neg] = elements[neg][:, _FLIP[order]]
+    if neg.any():
+        det = jacobian_dets(nodes, elements, order)
+    if not (det > 0).all():
+        bad = int(np.flatnonzero((det <= 0).any(axis=1))[0])
+        raise RuntimeError(f"element {bad} has a non-positive Jacobian (min {det[bad].min():.3g}): invalid mesh")
+
+    # bandwidth reduction: reverse Cuthill-McKee, then elements sorted by their lowest node
+    perm = _rcm(nodes.shape[0], elements)
+    inv = np.empty_like(perm)
+    inv[perm] = np.arange(perm.size)
+    nodes = nodes[perm]
+    elements = inv[elements]
+    eorder = np.lexsort((np.arange(elements.shape[0]), elements.min(axis=1)))
+    elements, region, material = elements[eorder], region[eorder], material[eorder]
+    node_sets = {k: np.sort(inv[v]).astype(np.int64) for k, v in node_sets.items()}
+    edge_sets = {k: inv[v].astype(np.int64) for k, v in edge_sets.items()}
+
+    offset = 0.0
+    if bk["scene"] != "design":
+        offset = -boundary_volume(nodes, edge_sets["cavity"])  # V(X) = 0 exactly (meshed)
+    info = dict(bk["info"])
+    info.update(
+        order=order, nt_setting=nt, aspect=float(aspect), n_nodes=int(nodes.shape[0]),
+        n_elements=int(elements.shape[0]), half_bandwidth=_half_bandwidth(elements),
+        gmsh_version=gmsh_version, gmsh_s=t_gmsh, mesh_s=time.perf_counter() - t0,
+    )
+    if bk["scene"] != "design":
+        info["V_under_exact"] = cap_volumes(scene)["under"]
+    mesh = Mesh(
+        nodes=nodes, elements=elements, order=order, region=region, material=material,
+        node_sets=node_sets, edge_sets=edge_sets, cavity_volume_offset=offset,
+        scene=bk["scene"], info=info,
+    )
+    log.debug("meshed %s: %d nodes, %d elements in %.1f ms", mesh.scene, mesh.n_nodes, mesh.n_elements,
+              1e3 * info["mesh_s"])
+    return mesh
+
+
+# ------------------------------------------------------------------------------------------------
+# Output
+# ------------------------------------------------------------------------------------------------
+def write_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
+    """Write ``mesh`` to ``path``: ``.msh`` (gmsh 4.1, physical groups per region and edge set)
+    or ``.vtu`` (VTK XML, cell data ``region`` / ``material``). Written to a temporary file in the
+    same folder and renamed, so a failed write leaves nothing behind. Returns the path."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        raise ValueError(f"mesh file must end in {' or '.join(MESH_SUFFIXES)}, got {str(path)!r}")
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.partial{suffix}")
+    try:
+        if suffix == ".msh":
+            _write_msh(mesh, tmp)
+        else:
+            _write_vtu(mesh, tmp)
+        os.replace(tmp, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+    return path
+
+
+def _write_msh(mesh: Mesh, path: Path) -> None:
+    n = mesh.n_nodes
+    with gmsh_session("snapjump_out") as gmsh:
+        m = gmsh.model
+        tags = np.arange(1, n + 1)
+        xyz = np.column_stack([mesh.nodes, np.zeros(n)]).ravel()
+        base = m.addDiscreteEntity(2)
+        m.mesh.addNodes(2, base, tags.tolist(), xyz.tolist())
+        qtype, ltype = _QUAD_TYPES[mesh.order], _LINE_TYPES[mesh.order]
+        next_tag = 1
+        first = True
+        for reg in sorted(set(mesh.region.tolist())):
+            sel = mesh.elements[mesh.region == reg]
+            ent = base if first else m.addDiscreteEntity(2)
+            first = False
+            etags = np.arange(next_tag, next_tag + sel.shape[0])
+            next_tag += sel.shape[0]
+            m.mesh.addElementsByType(ent, qtype, etags.tolist(), (sel + 1).ravel().tolist())
+            pg = m.addPhysicalGroup(2, [ent])
+            m.setPhysicalName(2, pg, REGION_NAMES.get(reg, f"region{reg}"))
+        for name, edges in sorted(mesh.edge_sets.items()):
+            if edges.size == 0:
+                continue
+            ent = m.addDiscreteEntity(1)
+            etags = np.arange(next_tag, next_tag + edges.shape[0])
+            next_tag += edges.shape[0]
+            m.mesh.addElementsByType(ent, ltype, etags.tolist(), (edges + 1).ravel().tolist())
+            pg = m.addPhysicalGroup(1, [ent])
+            m.setPhysicalName(1, pg, name)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.option.setNumber("Mesh.Binary", 0)
+        gmsh.write(str(path))
+
+
+_VTK_TYPES = {1: 9, 2: 28}  # VTK_QUAD, VTK_BIQUADRATIC_QUAD (same node order as gmsh)
+
+
+def _write_vtu(mesh: Mesh, path: Path) -> None:
+    n, ne, nen = mesh.n_nodes, mesh.n_elements, mesh.elements.shape[1]
+
+    def arr(a, fmt):
+        return " ".join(fmt % v for v in np.asarray(a).ravel())
+
+    pts = np.column_stack([mesh.nodes, np.zeros(n)])
+    lines = [
+        '<?xml version="1.0"?>',
+        '<VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian">',
+        "<UnstructuredGrid>",
+        f'<Piece NumberOfPoints="{n}" NumberOfCells="{ne}">',
+        '<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">',
+        arr(pts, "%.17g"),
+        "</DataArray></Points>",
+        "<Cells>",
+        '<DataArray type="Int64" Name="connectivity" format="ascii">', arr(mesh.elements, "%d"), "</DataArray>",
+        '<DataArray type="Int64" Name="offsets" format="ascii">', arr(np.arange(1, ne + 1) * nen, "%d"),
+        "</DataArray>",
+        '<DataArray type="UInt8" Name="types" format="ascii">', arr(np.full(ne, _VTK_TYPES[mesh.order]), "%d"),
+        "</DataArray>",
+        "</Cells>",
+        "<CellData>",
+        '<DataArray type="Int32" Name="region" format="ascii">', arr(mesh.region, "%d"), "</DataArray>",
+        '<DataArray type="Int32" Name="material" format="ascii">', arr(mesh.material, "%d"), "</DataArray>",
+        "</CellData>",
+        "</Piece>",
+        "</UnstructuredGrid>",
+        "</VTKFile>",
+    ]
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
