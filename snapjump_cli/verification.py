@@ -35,7 +35,7 @@ def sphere_pressure(a: float, A: float, B: float, mu: float, J_m: float) -> floa
         W1 = 0.5 * mu / (1.0 - (I1 - 3.0) / J_m)
         return 2.0 * 2.0 * W1 * (lam**2 - lam**-4) / r
 
-    val, _ = quad(integrand, a, b, epsabs=0.0, epsrel=1e-13, limit=200)
+    val, _ = quad(integrand, a, b, epsabs=0.0, epsrel=1e-10, limit=400)
     return val
 
 
