@@ -1,0 +1,393 @@
+"""Tests of the two-mass jump model (snapjump_cli.jump; SPEC section 6, reference/jump.md)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from snapjump_cli.jump import (
+    JumpParams,
+    JumpResult,
+    eigensystem,
+    jump_height,
+    jump_height_ode,
+    jump_trajectory,
+    masses,
+    spring_stiffness,
+    system_matrices,
+)
+
+RHO = 1000.0
+# paper-like inputs (SPEC section 7; volumes in m^3 times rho)
+C = dict(dE_J=31.4e-3, dy_pole_m=20.89e-3, m_i_kg=RHO * 1.1224e-5, m_o_kg=RHO * 9.170e-6)
+D = dict(dE_J=0.324, dy_pole_m=31.7e-3, m_i_kg=RHO * 2.42e-5, m_o_kg=RHO * 1.72e-5)
+# weak designs with design-C masses
+A_LIKE = dict(dE_J=0.875e-3, dy_pole_m=7.68e-3, m_i_kg=C["m_i_kg"], m_o_kg=C["m_o_kg"])
+B_LIKE = dict(dE_J=5.67e-3, dy_pole_m=7.55e-3, m_i_kg=C["m_i_kg"], m_o_kg=C["m_o_kg"])
+# over-damped (c_d^2 M > 4 k m_i m_o) and jumping
+OVER = dict(dE_J=1e-3, dy_pole_m=5e-3, m_i_kg=2e-4, m_o_kg=1e-4)
+
+
+def _critical(m_i: float = 2e-4, m_o: float = 1e-4, dy: float = 5e-3, c_d: float = 0.4) -> dict:
+    k = c_d**2 * (m_i + m_o) / (4.0 * m_i * m_o)
+    return dict(dE_J=0.5 * k * dy**2, dy_pole_m=dy, m_i_kg=m_i, m_o_kg=m_o)
+
+
+def _energy(traj, t: np.ndarray, p: JumpParams) -> np.ndarray:
+    """Kinetic + gravitational + spring energy along a trajectory (up to a constant)."""
+    yi, yo, vi, vo = traj.state(t)
+    r = traj.result
+    e = yo - yi - traj.L_rest
+    return (0.5 * r.m_i * vi**2 + 0.5 * r.m_o * vo**2 + p.g * (r.m_i * yi + r.m_o * yo)
+            + 0.5 * r.k_s * e**2)
+
+
+def _dense_times(traj, n: int = 20001) -> np.ndarray:
+    t = np.linspace(0.0, traj.t_end, n)
+    extra = [tc + s for tc in traj.contact_times for s in (-1e-9, -1e-12, 0.0, 1e-12, 1e-9)]
+    return np.unique(np.clip(np.concatenate([t, extra]), 0.0, traj.t_end))
+
+
+# ----------------------------------------------------------------------------- closed form vs ODE
+CASES = [
+    ("C h=0", C, 0.0, JumpParams()),
+    ("C h=2mm", C, 2e-3, JumpParams()),
+    ("C h=5mm", C, 5e-3, JumpParams()),
+    ("C h=10mm", C, 10e-3, JumpParams()),
+    ("D h=0", D, 0.0, JumpParams()),
+    ("D h=10mm", D, 10e-3, JumpParams()),
+    ("D h=15mm", D, 15e-3, JumpParams()),
+    ("D h=20mm", D, 20e-3, JumpParams()),
+    ("B-like h=0", B_LIKE, 0.0, JumpParams()),
+    ("B-like h=1mm", B_LIKE, 1e-3, JumpParams()),
+    ("overdamped h=0", OVER, 0.0, JumpParams()),
+    ("overdamped h=0.2mm", OVER, 0.2e-3, JumpParams()),
+    ("critical h=0", _critical(), 0.0, JumpParams()),
+    ("C plastic h=3mm", C, 3e-3, JumpParams(alpha=0.0)),
+    ("C elastic h=3mm", C, 3e-3, JumpParams(alpha=1.0)),
+    ("D undamped h=5mm", D, 5e-3, JumpParams(c_d=0.0)),
+    ("D heavy damping h=5mm", D, 5e-3, JumpParams(c_d=2.0)),
+]
+
+
+@pytest.mark.parametrize("name,design,h,p", CASES, ids=[c[0] for c in CASES])
+def test_closed_form_matches_ode(name, design, h, p):
+    r = jump_height(h_imp_m=h, params=p, **design)
+    ro = jump_height_ode(h_imp_m=h, params=p, **design)
+    assert r.complete and ro.complete
+    assert r.jumped and ro.jumped, (r, ro)
+    assert r.y_jump_m > h
+    assert abs(r.y_jump_m - ro.y_jump_m) <= 1e-9 * r.y_jump_m, (r.y_jump_m, ro.y_jump_m)
+    assert abs(r.t_peak_s - ro.t_peak_s) <= 1e-8 * r.t_peak_s
+    assert r.n_contacts == ro.n_contacts
+    assert r.lift_off and ro.lift_off and r.reason == ro.reason == ""
+    assert r.method == "closed-form" and ro.method == "ode"
+
+
+def test_weak_design_never_leaves_ground():
+    for fn in (jump_height, jump_height_ode):
+        r = fn(h_imp_m=0.0, **A_LIKE)
+        assert r.y_jump_m == 0.0 and r.t_peak_s == 0.0
+        assert not r.jumped and not r.lift_off
+        assert r.reason == "never leaves the ground"
+        assert r.complete and r.n_contacts == 0
+        # started above the ground it falls, bounces, and never regains its start height
+        r = fn(h_imp_m=3e-3, **A_LIKE)
+        assert r.y_jump_m == 3e-3 and r.t_peak_s == 0.0 and r.rise_m == 0.0
+        assert not r.jumped and r.lift_off and r.n_contacts >= 1
+        assert r.reason == "never rises above its start height h_imp"
+
+
+def test_weak_design_stays_on_ground_in_trajectory():
+    traj = jump_trajectory(h_imp_m=0.0, **A_LIKE)
+    t = np.linspace(0.0, traj.t_end, 2001)
+    yi, _, vi, _ = traj.state(t)
+    assert np.all(yi == 0.0) and np.all(vi == 0.0)
+    assert traj.phases[0][0] == "rest"
+
+
+@pytest.mark.parametrize("fn", [jump_height, jump_height_ode])
+@pytest.mark.parametrize("dE,dy,fragment", [(0.0, 0.02, "no snap (dE = 0)"),
+                                             (-1e-3, 0.02, "no snap"),
+                                             (0.03, 0.0, "no pole travel"),
+                                             (0.03, -0.01, "no pole travel")])
+def test_non_snapper(fn, dE, dy, fragment):
+    r = fn(dE, dy, 4e-3, C["m_i_kg"], C["m_o_kg"])
+    assert isinstance(r, JumpResult)
+    assert not r.jumped and not r.lift_off
+    assert r.y_jump_m == 4e-3 and r.t_peak_s == 0.0 and r.k_s == 0.0 and r.n_contacts == 0
+    assert fragment in r.reason
+
+
+# ----------------------------------------------------------------------------- closed form itself
+@pytest.mark.parametrize("design,c_d", [(C, 0.4), (D, 0.4), (OVER, 0.4), (_critical(), 0.4),
+                                        (D, 0.0)])
+def test_eigensystem_corrected(design, c_d):
+    k = spring_stiffness(design["dE_J"], design["dy_pole_m"])
+    mi, mo = design["m_i_kg"], design["m_o_kg"]
+    A, _ = system_matrices(k, mi, mo, c_d, 9.81, 0.03)
+    lam, P = eigensystem(k, mi, mo, c_d)
+    assert np.allclose(A @ P[:, 0], 0.0)
+    assert np.allclose(A @ P[:, 1], P[:, 0])  # generalised eigenvector of the double 0
+    for j in (2, 3):
+        assert np.allclose(A @ P[:, j], lam[j] * P[:, j], rtol=1e-12, atol=1e-12 * abs(lam[j]))
+    # lambda_3 != lambda_4 (the paper prints them identically) unless critically damped
+    ev = np.linalg.eigvals(A)
+    tol = 1e-5 * np.max(np.abs(ev))
+    for lj in lam:  # each corrected eigenvalue is one of numpy's (the double 0 is defective)
+        assert np.min(np.abs(ev - lj)) <= tol
+    if abs(c_d**2 * (mi + mo) - 4 * k * mi * mo) > 1e-9 * 4 * k * mi * mo:
+        assert abs(lam[2] - lam[3]) > tol
+
+
+def test_paper_printed_eigenvector_is_wrong():
+    k = spring_stiffness(C["dE_J"], C["dy_pole_m"])
+    mi, mo = C["m_i_kg"], C["m_o_kg"]
+    A, _ = system_matrices(k, mi, mo, 0.4, 9.81, 0.03)
+    lam, P = eigensystem(k, mi, mo, 0.4)
+    printed = P[:, 2].copy()
+    printed[1] = -printed[1]  # the paper's +2 m_i m_o / X
+    assert not np.allclose(A @ printed, lam[2] * printed)
+    assert abs(lam[2] - lam[3]) > 1.0
+
+
+def _expm_propagate(design, p: JumpParams, L_rest: float, Y0: np.ndarray, t: np.ndarray):
+    k = spring_stiffness(design["dE_J"], design["dy_pole_m"])
+    A, B = system_matrices(k, design["m_i_kg"], design["m_o_kg"], p.c_d, p.g, L_rest)
+    Aug = np.zeros((5, 5))
+    Aug[:4, :4] = A
+    Aug[:4, 4] = B
+    Z0 = np.append(Y0, 1.0)
+    return np.array([(expm(Aug * s) @ Z0)[:4] for s in t]).T
+
+
+@pytest.mark.parametrize("design,p", [(C, JumpParams()), (D, JumpParams()),
+                                      (OVER, JumpParams()), (_critical(), JumpParams()),
+                                      (D, JumpParams(c_d=0.0, g=0.0))])
+def test_long_flight_matches_matrix_exponential(design, p):
+    """Eqs 16-17 propagated by expm vs the modal closed form over a long first flight."""
+    h = 0.3 if p.g > 0 else 0.05
+    traj = jump_trajectory(h_imp_m=h, params=replace_tmax(p, 0.5), L0_m=0.02, **design)
+    L_rest = traj.L_rest
+    assert L_rest == pytest.approx(0.02 + design["dy_pole_m"])
+    t_end = traj.contact_times[0] if traj.contact_times else traj.t_end
+    t = np.linspace(0.0, t_end, 41)[1:]
+    Y0 = np.array([h, h + 0.02, 0.0, 0.0])
+    ref = _expm_propagate(design, p, L_rest, Y0, t)
+    got = traj.state(t)
+    vel_scale = np.max(np.abs(ref[2:]))
+    pos_scale = max(h, np.max(np.abs(ref[:2])))
+    assert np.all(np.abs(got[:2, :-1] - ref[:2, :-1]) <= 1e-11 * pos_scale)
+    assert np.all(np.abs(got[2:, :-1] - ref[2:, :-1]) <= 1e-10 * vel_scale)
+    if traj.contact_times:  # the first contact is exact: y_i(t_c) = 0 by expm too
+        assert abs(ref[0, -1]) <= 1e-11 * pos_scale
+        assert ref[2, -1] < 0.0
+
+
+@pytest.mark.parametrize("design,h,p", [(C, 2e-3, JumpParams()), (C, 5e-3, JumpParams()),
+                                        (D, 5e-3, JumpParams()), (D, 20e-3, JumpParams()),
+                                        (OVER, 0.2e-3, JumpParams()),
+                                        (C, 5e-3, JumpParams(c_d=0.0, g=0.0, alpha=0.8,
+                                                             t_max=0.1))])
+def test_every_phase_matches_matrix_exponential(design, h, p):
+    """Chain the whole trajectory: each flight phase is expm-propagated from its start state,
+    lands exactly on y_i = 0, and the next phase starts from the impact law
+    (v_i <- -alpha v_i or rest, y_o and v_o unchanged)."""
+    traj = jump_trajectory(h_imp_m=h, params=p, **design)
+    L_rest = traj.L_rest
+    n_flights = 0
+    phases = traj.phases
+    for j, (kind, a, b) in enumerate(phases):
+        if kind != "flight" or b <= a:
+            continue
+        n_flights += 1
+        Ya = traj.state(a)
+        t = np.linspace(a, b, 25)[1:]
+        ref = _expm_propagate(design, p, L_rest, Ya, t - a)
+        got = traj.state(t[:-1])
+        pos_scale = max(1e-3, np.max(np.abs(ref[:2])))
+        vel_scale = max(1e-3, np.max(np.abs(ref[2:])))
+        assert np.all(np.abs(got[:2] - ref[:2, :-1]) <= 1e-11 * pos_scale)
+        assert np.all(np.abs(got[2:] - ref[2:, :-1]) <= 1e-10 * vel_scale)
+        end = ref[:, -1]
+        if b in traj.contact_times:
+            assert abs(end[0]) <= 1e-12 * pos_scale and end[2] < 0.0
+            nxt = traj.state(b)
+            assert nxt[0] == 0.0
+            assert nxt[1] == pytest.approx(end[1], abs=1e-12 * pos_scale)
+            assert nxt[3] == pytest.approx(end[3], abs=1e-10 * vel_scale)
+            if j + 1 < len(phases) and phases[j + 1][0] == "rest":
+                assert nxt[2] == 0.0
+            else:
+                assert nxt[2] == pytest.approx(-p.alpha * end[2], rel=1e-9)
+    assert n_flights >= 2
+
+
+def replace_tmax(p: JumpParams, t_max: float) -> JumpParams:
+    from dataclasses import replace
+    return replace(p, t_max=t_max)
+
+
+def test_centre_of_mass_and_energy_without_damping_and_gravity():
+    """c_d = 0, g = 0, alpha = 1: energy conserved through impacts; the centre of mass moves
+    uniformly between impacts and each impact adds exactly 2 m_i |v_i| of momentum."""
+    p = JumpParams(c_d=0.0, g=0.0, alpha=1.0, t_max=0.2)
+    traj = jump_trajectory(h_imp_m=5e-3, params=p, **C)
+    r = traj.result
+    assert not r.complete  # no gravity: it flies forever, t_max stops it
+    t = _dense_times(traj, 4001)
+    E = _energy(traj, t, p)
+    assert np.max(np.abs(E - C["dE_J"])) <= 1e-9 * C["dE_J"]
+    assert len(traj.contact_times) >= 1
+    M = r.m_i + r.m_o
+    edges = [0.0, *traj.contact_times, traj.t_end]
+    P_before = 0.0
+    for a, b in zip(edges[:-1], edges[1:]):
+        if b - a < 1e-9:
+            continue
+        tt = np.linspace(a, b, 50)[1:-1]
+        yi, yo, vi, vo = traj.state(tt)
+        P = r.m_i * vi + r.m_o * vo
+        assert np.ptp(P) <= 1e-12 * max(1.0, abs(P[0]))
+        Yc = (r.m_i * yi + r.m_o * yo) / M
+        assert np.allclose(np.diff(Yc, 2), 0.0, atol=1e-13)
+        if a > 0.0:
+            _, _, vi_minus, _ = traj.state(a - 1e-13)
+            assert P[0] - P_before == pytest.approx(2.0 * r.m_i * abs(vi_minus), rel=1e-6)
+        P_before = P[-1]
+
+
+@pytest.mark.parametrize("design,h,p", [(C, 5e-3, JumpParams()), (D, 10e-3, JumpParams()),
+                                        (OVER, 0.0, JumpParams()),
+                                        (C, 3e-3, JumpParams(c_d=0.0, alpha=1.0, t_max=0.4))])
+def test_energy_never_increases(design, h, p):
+    traj = jump_trajectory(h_imp_m=h, params=p, **design)
+    t = _dense_times(traj)
+    E = _energy(traj, t, p)
+    scale = design["dE_J"] + (design["m_i_kg"] + design["m_o_kg"]) * p.g * traj.result.y_jump_m
+    assert np.all(np.diff(E) <= 1e-11 * scale)
+    if p.c_d == 0.0 and p.alpha == 1.0:
+        assert np.ptp(E) <= 1e-10 * scale
+
+
+# ----------------------------------------------------------------------------- contacts and apex
+@pytest.mark.parametrize("design,h", [(C, 0.0), (C, 2e-3), (C, 5e-3), (C, 20e-3), (D, 0.0),
+                                      (D, 10e-3), (D, 20e-3), (B_LIKE, 1e-3), (OVER, 0.2e-3)])
+def test_no_penetration_and_exact_apex(design, h):
+    traj = jump_trajectory(h_imp_m=h, **design)
+    r = traj.result
+    t = _dense_times(traj)
+    yi, yo, vi, vo = traj.state(t)
+    assert np.min(yi) >= -1e-12
+    assert np.max(yi) <= r.y_jump_m * (1 + 1e-12)
+    # y_o is continuous everywhere, v_o across impacts too
+    for tc in traj.contact_times:
+        a, b = traj.state(tc - 1e-12), traj.state(tc + 1e-12)
+        assert abs(a[1] - b[1]) <= 1e-9 and abs(a[3] - b[3]) <= 1e-6
+        assert a[2] <= 0.0 and a[0] >= 0.0
+        assert abs(a[0]) <= 1e-10
+    if r.jumped:
+        s = traj.state(r.t_peak_s)
+        vscale = math.sqrt(2 * design["dE_J"] / design["m_i_kg"])
+        assert abs(s[2]) <= 1e-10 * vscale
+        assert s[0] == pytest.approx(r.y_jump_m, rel=1e-13)
+        # it is a maximum of the dense trajectory
+        near = np.linspace(r.t_peak_s - 1e-3, r.t_peak_s + 1e-3, 2001)
+        assert np.max(traj.state(near)[0]) <= r.y_jump_m * (1 + 1e-13)
+        assert (r.t_peak_s, r.y_jump_m) in traj.apexes
+    else:
+        assert r.y_jump_m == h and r.t_peak_s == 0.0
+
+
+def test_contact_located_exactly():
+    """Just before each impact y_i is |v_i| dt above the ground (first order), at it exactly 0."""
+    traj = jump_trajectory(h_imp_m=5e-3, **D)
+    assert len(traj.contact_times) >= 2
+    for tc in traj.contact_times:
+        for dt in (1e-6, 1e-8):
+            y, _, v, _ = traj.state(tc - dt)
+            if v < -1e-3:
+                assert y == pytest.approx(-v * dt, rel=1e-2)
+        assert traj.state(tc)[0] == 0.0  # the post-impact state
+
+
+def test_resting_start_lifts_off_when_force_turns_upward():
+    """h_imp = 0: m_i rests until k e + c e_dot - m_i g = 0, then leaves; the limit h_imp -> 0+
+    gives the same jump."""
+    traj = jump_trajectory(h_imp_m=0.0, **C)
+    kind, t0, t1 = traj.phases[0]
+    assert kind == "rest" and t0 == 0.0 and t1 > 0.0
+    yi, yo, vi, vo = traj.state(np.linspace(0.0, t1, 101))
+    assert np.all(yi == 0.0) and np.all(vi == 0.0)
+    r = traj.result
+    _, yo1, _, vo1 = traj.state(t1)
+    e = yo1 - traj.L_rest
+    assert r.k_s * e + 0.4 * vo1 - r.m_i * 9.81 == pytest.approx(0.0, abs=1e-10 * r.k_s * 0.02)
+    assert traj.phases[1][0] == "flight" and r.lift_off
+    assert traj.state(t1 + 1e-4)[0] > 0.0
+    y0 = r.y_jump_m
+    for h in (1e-12, 1e-9):
+        assert jump_height(h_imp_m=h, **C).y_jump_m == pytest.approx(y0, abs=100 * h + 1e-12)
+
+
+# ----------------------------------------------------------------------------- monotonicity etc.
+@pytest.mark.parametrize("h", [0.0, 5e-3])
+def test_more_energy_jumps_higher(h):
+    dEs = np.linspace(0.05, 0.6, 12)
+    ys = [jump_height(dE, D["dy_pole_m"], h, D["m_i_kg"], D["m_o_kg"]).y_jump_m for dE in dEs]
+    assert np.all(np.diff(ys) > 0.0)
+
+
+def test_result_fields_and_stiffness():
+    r = jump_height(h_imp_m=5e-3, **C)
+    assert r.k_s == pytest.approx(2 * C["dE_J"] / C["dy_pole_m"] ** 2, rel=1e-15)
+    assert spring_stiffness(C["dE_J"], C["dy_pole_m"]) == r.k_s
+    assert (r.m_i, r.m_o) == (C["m_i_kg"], C["m_o_kg"])
+    assert r.h_imp_m == 5e-3 and r.rise_m == pytest.approx(r.y_jump_m - 5e-3)
+    assert r.jumped and r.reason == "" and r.complete
+    assert 0.0 < r.t_peak_s < 1.0 and r.n_contacts >= 1
+
+
+def test_stops_are_flagged():
+    r = jump_height(h_imp_m=5e-3, params=JumpParams(t_max=1e-3), **D)
+    assert not r.complete
+    r = jump_height(h_imp_m=5e-3, params=JumpParams(max_contacts=1), **D)
+    assert not r.complete and r.n_contacts == 1
+
+
+# ----------------------------------------------------------------------------- inputs
+def test_masses():
+    assert masses(1.1224e-5, 9.170e-6, 1000.0) == pytest.approx((1.1224e-2, 9.170e-3))
+    assert masses(1e-5, 2e-5) == pytest.approx((1e-2, 2e-2))
+    with pytest.raises(ValueError, match="V_inner_solid_m3"):
+        masses(-1e-5, 1e-5)
+    with pytest.raises(ValueError, match="V_outer_solid_m3"):
+        masses(1e-5, float("nan"))
+    with pytest.raises(ValueError, match="rho"):
+        masses(1e-5, 1e-5, 0.0)
+
+
+@pytest.mark.parametrize("fn", [jump_height, jump_height_ode])
+@pytest.mark.parametrize("kw,name", [(dict(dE_J=float("nan")), "dE_J"),
+                                     (dict(dy_pole_m=float("inf")), "dy_pole_m"),
+                                     (dict(h_imp_m=-1e-3), "h_imp_m"),
+                                     (dict(h_imp_m=float("nan")), "h_imp_m"),
+                                     (dict(m_i_kg=-0.01), "m_i_kg"),
+                                     (dict(m_o_kg=0.0), "m_o_kg"),
+                                     (dict(m_o_kg="heavy"), "m_o_kg")])
+def test_bad_inputs_raise(fn, kw, name):
+    args = dict(C, h_imp_m=1e-3)
+    args.update(kw)
+    with pytest.raises(ValueError, match=name):
+        fn(**args)
+
+
+@pytest.mark.parametrize("kw,name", [(dict(alpha=1.5), "alpha"), (dict(alpha=-0.1), "alpha"),
+                                     (dict(c_d=-0.1), "c_d"), (dict(g=float("nan")), "g"),
+                                     (dict(rho=0.0), "rho"), (dict(t_max=0.0), "t_max"),
+                                     (dict(max_contacts=0), "max_contacts")])
+def test_bad_params_raise(kw, name):
+    with pytest.raises(ValueError, match=name):
+        JumpParams(**kw)
