@@ -391,3 +391,32 @@ def test_bad_inputs_raise(fn, kw, name):
 def test_bad_params_raise(kw, name):
     with pytest.raises(ValueError, match=name):
         JumpParams(**kw)
+
+
+def test_grazing_dip_between_samples_is_found():
+    """A dip below zero entirely between two samples (all samples positive) is still a contact,
+    and a maximum between samples is located exactly."""
+    from snapjump_cli.jump import _first_fall, _maxima
+
+    def F(t):
+        return (t - 0.5) ** 2 - 1e-6
+
+    def dF(t):
+        return 2.0 * (t - 0.5)
+
+    T = np.array([0.0, 0.3, 0.7, 1.0])
+    Fv, dFv = F(T), dF(T)
+    assert np.all(Fv > 0.0)
+    t = _first_fall(F, dF, T, Fv, dFv)
+    assert t == pytest.approx(0.5 - 1e-3, rel=1e-12)
+
+    def G(t):
+        return -F(t)
+
+    def dG(t):
+        return -dF(t)
+
+    T2 = np.array([0.0, 0.45, 0.7, 1.0])  # the maximum at 0.5 lies between two samples
+    out = _maxima(G, dG, T2, G(T2), dG(T2))
+    assert len(out) == 1
+    assert out[0][0] == pytest.approx(0.5, abs=1e-7) and out[0][1] == pytest.approx(1e-6, rel=1e-9)
