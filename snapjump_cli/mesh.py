@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from snapjump_cli.geometry import CapScene, Design, cap_points, cap_volumes, design_points, design_volumes
+from snapjump_cli.geometry import CapScene, Design, cap_points, cap_volumes, design_points
 from snapjump_cli.meshdata import REGION_INNER_CAP, REGION_OUTER_CAP, REGION_RING, Mesh
 from snapjump_cli.settings import MeshSettings
 
@@ -192,7 +192,6 @@ class _Builder:
         self.gmsh = gmsh
         self.geo = gmsh.model.geo
         self.surfaces: list[tuple[int, int, int]] = []  # (tag, region, material)
-        self.curve_ends: dict[int, tuple[int, int]] = {}
         self.coords: dict[int, tuple[float, float]] = {}
 
     def point(self, x: float, y: float) -> int:
@@ -203,13 +202,11 @@ class _Builder:
     def line(self, p: int, q: int, n: int) -> int:
         c = self.geo.addLine(p, q)
         self.geo.mesh.setTransfiniteCurve(c, int(n) + 1)
-        self.curve_ends[c] = (p, q)
         return c
 
     def arc(self, p: int, centre: int, q: int, n: int) -> int:
         c = self.geo.addCircleArc(p, centre, q)
         self.geo.mesh.setTransfiniteCurve(c, int(n) + 1)
-        self.curve_ends[c] = (p, q)
         return c
 
     def surface(self, loop: list[int], corners: list[int], region: int, material: int) -> int:
@@ -220,7 +217,7 @@ class _Builder:
         self.surfaces.append((s, region, material))
         return s
 
-    def cap(self, p_lo, p_up, p_bin, p_bout, centre, base_curves, lower_arc, upper_arc, axis, region, material):
+    def cap(self, p_lo, p_up, p_bin, p_bout, base_curves, lower_arc, upper_arc, axis, region, material):
         """Cap surface bounded by lower arc (p_lo -> p_bin), base curves (p_bin -> p_bout, in
         order), upper arc (p_up -> p_bout) and axis (p_lo -> p_up); counter-clockwise loop."""
         loop = [lower_arc, *base_curves, -upper_arc, -axis]
@@ -288,7 +285,7 @@ def _build(b: _Builder, scene: Design | CapScene, s: MeshSettings) -> dict:
         lo_i = b.arc(P["1"], c_i, P["7"], na_i)
         up_i = b.arc(P["2"], c_i, P["6"], na_i)
         base_i = b.line(P["7"], P["6"], nt_i)
-        b.cap(P["1"], P["2"], P["7"], P["6"], c_i, [base_i], lo_i, up_i, ax_i, REGION_INNER_CAP, 0)
+        b.cap(P["1"], P["2"], P["7"], P["6"], [base_i], lo_i, up_i, ax_i, REGION_INNER_CAP, 0)
         # outer cap
         ax_o = b.line(P["3"], P["4"], nt_o)
         lo_o = b.arc(P["3"], c_o, P["6"], na_o)
@@ -303,7 +300,7 @@ def _build(b: _Builder, scene: Design | CapScene, s: MeshSettings) -> dict:
             if not coincide:
                 n_free = _count(x10 - x5, aspect * h_ring)
                 top_ring.append((b.line(P["5"], P["10"], n_free), P["5"], P["10"], n_free))
-        b.cap(P["3"], P["4"], P["6"], P["5"], c_o, base_o, lo_o, up_o, ax_o, REGION_OUTER_CAP, 1)
+        b.cap(P["3"], P["4"], P["6"], P["5"], base_o, lo_o, up_o, ax_o, REGION_OUTER_CAP, 1)
         # ring: [x7, x6] under the inner cap base, then the pieces of the top face beyond x6
         ground = _ring(b, P, (base_i, P["7"], P["6"], nt_i), top_ring, P["8"], P["11"], P["9"], n_ring)
 
@@ -337,7 +334,7 @@ def _build(b: _Builder, scene: Design | CapScene, s: MeshSettings) -> dict:
     lo = b.arc(P["1"], centre, P["7"], na)
     up = b.arc(P["2"], centre, P["6"], na)
     base = b.line(P["7"], P["6"], nt)
-    b.cap(P["1"], P["2"], P["7"], P["6"], centre, [base], lo, up, ax, region, material)
+    b.cap(P["1"], P["2"], P["7"], P["6"], [base], lo, up, ax, region, material)
     info = {"nt": {REGION_NAMES[region]: nt}, "n_arc": {REGION_NAMES[region]: na}}
     E["inner_upper"] = [(up, P["2"])]
     E["inner_lower"] = [(lo, P["1"])]
