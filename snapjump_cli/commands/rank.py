@@ -1,0 +1,109 @@
+"""``snapjump rank RESULTS.parquet``: jump height of every design, ranked."""
+from __future__ import annotations
+
+import logging
+import sys
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Sequence
+
+import click
+
+from snapjump_cli.errors import BadInput
+
+__all__ = ["command", "main"]
+
+log = logging.getLogger(__name__)
+
+_HELP = """Apply the mass-spring jump model to sweep results and rank the designs.
+
+\b
+For every `ok` row: masses m_i, m_o = rho * (V_inner_solid_m3, V_outer_solid_m3), spring
+k_s = 2 dE / dy_pole^2 precompressed by dy_pole, release from h_imp_m, and y_jump_m = the
+highest height of the inner pole (SPEC section 6). `no_snap` rows get y_jump_m = 0 with
+the reason; invalid and failed rows get NaN.
+
+Prints the top-N table (lengths in mm, energies in mJ), writes the ranked table (sorted
+by y_jump_m, column `rank`), atomically, and with --plots draws Fig. 4A (energy release
+vs pole travel, by mu ratio), Fig. 4C (jump height over that plane) and the jump height
+against each design parameter.
+"""
+
+
+@click.command("rank", help=_HELP, short_help="Rank sweep results by the jump height of the mass-spring model.")
+@click.argument("results", metavar="RESULTS.parquet", type=click.Path(path_type=Path))
+@click.option("--top", "top", type=click.IntRange(min=0), default=10, show_default=True, metavar="N",
+              help="Rows of the printed table.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Ranked parquet file. [default: <RESULTS stem>.ranked.parquet next to RESULTS]")
+@click.option("--plots", "plots_dir", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
+              help="Write fig4a.png, fig4c.png and jump_vs_parameters.png into DIR (needs matplotlib).")
+@click.option("--rho", type=float, default=1000.0, show_default=True, help="Rubber density [kg/m^3].")
+@click.option("--c-d", "c_d", type=float, default=0.4, show_default=True, help="Dashpot coefficient [kg/s].")
+@click.option("--alpha", type=float, default=0.5, show_default=True, help="Ground restitution coefficient, in [0, 1].")
+def command(results: Path, top: int, output: Path | None, plots_dir: Path | None, rho: float, c_d: float,
+            alpha: float) -> None:
+    import pyarrow as pa
+
+    from snapjump_cli import results as res
+    from snapjump_cli.jump import JumpParams
+    from snapjump_cli.rank import RankInputError, rank_results, top_table
+
+    try:
+        params = JumpParams(rho=rho, c_d=c_d, alpha=alpha)
+    except (ValueError, TypeError) as e:
+        raise BadInput(f"jump parameters: {e}") from None
+    if not results.exists():
+        raise BadInput(f"{results}: file not found")
+    if results.is_dir():
+        raise BadInput(f"{results}: expected a parquet file, got a directory")
+    try:
+        df = res.read_results(results)
+        meta = res.read_metadata(results)
+    except (pa.ArrowException, OSError) as e:
+        raise BadInput(f"{results}: not a readable parquet file ({str(e).splitlines()[0]})") from None
+    try:
+        ranked = rank_results(df, params)
+    except RankInputError as e:
+        raise BadInput(f"{results}: {e}") from None
+
+    out = output if output is not None else results.with_name(results.name.removesuffix(".parquet") + ".ranked.parquet")
+    if out.resolve() == results.resolve():
+        raise BadInput(f"-o/--output: {out} would overwrite the input results file")
+    meta = dict(meta)
+    meta["rank"] = {
+        "source": str(results),
+        "jump_params": {k: getattr(params, k) for k in params.__dataclass_fields__},
+        "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "n_rows": int(len(ranked)),
+        "n_ranked": int(ranked["rank"].notna().sum()),
+    }
+    res.write_frame_atomic(ranked, out, meta)
+
+    counts = ranked["status"].value_counts().to_dict()
+    n_jumped = int(ranked["jumped"].fillna(False).astype(bool).sum())
+    click.echo(f"{results}: {len(ranked)} designs ({', '.join(f'{k} {v}' for k, v in sorted(counts.items()))}); "
+               f"{n_jumped} jump")
+    if top > 0:
+        click.echo(top_table(ranked, top))
+    click.echo(f"wrote {out}")
+    if plots_dir is not None:
+        from snapjump_cli.plots import make_plots
+
+        try:
+            files = make_plots(ranked, plots_dir)
+        except ImportError as e:
+            raise click.ClickException(f"--plots needs matplotlib (pip install 'snapjump[plots]'): {e}") from None
+        for f in files:
+            click.echo(f"wrote {f}")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``snapjump rank`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    from snapjump_cli.cli import main as cli_main
+
+    return cli_main(["rank", *(sys.argv[1:] if argv is None else argv)])
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

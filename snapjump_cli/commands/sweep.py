@@ -1,0 +1,113 @@
+"""``snapjump sweep GRID.yaml``: solve a grid of designs in parallel into a parquet file."""
+from __future__ import annotations
+
+import logging
+import signal
+import sys
+import threading
+from pathlib import Path
+from typing import Sequence
+
+import click
+
+from snapjump_cli.errors import BadInput
+
+__all__ = ["command", "main"]
+
+log = logging.getLogger(__name__)
+
+_HELP = """Solve the grid of designs in GRID.yaml in parallel into a parquet file.
+
+\b
+GRID.yaml needs only a `grid:` section with the five axes eta_i, theta_i (deg), eta_o,
+theta_o (deg) and mu_ratio, each a list of values or {start, stop, num}; the designs are
+their Cartesian product. Optional keys: R_i, materials {mu_i, J_m},
+ring {t_ring_frac, w_ring_frac}, mesh {order, nt, aspect}, solver {tol, ds0, ...},
+output, n_jobs, chunk_size (see configs/paper_grid.yaml).
+
+One row per design: inputs, R_o and Delta, every solver metric, status (ok, no_snap,
+invalid_geometry, failed), the error text, timings and the mesh size. Invalid designs
+are recorded, never meshed; a design that fails never stops the sweep.
+
+Finished rows are written in chunks to OUTPUT.parts/ (each part atomically) and merged
+into OUTPUT at the end. Running the same command again resumes: designs already
+recorded (same parameters and mesh/solver settings) are skipped.
+
+Exit codes: 0 done (even if some designs failed), 1 the sweep could not run,
+2 bad input (config errors name the file and the key path), 130 interrupted.
+"""
+
+
+class _Interrupted(click.ClickException):
+    """Ctrl-C / SIGTERM: one line, exit code 130."""
+
+    exit_code = 130
+
+    def show(self, file=None) -> None:
+        click.echo(self.format_message(), err=True)
+
+
+@click.command("sweep", help=_HELP, short_help="Solve a YAML grid of designs into a parquet file.")
+@click.argument("grid", metavar="GRID.yaml", type=click.Path(dir_okay=True, path_type=Path))
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Result parquet file. [default: `output` of the config, else results/<GRID stem>.parquet]")
+@click.option("-j", "--jobs", "n_jobs", type=int, default=None, metavar="N",
+              help="Worker processes (joblib n_jobs: -1 = every core, 1 = in this process). "
+                   "[default: `n_jobs` of the config, else -1]")
+@click.option("--scheduler", metavar="ADDRESS", default=None,
+              help="Run on a dask.distributed cluster at ADDRESS (e.g. tcp://10.0.0.5:8786) through "
+                   "joblib's dask backend instead of local processes. Needs snapjump[dask].")
+@click.option("--chunk-size", type=click.IntRange(min=1), default=None, metavar="N",
+              help="Finished designs per part file. [default: `chunk_size` of the config, else 16]")
+@click.option("--retry-failed", is_flag=True, help="Solve designs recorded as failed again.")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress bar on stderr (ETA, counts of ok / no-snap / invalid / failed).")
+def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str | None,
+            chunk_size: int | None, retry_failed: bool, progress: bool) -> None:
+    from snapjump_cli.config import ConfigError, load_config
+    from snapjump_cli.sweep import SweepError, SweepInputError, parts_dir, run_sweep
+
+    try:
+        config = load_config(grid)
+    except ConfigError as e:
+        raise BadInput(str(e)) from None
+    if n_jobs == 0:
+        raise BadInput("-j/--jobs: expected a non-zero integer (-1 = every core), got 0")
+    out = output if output is not None else config.output
+
+    restore = None
+    if threading.current_thread() is threading.main_thread():
+        def _on_term(signum, frame):  # SIGTERM -> same clean stop as Ctrl-C (finished rows kept)
+            raise KeyboardInterrupt
+
+        restore = signal.signal(signal.SIGTERM, _on_term)
+    try:
+        summary = run_sweep(config, output=out, n_jobs=n_jobs, scheduler=scheduler, progress=progress,
+                            retry_failed=retry_failed, chunk_size=chunk_size)
+    except SweepInputError as e:
+        raise BadInput(str(e)) from None
+    except SweepError as e:
+        raise click.ClickException(str(e)) from None
+    except KeyboardInterrupt:
+        raise _Interrupted(f"interrupted: finished designs are kept in {parts_dir(out)}; "
+                           f"run the same command again to resume") from None
+    finally:
+        if restore is not None:
+            signal.signal(signal.SIGTERM, restore)
+    c = summary.counts
+    click.echo(
+        f"{summary.output}: {summary.n_designs} designs ({summary.n_resumed} resumed, {summary.n_solved} solved "
+        f"in {summary.wall_s:.1f} s): ok {c.get('ok', 0)}, no_snap {c.get('no_snap', 0)}, "
+        f"invalid_geometry {c.get('invalid_geometry', 0)}, failed {c.get('failed', 0)}"
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``snapjump sweep`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    from snapjump_cli.cli import main as cli_main
+
+    return cli_main(["sweep", *(sys.argv[1:] if argv is None else argv)])
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

@@ -1,0 +1,454 @@
+"""Sweep configuration: a YAML grid spec validated against a hand-written schema.
+
+The file is read with :func:`yaml.safe_load`. Only ``grid:`` is required; every other key has a
+default. Unknown keys are rejected. Every error is a :class:`ConfigError` whose message names the
+file, the key path (``grid.eta_i.num``) and what was expected, e.g.::
+
+    configs/bad.yaml: grid.eta_i.num: expected an integer >= 1, got 0
+
+Schema (defaults in brackets)::
+
+    grid:                      # required; the designs are the Cartesian product of the five axes
+      eta_i:    AXIS           # R_i / t_i
+      theta_i:  AXIS           # inner polar angle [deg], in (0, 180)
+      eta_o:    AXIS           # R_o / t_o
+      theta_o:  AXIS           # outer polar angle [deg], in (0, 180)
+      mu_ratio: AXIS           # mu_i / mu_o
+    R_i: 0.03                  # inner-cap mid-surface radius [m]
+    materials: {mu_i: 0.35e+6, J_m: 24}          # [Pa], Gent locking parameter
+    ring: {t_ring_frac: 1/30, w_ring_frac: 1/10} # ring size as fractions of R_i
+    mesh: {order: 2, nt: 4, aspect: 2.0}         # fields of MeshSettings
+    solver: {tol: 1e-9, ...}                     # fields of SolverSettings
+    output: results/<config stem>.parquet        # relative paths are relative to the working dir
+    n_jobs: -1                 # joblib n_jobs (-1: all cores)
+    chunk_size: 16             # results per part file (see snapjump_cli.sweep)
+
+where ``AXIS`` is either a non-empty list of distinct numbers or a mapping ``{start, stop, num}``
+(``numpy.linspace(start, stop, num)``, ``start <= stop``, integer ``num >= 1``; ``num = 1`` needs
+``start == stop``).
+
+Numbers may also be written as strings that parse as a finite float: PyYAML (YAML 1.1) reads
+``0.35e6`` (no sign in the exponent) as the *string* ``"0.35e6"``, which is accepted here; so is a
+simple fraction ``a/b`` such as ``1/30``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterator, Mapping
+
+import numpy as np
+import yaml
+
+from snapjump_cli.geometry import J_M_DEFAULT, MU_ELITE_DOUBLE_32, R_I_DEFAULT
+from snapjump_cli.settings import MeshSettings, SolverSettings
+
+__all__ = [
+    "ConfigError",
+    "GRID_AXES",
+    "SweepConfig",
+    "DesignPoint",
+    "load_config",
+    "parse_config",
+]
+
+#: The grid axes, in the order of the Cartesian product (the last one varies fastest).
+GRID_AXES: tuple[str, ...] = ("eta_i", "theta_i", "eta_o", "theta_o", "mu_ratio")
+
+_AXIS_EXPECTED = "a non-empty list of numbers or a mapping {start, stop, num}"
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_FLOAT_RE = re.compile(rf"^\s*({_NUM})\s*$")
+_FRACTION_RE = re.compile(rf"^\s*({_NUM})\s*/\s*({_NUM})\s*$")
+_DEFAULT_CHUNK = 16
+
+
+class ConfigError(ValueError):
+    """A sweep configuration that does not match the schema.
+
+    The message is one line: ``<file>: <key.path>: expected ..., got ...``.
+    """
+
+    def __init__(self, source: str, key_path: str, message: str) -> None:
+        self.source = source
+        self.key_path = key_path
+        where = f"{source}: {key_path}: " if key_path else f"{source}: "
+        super().__init__(where + message)
+
+
+@dataclass(frozen=True)
+class DesignPoint:
+    """One point of the grid: the inputs of :class:`snapjump_cli.geometry.Design`.
+
+    Angles in degrees. ``index`` is the position in the Cartesian product.
+    """
+
+    index: int
+    eta_i: float
+    theta_i_deg: float
+    eta_o: float
+    theta_o_deg: float
+    mu_ratio: float
+    R_i: float
+    mu_i: float
+    J_m: float
+    t_ring_frac: float
+    w_ring_frac: float
+
+    def design_kwargs(self) -> dict[str, float]:
+        """Keyword arguments for :class:`~snapjump_cli.geometry.Design`."""
+        d = dataclasses.asdict(self)
+        d.pop("index")
+        return d
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """A validated sweep configuration (all defaults applied).
+
+    Attributes
+    ----------
+    grid : dict
+        Axis name (one of :data:`GRID_AXES`) -> tuple of float values.
+    R_i, mu_i, J_m, t_ring_frac, w_ring_frac : float
+        Fixed design parameters shared by every grid point.
+    mesh, solver : MeshSettings, SolverSettings
+    output : pathlib.Path
+        Default result file (the CLI's ``-o`` overrides it).
+    n_jobs : int
+        joblib ``n_jobs`` (``-1``: all cores; never 0).
+    chunk_size : int
+        Number of finished designs written per part file.
+    source : str
+        Where the config came from (file path, or ``"<dict>"``).
+    raw : dict
+        The document as read (for provenance).
+    """
+
+    grid: dict[str, tuple[float, ...]]
+    R_i: float = R_I_DEFAULT
+    mu_i: float = MU_ELITE_DOUBLE_32
+    J_m: float = J_M_DEFAULT
+    t_ring_frac: float = 1.0 / 30.0
+    w_ring_frac: float = 1.0 / 10.0
+    mesh: MeshSettings = field(default_factory=MeshSettings)
+    solver: SolverSettings = field(default_factory=SolverSettings)
+    output: Path = Path("results/sweep.parquet")
+    n_jobs: int = -1
+    chunk_size: int = _DEFAULT_CHUNK
+    source: str = "<dict>"
+    raw: dict = field(default_factory=dict, compare=False)
+
+    @property
+    def n_designs(self) -> int:
+        """Number of grid points (the size of the Cartesian product)."""
+        return math.prod(len(self.grid[a]) for a in GRID_AXES)
+
+    def designs(self) -> Iterator[DesignPoint]:
+        """Iterate over the grid points in a fixed order (``mu_ratio`` varies fastest)."""
+        axes = [self.grid[a] for a in GRID_AXES]
+        for i, (ei, ti, eo, to, mr) in enumerate(itertools.product(*axes)):
+            yield DesignPoint(
+                index=i, eta_i=ei, theta_i_deg=ti, eta_o=eo, theta_o_deg=to, mu_ratio=mr,
+                R_i=self.R_i, mu_i=self.mu_i, J_m=self.J_m,
+                t_ring_frac=self.t_ring_frac, w_ring_frac=self.w_ring_frac,
+            )
+
+    def replace(self, **changes: Any) -> "SweepConfig":
+        """A copy with some fields replaced (e.g. ``output`` or ``n_jobs`` from the CLI)."""
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The resolved configuration as plain JSON-able data (explicit grid values)."""
+        return {
+            "grid": {a: list(self.grid[a]) for a in GRID_AXES},
+            "R_i": self.R_i,
+            "materials": {"mu_i": self.mu_i, "J_m": self.J_m},
+            "ring": {"t_ring_frac": self.t_ring_frac, "w_ring_frac": self.w_ring_frac},
+            "mesh": self.mesh.as_dict(),
+            "solver": self.solver.as_dict(),
+            "output": str(self.output),
+            "n_jobs": self.n_jobs,
+            "chunk_size": self.chunk_size,
+            "source": self.source,
+            "n_designs": self.n_designs,
+        }
+
+
+# ---- scalar validators ---------------------------------------------------------------------
+def _describe(value: Any) -> str:
+    if value is None:
+        return "nothing (null)"
+    if isinstance(value, bool):
+        return f"the boolean {value}"
+    if isinstance(value, (list, tuple)):
+        return "a list"
+    if isinstance(value, Mapping):
+        return "a mapping"
+    return f"{value!r}"
+
+
+class _Ctx:
+    """Carries the source name to build errors."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def fail(self, path: str, expected: str, value: Any = dataclasses.MISSING) -> ConfigError:
+        if value is dataclasses.MISSING:
+            return ConfigError(self.source, path, expected)
+        return ConfigError(self.source, path, f"expected {expected}, got {_describe(value)}")
+
+    def number(self, path: str, value: Any, expected: str = "a finite number") -> float:
+        if isinstance(value, bool) or value is None:
+            raise self.fail(path, expected, value)
+        if isinstance(value, (int, float)):
+            x = float(value)
+        elif isinstance(value, str) and _FLOAT_RE.match(value):
+            x = float(value)
+        elif isinstance(value, str) and (m := _FRACTION_RE.match(value)) and float(m.group(2)) != 0.0:
+            x = float(m.group(1)) / float(m.group(2))
+        else:
+            raise self.fail(path, expected, value)
+        if not math.isfinite(x):
+            raise self.fail(path, expected, value)
+        return x
+
+    def positive(self, path: str, value: Any) -> float:
+        x = self.number(path, value, "a finite number > 0")
+        if x <= 0.0:
+            raise self.fail(path, "a finite number > 0", value)
+        return x
+
+    def integer(self, path: str, value: Any, minimum: int | None = None, nonzero: bool = False) -> int:
+        expected = "an integer" + (f" >= {minimum}" if minimum is not None else "") + (" other than 0" if nonzero else "")
+        if isinstance(value, bool) or value is None:
+            raise self.fail(path, expected, value)
+        if isinstance(value, int):
+            n = value
+        else:
+            try:
+                x = self.number(path, value, expected)
+            except ConfigError:
+                raise self.fail(path, expected, value) from None
+            if not float(x).is_integer():
+                raise self.fail(path, expected, value)
+            n = int(x)
+        if minimum is not None and n < minimum:
+            raise self.fail(path, expected, value)
+        if nonzero and n == 0:
+            raise self.fail(path, expected, value)
+        return n
+
+    def boolean(self, path: str, value: Any) -> bool:
+        if not isinstance(value, bool):
+            raise self.fail(path, "true or false", value)
+        return value
+
+    def mapping(self, path: str, value: Any, allowed: Mapping[str, str], required: tuple[str, ...] = ()) -> dict:
+        if not isinstance(value, Mapping):
+            raise self.fail(path, f"a mapping with keys {', '.join(allowed)}", value)
+        for k in value:
+            if not isinstance(k, str) or k not in allowed:
+                kp = f"{path}.{k}" if path else str(k)
+                raise ConfigError(self.source, kp, f"unknown key; expected one of: {', '.join(allowed)}")
+        for k in required:
+            if k not in value:
+                kp = f"{path}.{k}" if path else k
+                raise ConfigError(self.source, kp, f"missing required key; expected {allowed[k]}")
+        return dict(value)
+
+
+# ---- schema ----------------------------------------------------------------------------------
+_TOP_KEYS: dict[str, str] = {
+    "grid": "a mapping with keys " + ", ".join(GRID_AXES),
+    "R_i": "the inner-cap radius in metres (> 0)",
+    "materials": "a mapping {mu_i, J_m}",
+    "ring": "a mapping {t_ring_frac, w_ring_frac}",
+    "mesh": "a mapping of mesh settings",
+    "solver": "a mapping of solver settings",
+    "output": "the result file path",
+    "n_jobs": "the number of parallel jobs",
+    "chunk_size": "the number of results per part file",
+}
+_GRID_KEYS: dict[str, str] = {a: _AXIS_EXPECTED for a in GRID_AXES}
+_RANGE_KEYS: dict[str, str] = {"start": "a number", "stop": "a number", "num": "an integer >= 1"}
+
+
+def _axis_check(name: str) -> tuple[Callable[[float], bool], str]:
+    if name.startswith("theta"):
+        return (lambda x: 0.0 < x < 180.0), "a number of degrees in (0, 180)"
+    return (lambda x: x > 0.0), "a finite number > 0"
+
+
+def _parse_axis(ctx: _Ctx, name: str, value: Any) -> tuple[float, ...]:
+    path = f"grid.{name}"
+    ok, expected = _axis_check(name)
+    if isinstance(value, Mapping):
+        m = ctx.mapping(path, value, _RANGE_KEYS, required=("start", "stop", "num"))
+        start = ctx.number(f"{path}.start", m["start"], expected)
+        stop = ctx.number(f"{path}.stop", m["stop"], expected)
+        num = ctx.integer(f"{path}.num", m["num"], minimum=1)
+        for k, x in (("start", start), ("stop", stop)):
+            if not ok(x):
+                raise ctx.fail(f"{path}.{k}", expected, m[k])
+        if start > stop:
+            raise ConfigError(ctx.source, f"{path}.stop", f"expected stop >= start = {start:g}, got {stop:g}")
+        if num == 1 and start != stop:
+            raise ConfigError(ctx.source, f"{path}.num", f"expected num >= 2 when start != stop ({start:g} != {stop:g}), got 1")
+        values = tuple(float(x) for x in np.linspace(start, stop, num))
+        if num > 1 and len(set(values)) != num:
+            raise ConfigError(ctx.source, f"{path}.num", f"expected distinct grid values, got duplicates for num = {num}")
+        return values
+    if isinstance(value, (list, tuple)):
+        if not value:
+            raise ConfigError(ctx.source, path, f"expected {_AXIS_EXPECTED}, got an empty list")
+        values = []
+        for j, v in enumerate(value):
+            x = ctx.number(f"{path}[{j}]", v, expected)
+            if not ok(x):
+                raise ctx.fail(f"{path}[{j}]", expected, v)
+            if x in values:
+                raise ConfigError(ctx.source, f"{path}[{j}]", f"expected distinct values, got {v!r} twice")
+            values.append(x)
+        return tuple(values)
+    raise ctx.fail(path, _AXIS_EXPECTED, value)
+
+
+def _settings_from(ctx: _Ctx, path: str, value: Any, cls: type, checks: Mapping[str, Callable]) -> Any:
+    """Build a settings dataclass, typing each field after its default value."""
+    defaults = cls()
+    names = [f.name for f in dataclasses.fields(cls)]
+    if value is None:
+        return defaults
+    m = ctx.mapping(path, value, {n: n for n in names})
+    kwargs = {}
+    for k, v in m.items():
+        kp = f"{path}.{k}"
+        d = getattr(defaults, k)
+        if isinstance(d, bool):
+            x = ctx.boolean(kp, v)
+        elif isinstance(d, int):
+            x = ctx.integer(kp, v)
+        elif isinstance(d, float):
+            x = ctx.number(kp, v)
+        else:  # pragma: no cover - settings only hold bools and numbers today
+            x = v
+        if k in checks:
+            good, expected = checks[k]
+            if not good(x):
+                raise ctx.fail(kp, expected, v)
+        kwargs[k] = x
+    return cls(**kwargs)
+
+
+_MESH_CHECKS = {
+    "order": (lambda x: x in (1, 2), "1 or 2"),
+    "nt": (lambda x: x >= 1, "an integer >= 1"),
+    "aspect": (lambda x: x > 0, "a finite number > 0"),
+}
+_SOLVER_CHECKS = {
+    "tol": (lambda x: x > 0, "a finite number > 0"),
+    "ds0": (lambda x: x > 0, "a finite number > 0"),
+    "ds_max": (lambda x: x > 0, "a finite number > 0"),
+    "max_steps": (lambda x: x >= 1, "an integer >= 1"),
+    "max_newton": (lambda x: x >= 1, "an integer >= 1"),
+    "max_turn_deg": (lambda x: x > 0, "a finite number > 0"),
+    "bulk_ratio": (lambda x: x > 0, "a finite number > 0"),
+}
+
+
+def parse_config(doc: Any, source: str = "<dict>") -> SweepConfig:
+    """Validate a loaded YAML document and apply the defaults.
+
+    Parameters
+    ----------
+    doc
+        The object returned by :func:`yaml.safe_load`.
+    source
+        Name used in error messages (usually the file path).
+
+    Returns
+    -------
+    SweepConfig
+
+    Raises
+    ------
+    ConfigError
+        On the first schema violation, naming ``source``, the key path and what was expected.
+    """
+    ctx = _Ctx(source)
+    if doc is None:
+        raise ConfigError(source, "grid", "missing required key (the file is empty); expected " + _TOP_KEYS["grid"])
+    top = ctx.mapping("", doc, _TOP_KEYS)
+    if "grid" not in top:
+        raise ConfigError(source, "grid", "missing required key; expected " + _TOP_KEYS["grid"])
+    g = ctx.mapping("grid", top["grid"], _GRID_KEYS, required=GRID_AXES)
+    grid = {a: _parse_axis(ctx, a, g[a]) for a in GRID_AXES}
+
+    kw: dict[str, Any] = {"grid": grid, "source": source, "raw": dict(top)}
+    if "R_i" in top:
+        kw["R_i"] = ctx.positive("R_i", top["R_i"])
+    if top.get("materials") is not None:
+        m = ctx.mapping("materials", top["materials"], {"mu_i": "the inner shear modulus [Pa]", "J_m": "the Gent parameter"})
+        for k in m:
+            kw[k] = ctx.positive(f"materials.{k}", m[k])
+    if top.get("ring") is not None:
+        r = ctx.mapping("ring", top["ring"], {"t_ring_frac": "t_ring / R_i", "w_ring_frac": "w_ring / R_i"})
+        for k in r:
+            kw[k] = ctx.positive(f"ring.{k}", r[k])
+    kw["mesh"] = _settings_from(ctx, "mesh", top.get("mesh"), MeshSettings, _MESH_CHECKS)
+    kw["solver"] = _settings_from(ctx, "solver", top.get("solver"), SolverSettings, _SOLVER_CHECKS)
+    if kw["solver"].ds_max < kw["solver"].ds0:
+        raise ConfigError(source, "solver.ds_max", f"expected ds_max >= ds0 = {kw['solver'].ds0:g}, got {kw['solver'].ds_max:g}")
+    stem = Path(source).stem if source and not source.startswith("<") else "sweep"
+    kw["output"] = Path("results") / f"{stem}.parquet"
+    if top.get("output") is not None:
+        out = top["output"]
+        if not isinstance(out, str) or not out.strip():
+            raise ctx.fail("output", "a file path (string)", out)
+        kw["output"] = Path(out)
+    if top.get("n_jobs") is not None:
+        kw["n_jobs"] = ctx.integer("n_jobs", top["n_jobs"], nonzero=True)
+    if top.get("chunk_size") is not None:
+        kw["chunk_size"] = ctx.integer("chunk_size", top["chunk_size"], minimum=1)
+    return SweepConfig(**kw)
+
+
+def load_config(path: str | Path) -> SweepConfig:
+    """Read and validate a sweep config file.
+
+    Parameters
+    ----------
+    path
+        A YAML file (see the module docstring for the schema).
+
+    Returns
+    -------
+    SweepConfig
+
+    Raises
+    ------
+    ConfigError
+        The file is missing or unreadable, is not valid YAML, or does not match the schema.
+    """
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(source, "", "file not found") from None
+    except IsADirectoryError:
+        raise ConfigError(source, "", "expected a YAML file, got a directory") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError(source, "", f"cannot read the file ({e})") from None
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+        raise ConfigError(source, "", f"YAML syntax error{where}: {problem}") from None
+    return parse_config(doc, source)

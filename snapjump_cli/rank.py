@@ -1,0 +1,177 @@
+"""Apply the mass-spring jump model (SPEC section 6) to sweep results and rank the designs.
+
+Per row:
+
+* ``ok``: masses ``m_i, m_o = rho * (V_inner_solid_m3, V_outer_solid_m3)``, then
+  :func:`snapjump_cli.jump.jump_height` with ``dE_J``, ``dy_pole_m`` and ``h_imp_m``;
+* ``no_snap``: ``y_jump_m = 0``, ``jumped = False``, reason ``"no snap"``;
+* ``invalid_geometry`` / ``failed``: ``y_jump_m`` is NaN and the reason repeats the status and error.
+
+Added columns: :data:`RANK_COLUMNS`. The table is sorted by ``y_jump_m`` (descending, NaN last) and
+``rank`` numbers the rows that have a jump height (1 = highest).
+"""
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any, Callable
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["RANK_COLUMNS", "REQUIRED_COLUMNS", "RankInputError", "rank_results", "top_table"]
+
+log = logging.getLogger(__name__)
+
+#: Columns added by :func:`rank_results`.
+RANK_COLUMNS: tuple[str, ...] = (
+    "rank", "y_jump_m", "y_jump_norm", "jump_rise_m", "t_peak_s", "n_contacts", "jumped", "lift_off",
+    "jump_complete", "jump_reason", "m_i_kg", "m_o_kg", "k_s",
+)
+#: Columns a result file must have to be ranked.
+REQUIRED_COLUMNS: tuple[str, ...] = (
+    "status", "dE_J", "dy_pole_m", "h_imp_m", "V_inner_solid_m3", "V_outer_solid_m3", "R_i",
+)
+
+
+class RankInputError(ValueError):
+    """The table cannot be ranked (e.g. required columns are missing)."""
+
+
+def _finite(x: Any) -> bool:
+    try:
+        return x is not None and x is not pd.NA and math.isfinite(float(x))
+    except (TypeError, ValueError):
+        return False
+
+
+def rank_results(
+    df: pd.DataFrame,
+    params: Any | None = None,
+    jump_fn: Callable[..., Any] | None = None,
+    masses_fn: Callable[..., tuple[float, float]] | None = None,
+) -> pd.DataFrame:
+    """Compute the jump height of every row and sort by it.
+
+    Parameters
+    ----------
+    df
+        A sweep result table (:func:`snapjump_cli.results.read_results`).
+    params
+        :class:`snapjump_cli.jump.JumpParams` (default: ``JumpParams()``; ``rho`` sets the masses).
+    jump_fn, masses_fn
+        Replacements for :func:`snapjump_cli.jump.jump_height` and :func:`snapjump_cli.jump.masses`
+        (tests).
+
+    Returns
+    -------
+    pandas.DataFrame
+        A copy of ``df`` with :data:`RANK_COLUMNS`, sorted by ``y_jump_m`` (NaN last).
+
+    Raises
+    ------
+    RankInputError
+        If a column of :data:`REQUIRED_COLUMNS` is missing.
+    """
+    missing = [c for c in REQUIRED_COLUMNS if c not in df.columns]
+    if missing:
+        raise RankInputError("not a sweep result table: missing column(s) " + ", ".join(missing))
+    if params is None or jump_fn is None or masses_fn is None:
+        from snapjump_cli import jump
+
+        params = params if params is not None else jump.JumpParams()
+        jump_fn = jump_fn or jump.jump_height
+        masses_fn = masses_fn or jump.masses
+    rho = float(getattr(params, "rho", 1000.0))
+
+    n = len(df)
+    out: dict[str, list[Any]] = {c: [None] * n for c in RANK_COLUMNS if c != "rank"}
+    n_failed_model = 0
+    for j, r in enumerate(df.to_dict("records")):
+        status, err = r["status"], r.get("error")
+        vi, vo = r.get("V_inner_solid_m3"), r.get("V_outer_solid_m3")
+        if _finite(vi) and _finite(vo) and float(vi) > 0 and float(vo) > 0:
+            try:
+                out["m_i_kg"][j], out["m_o_kg"][j] = masses_fn(float(vi), float(vo), rho)
+            except (ValueError, TypeError):
+                pass
+        if status == "ok":
+            try:
+                if out["m_i_kg"][j] is None:
+                    raise ValueError(f"no solid volumes (V_inner_solid_m3={vi}, V_outer_solid_m3={vo})")
+                jr = jump_fn(float(r["dE_J"]), float(r["dy_pole_m"]), float(r["h_imp_m"]),
+                             out["m_i_kg"][j], out["m_o_kg"][j], params)
+            except Exception as e:  # noqa: BLE001 - one bad row never stops the ranking
+                n_failed_model += 1
+                out["jump_reason"][j] = f"jump model failed: {type(e).__name__}: {e}"
+                out["y_jump_m"][j] = math.nan
+                continue
+            out["y_jump_m"][j] = float(jr.y_jump_m)
+            out["t_peak_s"][j] = float(jr.t_peak_s)
+            out["n_contacts"][j] = int(jr.n_contacts)
+            out["jumped"][j] = bool(jr.jumped)
+            out["lift_off"][j] = bool(getattr(jr, "lift_off", jr.jumped))
+            out["jump_complete"][j] = bool(getattr(jr, "complete", True))
+            out["jump_reason"][j] = str(jr.reason or "")
+            out["k_s"][j] = float(jr.k_s)
+            out["jump_rise_m"][j] = float(jr.y_jump_m) - float(r["h_imp_m"])
+        elif status == "no_snap":
+            out["y_jump_m"][j] = 0.0
+            out["jump_rise_m"][j] = 0.0
+            out["t_peak_s"][j] = 0.0
+            out["n_contacts"][j] = 0
+            out["jumped"][j] = False
+            out["lift_off"][j] = False
+            out["jump_complete"][j] = True
+            out["k_s"][j] = 0.0
+            out["jump_reason"][j] = "no snap"
+        else:
+            out["y_jump_m"][j] = math.nan
+            text = "" if err is None or err is pd.NA else str(err)
+            out["jump_reason"][j] = f"{status}: {text}" if text else str(status)
+    if n_failed_model:
+        log.warning("the jump model failed on %d ok row(s); their y_jump_m is NaN", n_failed_model)
+
+    ranked = df.copy()
+    for c in ("y_jump_m", "jump_rise_m", "t_peak_s", "m_i_kg", "m_o_kg", "k_s"):
+        ranked[c] = pd.array([math.nan if v is None else v for v in out[c]], dtype="float64")
+    ranked["y_jump_norm"] = ranked["y_jump_m"] / ranked["R_i"].astype("float64")
+    ranked["n_contacts"] = pd.array(out["n_contacts"], dtype="Int64")
+    for c in ("jumped", "lift_off", "jump_complete"):
+        ranked[c] = pd.array(out[c], dtype="boolean")
+    ranked["jump_reason"] = pd.array(out["jump_reason"], dtype="string")
+    y = ranked["y_jump_m"].to_numpy(dtype=float)
+    order = np.lexsort((np.arange(n), -np.where(np.isnan(y), -np.inf, y)))
+    ranked = ranked.iloc[order].reset_index(drop=True)
+    has = ranked["y_jump_m"].notna().to_numpy()
+    rank = np.full(n, -1, dtype=np.int64)
+    rank[has] = np.arange(1, int(has.sum()) + 1)
+    ranked.insert(0, "rank", pd.array([int(x) if x > 0 else None for x in rank], dtype="Int64"))
+    return ranked
+
+
+def top_table(ranked: pd.DataFrame, n: int = 10) -> str:
+    """The first ``n`` ranked rows as a fixed-width text table (lengths in mm, energy in mJ)."""
+    head = ranked.head(max(0, int(n)))
+    cols = {
+        "rank": head["rank"],
+        "eta_i": head.get("eta_i"),
+        "theta_i": head.get("theta_i_deg"),
+        "eta_o": head.get("eta_o"),
+        "theta_o": head.get("theta_o_deg"),
+        "mu_ratio": head.get("mu_ratio"),
+        "dE_mJ": head["dE_J"] * 1e3,
+        "dy_pole_mm": head["dy_pole_m"] * 1e3,
+        "h_imp_mm": head["h_imp_m"] * 1e3,
+        "y_jump_mm": head["y_jump_m"] * 1e3,
+        "jumped": head["jumped"],
+        "status": head["status"],
+    }
+    table = pd.DataFrame({k: v for k, v in cols.items() if v is not None})
+    if table.empty:
+        return "(no rows)"
+    fmt = {k: (lambda x: "" if pd.isna(x) else f"{x:.4g}") for k in
+           ("eta_i", "theta_i", "eta_o", "theta_o", "mu_ratio")}
+    fmt.update({k: (lambda x: "-" if pd.isna(x) else f"{x:.2f}") for k in
+                ("dE_mJ", "dy_pole_mm", "h_imp_mm", "y_jump_mm")})
+    return table.to_string(index=False, formatters=fmt, na_rep="-")

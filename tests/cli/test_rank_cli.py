@@ -1,0 +1,138 @@
+"""``snapjump rank``: the jump model applied to a small result file, the table, the ranked file,
+the plots, and bad input."""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from snapjump_cli import results as res
+from snapjump_cli.cli import main as cli_main
+from snapjump_cli.commands import rank as rank_cmd
+from snapjump_cli.config import parse_config
+from snapjump_cli.jump import JumpParams, jump_height, masses
+from snapjump_cli.rank import RANK_COLUMNS, rank_results
+from snapjump_cli.sweep import run_sweep
+
+FAKES = Path(__file__).resolve().parents[1] / "sweep"
+
+
+@pytest.fixture(scope="module")
+def results_file(tmp_path_factory):
+    """A 16-design result file from the fake solver: ok, no_snap, invalid_geometry and failed rows."""
+    sys.path.insert(0, str(FAKES))
+    try:
+        import snapjump_fake_solvers as fake
+    finally:
+        sys.path.remove(str(FAKES))
+    cfg = parse_config({"grid": {"eta_i": [6], "theta_i": [80], "eta_o": [8, 12], "theta_o": [78, 82, 85, 86],
+                                 "mu_ratio": [1, 5.8]}, "mesh": {"order": 1, "nt": 2}})
+    out = tmp_path_factory.mktemp("rank") / "r.parquet"
+    run_sweep(cfg, output=out, n_jobs=1, solve_fn=fake.flaky_solve, progress=False)
+    return out
+
+
+def _run(capsys, *argv: str) -> tuple[int, str, str]:
+    code = cli_main(["rank", *argv])
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+def test_rank_results_applies_the_jump_model(results_file):
+    df = res.read_results(results_file)
+    assert set(df["status"]) == {"ok", "no_snap", "invalid_geometry", "failed"}
+    ranked = rank_results(df)
+    assert len(ranked) == len(df) and all(c in ranked.columns for c in RANK_COLUMNS)
+    ok = ranked[ranked["status"] == "ok"]
+    for _, r in ok.iterrows():
+        m_i, m_o = masses(r["V_inner_solid_m3"], r["V_outer_solid_m3"], 1000.0)
+        jr = jump_height(r["dE_J"], r["dy_pole_m"], r["h_imp_m"], m_i, m_o, JumpParams())
+        assert r["y_jump_m"] == pytest.approx(jr.y_jump_m, rel=1e-12)
+        assert r["m_i_kg"] == pytest.approx(m_i) and r["k_s"] == pytest.approx(2 * r["dE_J"] / r["dy_pole_m"] ** 2)
+        assert r["y_jump_norm"] == pytest.approx(r["y_jump_m"] / r["R_i"])
+    ns = ranked[ranked["status"] == "no_snap"]
+    assert len(ns) and (ns["y_jump_m"] == 0).all() and (ns["jump_reason"] == "no snap").all()
+    assert (~ns["jumped"].astype(bool)).all()
+    bad = ranked[ranked["status"].isin(["invalid_geometry", "failed"])]
+    assert bad["y_jump_m"].isna().all() and bad["rank"].isna().all()
+    assert bad["jump_reason"].str.contains("eq 5|SolveFailed|non-finite").all()
+    y = ranked["y_jump_m"].to_numpy(dtype=float)
+    fin = y[~np.isnan(y)]
+    assert (np.diff(fin) <= 0).all() and np.isnan(y[len(fin):]).all()  # sorted, NaN last
+    assert list(ranked["rank"][: len(fin)]) == list(range(1, len(fin) + 1))
+
+
+def test_rank_results_survives_a_jump_model_error(results_file):
+    df = res.read_results(results_file)
+
+    def boom(*a, **k):
+        raise ValueError("h_imp_m must be >= 0")
+
+    ranked = rank_results(df, JumpParams(), jump_fn=boom, masses_fn=masses)
+    ok = ranked[ranked["status"] == "ok"]
+    assert ok["y_jump_m"].isna().all() and ok["jump_reason"].str.contains("jump model failed").all()
+
+
+def test_rank_cli_table_file_and_plots(results_file, tmp_path, capsys):
+    out = tmp_path / "ranked.parquet"
+    plots = tmp_path / "figs"
+    code, stdout, err = _run(capsys, str(results_file), "--top", "3", "-o", str(out), "--plots", str(plots))
+    assert code == 0, err
+    assert "y_jump_mm" in stdout and "rank" in stdout and f"wrote {out}" in stdout
+    table_rows = [ln for ln in stdout.splitlines() if ln.strip().startswith(("1 ", "2 ", "3 "))]
+    assert len(table_rows) == 3
+    ranked = res.read_results(out)
+    assert list(ranked.columns[:1]) == ["rank"] and "y_jump_m" in ranked.columns
+    meta = res.read_metadata(out)
+    assert meta["rank"]["jump_params"]["rho"] == 1000.0 and meta["command"] == "sweep"  # sweep provenance kept
+    for name in ("fig4a.png", "fig4c.png", "jump_vs_parameters.png"):
+        f = plots / name
+        assert f.exists() and f.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+def test_rank_cli_default_output_and_options(results_file, capsys):
+    code, stdout, err = _run(capsys, str(results_file), "--top", "0", "--rho", "1100", "--alpha", "0.3")
+    assert code == 0, err
+    out = results_file.with_name("r.ranked.parquet")
+    assert out.exists() and res.read_metadata(out)["rank"]["jump_params"]["alpha"] == 0.3
+    assert "y_jump_mm" not in stdout
+
+
+def test_rank_cli_bad_input(tmp_path, capsys, results_file):
+    code, _, err = _run(capsys, str(tmp_path / "nope.parquet"))
+    assert code == 2 and "nope.parquet: file not found" in err
+    junk = tmp_path / "junk.parquet"
+    junk.write_text("not parquet")
+    code, _, err = _run(capsys, str(junk))
+    assert code == 2 and "not a readable parquet file" in err
+    other = tmp_path / "other.parquet"
+    pd.DataFrame({"a": [1]}).to_parquet(other)
+    code, _, err = _run(capsys, str(other))
+    assert code == 2 and "missing column(s) status" in err
+    code, _, err = _run(capsys, str(results_file), "--alpha", "2")
+    assert code == 2 and "alpha" in err
+    code, _, err = _run(capsys, str(results_file), "-o", str(results_file))
+    assert code == 2 and "overwrite" in err
+
+
+def test_rank_module_has_command_and_main(capsys):
+    assert rank_cmd.command.name == "rank"
+    assert rank_cmd.main(["--help"]) == 0
+    out = capsys.readouterr().out
+    for word in ("--top", "--plots", "Fig. 4A", "no_snap", "--output"):
+        assert word in out, word
+
+
+def test_plots_with_no_snapping_design(tmp_path):
+    from snapjump_cli.plots import make_plots
+
+    df = pd.DataFrame({"status": ["no_snap"], "dE_J": [0.0], "dy_pole_m": [math.nan], "R_i": [0.03],
+                       "mu_i": [0.35e6], "mu_ratio": [1.0], "eta_i": [6.0], "theta_i_deg": [80.0], "eta_o": [10.0],
+                       "theta_o_deg": [84.0], "y_jump_m": [0.0]})
+    files = make_plots(df, tmp_path)
+    assert all(f.exists() for f in files)
