@@ -78,6 +78,7 @@ log = logging.getLogger(__name__)
 FAKE_SOLVER_ENV = "SNAPJUMP_FAKE_SOLVER"
 #: Bumped whenever the meaning of a key changes (old results are then not reused).
 KEY_VERSION = "snapjump-sweep-v1"
+_CONNECT_TIMEOUT_S = 15.0
 
 SolveFn = Callable[[Design, MeshSettings, SolverSettings], Mapping[str, Any]]
 
@@ -645,6 +646,6 @@ def _connect(address: str) -> Any:
     except ImportError as e:  # pragma: no cover - depends on the install
         raise SweepError("--scheduler needs dask[distributed] (pip install 'snapjump[dask]')") from e
     try:
-        return Client(address, timeout=15, set_as_default=False)
+        return Client(address, timeout=_CONNECT_TIMEOUT_S, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as e:
         raise SweepInputError(f"cannot connect to the dask scheduler at {address!r}: {e}") from None
