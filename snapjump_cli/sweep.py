@@ -236,7 +236,11 @@ def resolve_solver(solve_fn: SolveFn | None = None, warm_up_fn: Callable[[], Any
         fn, mod = _import_target(spec)
         log.warning("using the test-only solver %s (from %s)", spec, FAKE_SOLVER_ENV)
         return fn, warm_up_fn or getattr(mod, "warm_up", None), spec
-    from snapjump_cli import solve  # lazily: heavy (numba, gmsh)
+    try:
+        from snapjump_cli import solve  # lazily: heavy (numba, gmsh)
+    except ImportError as e:
+        log.debug("importing snapjump_cli.solve failed", exc_info=True)
+        raise SweepError(f"cannot import the solver snapjump_cli.solve: {e}") from e
 
     return solve.solve_design, warm_up_fn or getattr(solve, "warm_up", None), "snapjump_cli.solve:solve_design"
 
@@ -581,11 +585,14 @@ def run_sweep(
     writer = _PartWriter(parts, meta, chunk, flush_interval_s)
 
     bar = None
+    stack = ExitStack()
     if progress:
         from tqdm import tqdm
+        from tqdm.contrib.logging import logging_redirect_tqdm
 
         bar = tqdm(total=len(points), initial=n_resumed, file=sys.stderr, unit="design", dynamic_ncols=True,
                    desc="sweep", smoothing=0.05)
+        stack.enter_context(logging_redirect_tqdm())  # log lines above the bar, not through it
 
     def record(row: dict[str, Any]) -> None:
         counts[row["status"]] = counts.get(row["status"], 0) + 1
@@ -623,6 +630,7 @@ def run_sweep(
                     record(row)
     finally:
         writer.flush()  # keep every finished row, also on Ctrl-C or errors
+        stack.close()
         if bar is not None:
             bar.close()
         if client is not None:
