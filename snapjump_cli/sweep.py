@@ -613,7 +613,11 @@ def run_sweep(
                 n_jobs = -1
             if warm_up_fn is not None:
                 t0 = time.perf_counter()
-                warm_up_fn()
+                try:
+                    warm_up_fn()
+                except Exception as e:  # noqa: BLE001 - reported as one line; -vv shows the traceback
+                    log.debug("warm-up failed", exc_info=True)
+                    raise SweepError(f"the solver warm-up (kernel compilation) failed: {type(e).__name__}: {e}") from e
                 log.info("solver kernels compiled in %.1f s", time.perf_counter() - t0)
             md = None
             if n_jobs != 1 or backend != "loky":

@@ -219,3 +219,14 @@ def test_consolidate_keeps_rows_of_other_grids(grid_file, tmp_path):
     assert list(df["theta_o_deg"][:8]) == [84.0] * 8  # this grid first, in grid order
     counts = consolidate(out, {"x": 1})
     assert sum(counts.values()) == 16
+
+
+def test_warm_up_failure_is_a_sweep_error(grid_file, tmp_path):
+    from snapjump_cli.sweep import SweepError
+
+    def bad_warm_up():
+        raise RuntimeError("numba: cannot compile")
+
+    with pytest.raises(SweepError, match="warm-up .* failed: RuntimeError: numba: cannot compile"):
+        run_sweep(load_config(grid_file()), output=tmp_path / "r.parquet", n_jobs=1, solve_fn=fake.fast_solve,
+                  warm_up_fn=bad_warm_up, progress=False)
