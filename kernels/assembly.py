@@ -123,7 +123,8 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
     conn : (ne, nen) connectivity; mat : (ne,) material index into ``mu``, ``jm``, ``kappa``
     dNdX, Rq, Wq : from :func:`reference_geometry`; N_ref (nq, nen); Np (nq, np); Minv (ne, np, np)
     edofs : (ne, 2 nen) free-dof index of each element dof, -1 if constrained
-    epos : (ne, 2 nen, 2 nen) CSR data position of each element matrix entry, -1 if dropped
+    epos : (ne, 2 nen, 2 nen) position of each element matrix entry in ``data_out``, -1 if not
+        stored (constrained, or the upper triangle of a symmetric band storage)
     want : 0 energy, 1 + residual, 2 + tangent
     f_out, data_out : accumulated into (zero them before the call)
 
@@ -137,20 +138,18 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
     npr = Np.shape[1]
     nd = 2 * nen
     f = np.empty(5)
-    dpsi = np.zeros(5)
-    d2psi = np.zeros((5, 5))
-    dJ = np.empty(5)
-    d2J = np.empty((5, 5))
-    Jq = np.empty(nq)
+    dpsi = np.zeros((nq, 5))
+    d2psi = np.zeros((nq, 5, 5))
     dJq = np.empty((nq, 5))
     d2Jq = np.empty((nq, 5, 5))
     fe = np.empty(nd)
     Ke = np.empty((nd, nd))
-    G = np.empty((nd, npr))
+    G = np.empty((npr, nd))
     g = np.empty(npr)
     pb = np.empty(npr)
     DB = np.empty((5, nd))
     D = np.empty((5, 5))
+    sv = np.empty(5)
     energy = 0.0
     maxdev = 0.0
     for e in range(ne):
@@ -158,85 +157,81 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
         mu_e = mu[m_]
         jm_e = jm[m_]
         ka = kappa[m_]
-        fe[:] = 0.0
-        if want >= 2:
-            Ke[:, :] = 0.0
-            G[:, :] = 0.0
         g[:] = 0.0
-        # pass 1: isochoric part, J at every point
+        # pass 1: kinematics, isochoric energy and its derivatives, projected dilatation g
         for q in range(nq):
             _deformation(u, conn[e], dNdX[e, q], N_ref[q], Rq[e, q], f)
-            ok, psi, J = gent_iso(f, mu_e, jm_e, want, dpsi, d2psi, dJ, d2J)
+            ok, psi, J = gent_iso(f, mu_e, jm_e, want, dpsi[q], d2psi[q], dJq[q], d2Jq[q])
             if not ok:
                 return energy, False, maxdev
             W = Wq[e, q]
             energy += W * psi
-            Jq[q] = J
             dev = abs(J - 1.0)
             if dev > maxdev:
                 maxdev = dev
-            for k in range(5):
-                dJq[q, k] = dJ[k]
-                for m in range(5):
-                    d2Jq[q, k, m] = d2J[k, m]
             for k in range(npr):
                 g[k] += W * Np[q, k] * (J - 1.0)
-            if want >= 1:
-                _bt_vec(dNdX[e, q], N_ref[q], Rq[e, q], dpsi, fe, W)
-            if want >= 2:
-                for k in range(npr):
-                    _bt_vec(dNdX[e, q], N_ref[q], Rq[e, q], dJ, G[:, k], W * Np[q, k])
-                for k in range(5):
-                    for m in range(5):
-                        D[k, m] = W * d2psi[k, m]
-                _add_btdb(dNdX[e, q], N_ref[q], Rq[e, q], D, DB, Ke)
-        # volumetric part: pbar = kappa M^-1 g
-        vol = 0.0
+        # volumetric part: pbar = kappa M^-1 g, energy kappa/2 g^T M^-1 g
         for k in range(npr):
             s = 0.0
             for m in range(npr):
                 s += Minv[e, k, m] * g[m]
             pb[k] = ka * s
-            vol += 0.5 * g[k] * pb[k]
-        energy += vol
-        if want >= 1:
-            for q in range(nq):
-                pq = 0.0
-                for k in range(npr):
-                    pq += Np[q, k] * pb[k]
-                _bt_vec(dNdX[e, q], N_ref[q], Rq[e, q], dJq[q], fe, Wq[e, q] * pq)
-                if want >= 2:
-                    for k in range(5):
-                        for m in range(5):
-                            D[k, m] = Wq[e, q] * pq * d2Jq[q, k, m]
-                    _add_btdb(dNdX[e, q], N_ref[q], Rq[e, q], D, DB, Ke)
+            energy += 0.5 * g[k] * pb[k]
+        if want == 0:
+            continue
+        # pass 2: stress and tangent with the element pressure at each point
+        fe[:] = 0.0
         if want >= 2:
-            # kappa G M^-1 G^T
-            for i in range(nd):
+            Ke[:, :] = 0.0
+            G[:, :] = 0.0
+        for q in range(nq):
+            W = Wq[e, q]
+            pq = 0.0
+            for k in range(npr):
+                pq += Np[q, k] * pb[k]
+            for k in range(5):
+                sv[k] = W * (dpsi[q, k] + pq * dJq[q, k])
+            _bt_vec(dNdX[e, q], N_ref[q], Rq[e, q], sv, fe, 1.0)
+            if want >= 2:
                 for k in range(npr):
-                    s = 0.0
-                    for m in range(npr):
-                        s += Minv[e, k, m] * G[i, m]
-                    s *= ka
-                    for j in range(nd):
-                        Ke[i, j] += s * G[j, k]
-        # scatter
-        if want >= 1:
-            for i in range(nd):
-                di = edofs[e, i]
-                if di >= 0:
-                    f_out[di] += fe[i]
-                    if want >= 2:
-                        for j in range(nd):
-                            pj = epos[e, i, j]
-                            if pj >= 0:
-                                data_out[pj] += Ke[i, j]
+                    _bt_vec(dNdX[e, q], N_ref[q], Rq[e, q], dJq[q], G[k], W * Np[q, k])
+                for k in range(5):
+                    for m in range(5):
+                        D[k, m] = W * (d2psi[q, k, m] + pq * d2Jq[q, k, m])
+                _add_btdb_lower(dNdX[e, q], N_ref[q], Rq[e, q], D, DB, Ke)
+        if want >= 2:
+            # kappa G^T M^-1 G (lower triangle)
+            for k in range(npr):
+                for m in range(npr):
+                    c = ka * Minv[e, k, m]
+                    for i in range(nd):
+                        gik = c * G[k, i]
+                        for j in range(i + 1):
+                            Ke[i, j] += gik * G[m, j]
+        # scatter (Ke holds the lower triangle of a symmetric matrix)
+        for i in range(nd):
+            di = edofs[e, i]
+            if di < 0:
+                continue
+            f_out[di] += fe[i]
+            if want >= 2:
+                for j in range(i + 1):
+                    v = Ke[i, j]
+                    pij = epos[e, i, j]
+                    if pij >= 0:
+                        data_out[pij] += v
+                    if j != i:
+                        pji = epos[e, j, i]
+                        if pji >= 0:
+                            data_out[pji] += v
     return energy, True, maxdev
 
 
 @njit(cache=True)
-def _add_btdb(dNdX_eq, N_q, R_q, D, DB, Ke):
-    """Ke += B^T D B for one quadrature point (B is sparse: 3 rows per u_r dof, 2 per u_z dof)."""
+def _add_btdb_lower(dNdX_eq, N_q, R_q, D, DB, Ke):
+    """Lower triangle of Ke += B^T D B for one quadrature point (D symmetric; B sparse:
+    rows 0, 1, 4 for a u_r dof, rows 2, 3 for a u_z dof)."""
     nen = dNdX_eq.shape[0]
     for k in range(5):
         for a in range(nen):
@@ -249,9 +244,11 @@ def _add_btdb(dNdX_eq, N_q, R_q, D, DB, Ke):
         bx = dNdX_eq[a, 0]
         by = dNdX_eq[a, 1]
         bn = N_q[a] / R_q
-        for j in range(2 * nen):
-            Ke[2 * a, j] += bx * DB[0, j] + by * DB[1, j] + bn * DB[4, j]
-            Ke[2 * a + 1, j] += bx * DB[2, j] + by * DB[3, j]
+        i = 2 * a
+        for j in range(i + 1):
+            Ke[i, j] += bx * DB[0, j] + by * DB[1, j] + bn * DB[4, j]
+        for j in range(i + 2):
+            Ke[i + 1, j] += bx * DB[2, j] + by * DB[3, j]
 
 
 @njit(cache=True)

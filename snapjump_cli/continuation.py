@@ -30,13 +30,18 @@ __all__ = ["Problem", "PathPoint", "Path", "ContinuationFailed", "ContinuationSe
 
 
 class Problem(Protocol):
+    """What the continuation needs (see :mod:`snapjump_cli.model`)."""
+
     n: int
 
-    def residual(self, u: np.ndarray, p: float) -> np.ndarray | None: ...
+    def linearize(self, u: np.ndarray, p: float):
+        """Object with ``.R`` (residual) and ``.factor(c_u, c_p)`` -> solver with ``.solve(rhs)``
+        for the bordered matrix ``[[dR/du, dR/dp], [c_u^T, c_p]]``; ``None`` for a failed iterate."""
+        ...
 
-    def measures(self, u: np.ndarray, p: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
-
-    def factor_bordered(self, u: np.ndarray, p: float, c_u: np.ndarray, c_p: float): ...
+    def measures(self, u: np.ndarray, p: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Path measures ``zeta`` (k,), ``d zeta / du`` (k, n), ``d zeta / dp`` (k,)."""
+        ...
 
 
 class ContinuationFailed(RuntimeError):
@@ -55,7 +60,8 @@ class ContinuationSettings:
     max_steps: int = 400
     max_newton: int = 8
     max_turn_deg: float = 10.0
-    n_opt: int = 4
+    n_opt: int = 5
+    quadratic_predictor: bool = True
 
 
 @dataclass
@@ -100,14 +106,17 @@ class Tracer:
         z, dz_du, dz_dp = self.pb.measures(u, p)
         return z / self.sc, dz_du / self.sc[:, None], dz_dp / self.sc
 
-    def tangent(self, u: np.ndarray, p: float, t_prev: np.ndarray):
-        """Unit tangent at a converged state, oriented along ``t_prev`` (in measure space)."""
+    def tangent(self, lin, t_prev: np.ndarray):
+        """Unit tangent at a converged state (its linearisation ``lin``), oriented along ``t_prev``.
+
+        Solves ``[[K_T, dR/dp], [t_prev . dzeta/du, t_prev . dzeta/dp]] [v; q] = [0; 1]``, so
+        ``t_prev . dzeta = 1 > 0``: the orientation follows the previous tangent.
+        """
+        u, p = lin.u, lin.p
         z, dz_du, dz_dp = self.zeta(u, p)
-        c_u = t_prev @ dz_du
-        c_p = float(t_prev @ dz_dp)
-        solver = self.pb.factor_bordered(u, p, c_u, c_p)
+        solver = lin.factor(t_prev @ dz_du, float(t_prev @ dz_dp))
         if solver is None:
-            raise ContinuationFailed("singular or invalid bordered matrix at a converged state")
+            raise ContinuationFailed("singular bordered matrix at a converged state")
         rhs = np.zeros(self.pb.n + 1)
         rhs[-1] = 1.0
         x = solver.solve(rhs)
@@ -119,21 +128,23 @@ class Tracer:
         return dz / nrm, v / nrm, q / nrm, z
 
     def correct(self, u, p, z0, t, ds, target=None):
-        """Newton on ``R = 0`` and a linear constraint in measure space.
+        """Newton on ``R = 0`` and one linear constraint in measure space.
 
         With ``target=None`` the constraint is the Riks hyperplane ``t . (zeta - z0) = ds``;
         with ``target=(k, value)`` it fixes one scaled measure, ``zeta_k = value``.
 
-        Returns ``(u, p, iterations)`` or ``None`` on failure.
+        Returns ``(linearisation at the converged state, iterations)`` or ``None`` on failure.
+        Converged: the residual below ``tol`` times the pressure load ``|p| |dV/du|`` (floored at
+        1e-3 of the pressure scale), or at its round-off floor after a negligible correction.
         """
         cfg = self.cfg
         u = u.copy()
-        ref = None
         step_small = False
-        for it in range(1, cfg.max_newton + 1):
-            R = self.pb.residual(u, p)
-            if R is None:
+        for it in range(0, cfg.max_newton + 1):
+            lin = self.pb.linearize(u, p)
+            if lin is None:
                 return None
+            R = lin.R
             z, dz_du, dz_dp = self.zeta(u, p)
             if target is None:
                 h = float(t @ (z - z0) - ds)
@@ -144,52 +155,59 @@ class Tracer:
                 h = float(z[k] - val)
                 c_u = dz_du[k]
                 c_p = float(dz_dp[k])
-            # residual scale: the pressure load |p| |dV/du| (floored at 1e-3 of the pressure scale)
             ref = float(np.linalg.norm(dz_du[0])) * self.sc[0] * max(abs(p), 1e-3 * self.sc[1])
             rn = float(np.linalg.norm(R)) / ref
-            if it > 1 and abs(h) < cfg.tol * max(1.0, abs(ds)):
-                # converged: small residual, or a negligible correction with the residual at its
-                # round-off floor (which grows with the bulk modulus of the mixed element)
+            if it > 0 and abs(h) < cfg.tol * max(1.0, abs(ds)):
                 if rn < cfg.tol or (step_small and rn < 100.0 * cfg.tol):
-                    self.n_newton += it - 1
-                    return u, p, it - 1
-            solver = self.pb.factor_bordered(u, p, c_u, c_p)
+                    self.n_newton += it
+                    return lin, it
+            if it == cfg.max_newton or not np.isfinite(rn):
+                return None
+            solver = lin.factor(c_u, c_p)
             if solver is None:
                 return None
             x = solver.solve(np.concatenate([-R, [-h]]))
             du, dp = x[:-1], x[-1]
             if not (np.all(np.isfinite(du)) and np.isfinite(dp)):
                 return None
-            u += du
-            p += dp
+            u = u + du
+            p = p + dp
             step_small = float(np.linalg.norm(dz_du @ du + dz_dp * dp)) < 1e-12
-            # converged on the increment as well (quadratic convergence: one more residual check)
-        R = self.pb.residual(u, p)
-        if R is not None and ref is not None and np.linalg.norm(R) / ref < cfg.tol:
-            self.n_newton += cfg.max_newton
-            return u, p, cfg.max_newton
         return None
 
-    def step(self, pt: PathPoint, ds: float):
-        """One predictor-corrector step of length ``ds`` from ``pt``; ``PathPoint`` or ``None``."""
+    def step(self, pt: PathPoint, ds: float, prev: PathPoint | None = None):
+        """One predictor-corrector step of length ``ds`` from ``pt``; ``PathPoint`` or ``None``.
+
+        The predictor is the tangent line, or with ``prev`` (the point before ``pt``) the
+        quadratic through ``prev`` that is tangent at ``pt`` (fewer corrector iterations).
+        """
         u0 = pt.u + ds * pt.du_ds
         p0 = pt.p + ds * pt.dp_ds
+        if prev is not None:
+            h = pt.s - prev.s
+            if h > 0:
+                w = (ds / h) ** 2
+                u0 = u0 + w * (prev.u - pt.u + h * pt.du_ds)
+                p0 = p0 + w * (prev.p - pt.p + h * pt.dp_ds)
         res = self.correct(u0, p0, pt.zeta, pt.tangent, ds)
         if res is None:
             return None
-        u, p, it = res
+        lin, it = res
         try:
-            t, v, q, z = self.tangent(u, p, pt.tangent)
+            t, v, q, z = self.tangent(lin, pt.tangent)
         except ContinuationFailed:
             return None
-        return PathPoint(u, p, z, t, v, q, pt.s + ds, it)
+        return PathPoint(lin.u, lin.p, z, t, v, q, pt.s + ds, it)
 
 
 def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0) -> PathPoint:
     """The first path point (a converged state, e.g. the stress-free reference), oriented so
     that the cavity volume increases."""
     t_prev = np.array([1.0, 0.0, 0.0])
-    t, v, q, z = tracer.tangent(u0, p0, t_prev)
+    lin = tracer.pb.linearize(u0, p0)
+    if lin is None:
+        raise ContinuationFailed("the initial state lies outside the material domain")
+    t, v, q, z = tracer.tangent(lin, t_prev)
     return PathPoint(u0.copy(), p0, z, t, v, q, 0.0, 0)
 
 
@@ -231,7 +249,8 @@ def trace(
             path.stop_reason = "max_steps"
             break
         pt = path.points[-1]
-        new = tr.step(pt, ds)
+        prev = path.points[-2] if (cfg.quadratic_predictor and len(path.points) > 1) else None
+        new = tr.step(pt, ds, prev)
         if new is not None:
             ang = turn_angle(pt.tangent, new.tangent)
             if ang > cfg.max_turn_deg and ds > 4 * cfg.ds_min:

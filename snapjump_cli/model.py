@@ -8,17 +8,25 @@ and the cavity pressure ``p``.
 Interface used by :mod:`snapjump_cli.continuation` (nothing about meshes leaks through it):
 
 * ``n`` - number of free dofs
-* ``residual(u, p)`` - ``f_int(u) - p dV/du`` or ``None`` if the iterate left the material domain
-* ``dR_dp(u)`` - ``-dV/du``
+* ``linearize(u, p)`` - one assembly: the residual ``R = f_int(u) - p dV/du`` and, on demand,
+  the factorisation of the bordered matrix ``[[K_T, dR/dp], [c_u^T, c_p]]`` (``None`` if the
+  iterate left the material domain: a failed iterate, SPEC pitfall c)
 * ``measures(u, p)`` - the path measures ``zeta = (V, p, w)`` (cavity volume, pressure, pole
   displacement) with their derivatives; the arc length is measured in this space
-* ``factor_bordered(u, p, c_u, c_p)`` - factorises ``[[K_T, dR/dp], [c_u^T, c_p]]`` and returns an
-  object with ``solve(rhs)``; ``c_u`` must vanish outside the cavity and pole dofs
+* ``energy(u)`` - the strain energy
+
+Linear solvers. The free dofs are numbered along the structure (Cuthill-McKee from the inner
+cap's lower pole), so the symmetric ``K_T`` is banded. ``solver="banded"`` (default) factorises it
+with a numba band LDL^T (:mod:`snapjump_kernels.banded`, which also gives the number of negative
+eigenvalues) and handles the border by block elimination with one step of iterative refinement
+on the full bordered system (accurate next to limit points, where ``K_T`` is nearly singular);
+``solver="superlu"`` factorises the whole bordered matrix with SuperLU (a cross-check).
 """
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+import time
+from collections import deque
 
 import numpy as np
 import scipy.sparse as sp
@@ -26,31 +34,82 @@ import scipy.sparse.linalg as spla
 
 from snapjump_cli.meshdata import Mesh
 from snapjump_kernels.assembly import assemble, pressure_mass_inverse, quadrature_jacobians, reference_geometry
+from snapjump_kernels.banded import band_ldlt, band_ldlt_solve, sym_band_matvec
 from snapjump_kernels.cavity import cavity_assemble
 from snapjump_kernels.elements import element_tables
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Model", "MeasureIndex", "BorderedSolver"]
+__all__ = ["Model", "Linearization"]
 
 
-class MeasureIndex:
-    """Indices into the measure vector ``zeta``."""
+def _cuthill_mckee(n_nodes: int, conn: np.ndarray, start: int) -> np.ndarray:
+    """Breadth-first (Cuthill-McKee) node order from ``start``; neighbours by increasing degree."""
+    nen = conn.shape[1]
+    r = np.repeat(conn, nen, axis=1).ravel()
+    c = np.tile(conn, (1, nen)).ravel()
+    A = sp.csr_matrix((np.ones(len(r), np.int8), (r, c)), shape=(n_nodes, n_nodes))
+    deg = np.diff(A.indptr)
+    seen = np.zeros(n_nodes, bool)
+    order = []
+    for s in [start] + list(np.argsort(deg)):
+        if seen[s]:
+            continue
+        seen[s] = True
+        q = deque([s])
+        while q:
+            v = q.popleft()
+            order.append(v)
+            nb = A.indices[A.indptr[v] : A.indptr[v + 1]]
+            nb = nb[~seen[nb]]
+            nb = nb[np.argsort(deg[nb], kind="stable")]
+            seen[nb] = True
+            q.extend(nb.tolist())
+    return np.array(order, dtype=np.int64)
 
-    V = 0
-    P = 1
-    W = 2
+
+class Linearization:
+    """Residual at ``(u, p)`` with the (lazily factorised) tangent of one assembly."""
+
+    def __init__(self, model: "Model", u, p, R, g, data):
+        self.model, self.u, self.p, self.R, self.g, self.data = model, u, p, R, g, data
+
+    def factor(self, c_u: np.ndarray, c_p: float) -> "BorderedSolver | None":
+        """Factorise ``[[K_T, -dV/du], [c_u^T, c_p]]``; ``None`` if it is singular."""
+        return self.model._factor(self.data, -self.g, c_u, c_p)
 
 
-@dataclass
 class BorderedSolver:
-    """A factorised bordered matrix; ``solve(rhs)`` accepts (n+1,) or (n+1, k) right-hand sides."""
+    """Solves the bordered system ``[[K, b], [c^T, d]] [x; y] = [r; s]``.
 
-    lu: object
-    n: int
+    ``kind="banded"``: ``fac`` is the band LDL^T of ``K`` (``K`` kept for the refinement step);
+    ``kind="superlu"``: ``fac`` is the SuperLU factorisation of the whole bordered matrix.
+    """
+
+    def __init__(self, kind, fac, K, b, c, d, n, n_negative=-1):
+        self.kind, self.fac, self.K, self.b, self.c, self.d, self.n = kind, fac, K, b, c, d, n
+        self.n_negative = n_negative  # negative eigenvalues of K (banded only)
+        if kind == "banded":
+            self.Kib = band_ldlt_solve(fac, b)
+            self.schur = d - float(c @ self.Kib)
+
+    def _solve_once(self, r, s):
+        z = band_ldlt_solve(self.fac, r)
+        y = (s - float(self.c @ z)) / self.schur
+        return z - y * self.Kib, y
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        return self.lu.solve(np.asarray(rhs, dtype=float))
+        """Solution of the bordered system for one right-hand side ``[r; s]`` (length n + 1)."""
+        rhs = np.asarray(rhs, dtype=float)
+        if self.kind == "superlu":
+            return self.fac.solve(rhs)
+        r, s = rhs[:-1], float(rhs[-1])
+        x, y = self._solve_once(r, s)
+        # one step of iterative refinement on the full bordered system
+        top = sym_band_matvec(self.K, x) + self.b * y
+        bot = float(self.c @ x) + self.d * y
+        dx, dy = self._solve_once(r - top, s - bot)
+        return np.concatenate([x + dx, [y + dy]])
 
 
 class Model:
@@ -65,6 +124,7 @@ class Model:
     L, S : length and stress scales (SI) used to non-dimensionalise
     pole_node : node whose vertical displacement is the path measure ``w``
         (default: ``mesh.node_sets["pole_upper"]``)
+    solver : ``"banded"`` (LAPACK band LU + bordering) or ``"superlu"``
     """
 
     def __init__(
@@ -76,7 +136,11 @@ class Model:
         L: float,
         S: float,
         pole_node: int | None = None,
+        solver: str = "banded",
     ) -> None:
+        if solver not in ("banded", "superlu"):
+            raise ValueError(f"solver must be 'banded' or 'superlu', got {solver!r}")
+        self.solver = solver
         self.mesh = mesh
         self.L = float(L)
         self.S = float(S)
@@ -95,64 +159,73 @@ class Model:
         self.Minv = pressure_mass_inverse(self.Wq, self.Np)
         self.edges = np.ascontiguousarray(mesh.edge_sets["cavity"].astype(np.int64))
         self.V_offset = mesh.cavity_volume_offset / self.L**3
+        if pole_node is None:
+            pole_node = int(np.atleast_1d(mesh.node_sets["pole_upper"])[0])
+        self.pole_node = pole_node
 
-        # ---- dofs ------------------------------------------------------------------------------
+        # ---- dofs, numbered along the structure ---------------------------------------------------
         nn = self.X.shape[0]
         fixed = np.zeros((nn, 2), bool)
         fixed[mesh.node_sets["axis"], 0] = True
         fixed[mesh.node_sets.get("dirichlet_x", np.zeros(0, int)), 0] = True
         fixed[mesh.node_sets.get("dirichlet_y", np.zeros(0, int)), 1] = True
         self.fixed = fixed
+        start = int(np.atleast_1d(mesh.node_sets.get("pole_lower", [pole_node]))[0])
+        order = _cuthill_mckee(nn, self.conn, start)
         dofmap = -np.ones((nn, 2), np.int64)
-        free = ~fixed.ravel()
-        dofmap.ravel()[free] = np.arange(free.sum())
+        k = 0
+        for v in order:
+            for c in range(2):
+                if not fixed[v, c]:
+                    dofmap[v, c] = k
+                    k += 1
         self.dofmap = dofmap
-        self.n = int(free.sum())
+        self.n = k
+        free = ~fixed.ravel()
         self.free_mask = free
-        if pole_node is None:
-            pole_node = int(np.atleast_1d(mesh.node_sets["pole_upper"])[0])
-        self.pole_node = pole_node
+        self._free_index = dofmap.ravel()[free]  # free dof number of each free entry of U.ravel()
         self.pole_dof = int(dofmap[pole_node, 1])
         if self.pole_dof < 0:
             raise ValueError("the pole node's vertical dof is constrained")
 
-        # ---- CSR pattern of the bordered matrix (n + 1) -----------------------------------------
-        n1 = self.n + 1
-        edofs = dofmap[self.conn].reshape(self.conn.shape[0], -1)  # (ne, 2 nen)
+        edofs = dofmap[self.conn].reshape(self.conn.shape[0], -1)
         self.edofs = np.ascontiguousarray(edofs)
-        nd = edofs.shape[1]
-        rows = np.repeat(edofs, nd, axis=1).ravel()
-        cols = np.tile(edofs, (1, nd)).ravel()
-        keep = (rows >= 0) & (cols >= 0)
-        gdofs = np.unique(dofmap[np.unique(self.edges)].ravel())
-        gdofs = gdofs[gdofs >= 0]
-        bdofs = np.union1d(gdofs, [self.pole_dof])
-        self.border_dofs = bdofs
-        br = np.concatenate([bdofs, np.full(len(bdofs), self.n), [self.n]])
-        bc = np.concatenate([np.full(len(bdofs), self.n), bdofs, [self.n]])
-        keys = np.unique(np.concatenate([rows[keep] * n1 + cols[keep], br * n1 + bc]))
-        self.csr_rows = keys // n1
-        self.csr_cols = keys % n1
-        self.indptr = np.searchsorted(self.csr_rows, np.arange(n1 + 1)).astype(np.int64)
-        self.indices = self.csr_cols.astype(np.int64)
-        self.nnz = len(keys)
-
-        def pos(r, c):
-            k = r * n1 + c
-            p = np.searchsorted(keys, k)
-            p = np.where((r >= 0) & (c >= 0), p, -1)
-            return p
-
-        ep = pos(np.repeat(edofs, nd, axis=1), np.tile(edofs, (1, nd)))
-        self.epos = np.ascontiguousarray(ep.reshape(self.conn.shape[0], nd, nd).astype(np.int64))
         edge_dofs = dofmap[self.edges].reshape(self.edges.shape[0], -1)
         self.edge_dofs = np.ascontiguousarray(edge_dofs)
-        nde = edge_dofs.shape[1]
-        gp = pos(np.repeat(edge_dofs, nde, axis=1), np.tile(edge_dofs, (1, nde)))
-        self.edge_pos = np.ascontiguousarray(gp.reshape(self.edges.shape[0], nde, nde).astype(np.int64))
-        self.col_pos = pos(bdofs, np.full(len(bdofs), self.n))
-        self.row_pos = pos(np.full(len(bdofs), self.n), bdofs)
-        self.corner_pos = int(pos(np.array([self.n]), np.array([self.n]))[0])
+        nd, nde = edofs.shape[1], edge_dofs.shape[1]
+        ri, ci = np.repeat(edofs, nd, axis=1), np.tile(edofs, (1, nd))
+        rg, cg = np.repeat(edge_dofs, nde, axis=1), np.tile(edge_dofs, (1, nde))
+        valid = (ri >= 0) & (ci >= 0)
+        self.kl = int(np.abs(ri - ci)[valid].max()) if valid.any() else 0
+        n = self.n
+        # CSR pattern of K_T alone (tests, stability checks) and of the bordered matrix (superlu)
+        gd = np.unique(edge_dofs[edge_dofs >= 0])
+        self.border_dofs = np.union1d(gd, [self.pole_dof])
+        n1 = n + 1
+        bd = self.border_dofs
+        br = np.concatenate([bd, np.full(len(bd), n), [n]])
+        bc = np.concatenate([np.full(len(bd), n), bd, [n]])
+        keys = np.unique(np.concatenate([ri[valid] * n1 + ci[valid], br * n1 + bc]))
+        self._csr_keys = keys
+        self.indptr = np.searchsorted(keys // n1, np.arange(n1 + 1)).astype(np.int64)
+        self.indices = (keys % n1).astype(np.int64)
+
+        def csr_pos(r, c):
+            p = np.searchsorted(keys, r * n1 + c)
+            return np.where((r >= 0) & (c >= 0), p, -1)
+
+        def band_pos(r, c):  # lower band only, stored (n, kl + 1): A[i, j] -> [j, i - j]
+            p = c * (self.kl + 1) + (r - c)
+            return np.where((r >= 0) & (c >= 0) & (r >= c), p, -1)
+
+        pos = band_pos if solver == "banded" else csr_pos
+        self.epos = np.ascontiguousarray(pos(ri, ci).reshape(self.conn.shape[0], nd, nd).astype(np.int64))
+        self.edge_pos = np.ascontiguousarray(pos(rg, cg).reshape(self.edges.shape[0], nde, nde).astype(np.int64))
+        self.ndata = (self.kl + 1) * n if solver == "banded" else len(keys)
+        if solver == "superlu":
+            self.col_pos = csr_pos(bd, np.full(len(bd), n))
+            self.row_pos = csr_pos(np.full(len(bd), n), bd)
+            self.corner_pos = int(csr_pos(np.array([n]), np.array([n]))[0])
         self.n_assemblies = 0
         self.n_factorizations = 0
         self.t_assembly = 0.0
@@ -162,8 +235,14 @@ class Model:
     def full_displacement(self, u: np.ndarray) -> np.ndarray:
         """Free-dof vector -> (n_nodes, 2) displacement array."""
         U = np.zeros(self.X.shape)
-        U.ravel()[self.free_mask] = u
+        U.ravel()[self.free_mask] = u[self._free_index]
         return U
+
+    def free_vector(self, U: np.ndarray) -> np.ndarray:
+        """(n_nodes, 2) array -> free-dof vector (constrained entries dropped)."""
+        u = np.zeros(self.n)
+        u[self._free_index] = np.asarray(U).ravel()[self.free_mask]
+        return u
 
     def positions(self, u: np.ndarray) -> np.ndarray:
         """Current node positions (scaled)."""
@@ -171,8 +250,6 @@ class Model:
 
     # ---- evaluations ---------------------------------------------------------------------------
     def _eval(self, u, p, want, data=None):
-        import time
-
         t0 = time.perf_counter()
         U = self.full_displacement(u)
         f = np.zeros(self.n)
@@ -183,7 +260,7 @@ class Model:
             self.Np, self.Minv, self.edofs, self.epos, want, f, data,
         )
         g = np.zeros(self.n)
-        V = cavity_assemble(self.X + U, self.edges, self.edge_dofs, self.edge_pos, -p, want, g, data)
+        V = cavity_assemble(self.X + U, self.edges, self.edge_dofs, self.edge_pos, -p, max(want, 1), g, data)
         self.n_assemblies += 1
         self.t_assembly += time.perf_counter() - t0
         return E, ok, f, g, V + self.V_offset
@@ -195,69 +272,77 @@ class Model:
 
     def volume(self, u: np.ndarray) -> float:
         """Cavity volume (scaled)."""
-        return self._eval(u, 0.0, 0)[4]
+        return self.measures(u, 0.0)[0][0]
 
     def residual(self, u: np.ndarray, p: float) -> np.ndarray | None:
         """``f_int(u) - p dV/du``; ``None`` if the iterate left the material domain."""
         E, ok, f, g, V = self._eval(u, p, 1)
-        if not ok:
-            return None
-        return f - p * g
+        return f - p * g if ok else None
 
     def internal_force(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """``(f_int, dV/du)``, or ``None`` outside the material domain."""
         E, ok, f, g, V = self._eval(u, 0.0, 1)
         return (f, g) if ok else None
 
-    def dR_dp(self, u: np.ndarray) -> np.ndarray:
-        return -self._eval(u, 0.0, 1)[3]
+    def linearize(self, u: np.ndarray, p: float) -> Linearization | None:
+        """Residual and tangent from one assembly; ``None`` outside the material domain."""
+        data = np.zeros(self.ndata)
+        E, ok, f, g, V = self._eval(u, p, 2, data)
+        if not ok:
+            return None
+        return Linearization(self, u, p, f - p * g, g, data)
 
     def measures(self, u: np.ndarray, p: float):
-        """Path measures ``zeta = (V, p, w)`` and their derivatives.
+        """Path measures ``zeta = (V, p, w)`` and their derivatives (cavity only: cheap).
 
         Returns
         -------
         zeta : (3,) ; dzeta_du : (3, n) ; dzeta_dp : (3,)
         """
-        E, ok, f, g, V = self._eval(u, p, 0)
         g = np.zeros(self.n)
-        cavity_assemble(self.positions(u), self.edges, self.edge_dofs, self.edge_pos, 0.0, 1, g, np.zeros(1))
+        V = cavity_assemble(self.positions(u), self.edges, self.edge_dofs, self.edge_pos, 0.0, 1, g, np.zeros(1))
         dz = np.zeros((3, self.n))
         dz[0] = g
         dz[2, self.pole_dof] = 1.0
-        return np.array([V, p, u[self.pole_dof]]), dz, np.array([0.0, 1.0, 0.0])
+        return np.array([V + self.V_offset, p, u[self.pole_dof]]), dz, np.array([0.0, 1.0, 0.0])
 
-    def tangent_data(self, u: np.ndarray, p: float):
-        """CSR values of ``K_T = d(f_int - p dV/du)/du`` (border entries zero), ``dV/du``, ok."""
-        data = np.zeros(self.nnz)
-        E, ok, f, g, V = self._eval(u, p, 2, data)
-        return data, g, ok
-
-    def factor_bordered(self, u: np.ndarray, p: float, c_u: np.ndarray, c_p: float) -> BorderedSolver | None:
-        """Factorise ``[[K_T, -dV/du], [c_u^T, c_p]]``; ``None`` outside the material domain."""
-        import time
-
-        data, g, ok = self.tangent_data(u, p)
-        if not ok:
-            return None
-        bd = self.border_dofs
-        data[self.col_pos] = -g[bd]
-        data[self.row_pos] = c_u[bd]
-        data[self.corner_pos] = c_p
+    def _factor(self, data, b, c_u, c_p) -> BorderedSolver | None:
         t0 = time.perf_counter()
-        A = sp.csc_matrix(sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n + 1, self.n + 1)))
+        n = self.n
         try:
-            lu = spla.splu(A, permc_spec="COLAMD")
+            if self.solver == "banded":
+                K = data.reshape(n, self.kl + 1)
+                fac = K.copy()
+                ok, nneg = band_ldlt(fac)
+                if not ok:
+                    return None
+                s = BorderedSolver("banded", fac, K, b, c_u, float(c_p), n, nneg)
+                if not np.isfinite(s.schur) or s.schur == 0.0:
+                    return None
+            else:
+                bd = self.border_dofs
+                data = data.copy()
+                data[self.col_pos] = b[bd]
+                data[self.row_pos] = c_u[bd]
+                data[self.corner_pos] = c_p
+                A = sp.csr_matrix((data, self.indices, self.indptr), shape=(n + 1, n + 1)).tocsc()
+                s = BorderedSolver("superlu", spla.splu(A, permc_spec="NATURAL"), None, b, c_u, c_p, n)
         except RuntimeError:  # exactly singular
             return None
+        finally:
+            self.t_factor += time.perf_counter() - t0
         self.n_factorizations += 1
-        self.t_factor += time.perf_counter() - t0
-        return BorderedSolver(lu, self.n)
+        return s
 
     def stiffness_matrix(self, u: np.ndarray, p: float) -> sp.csr_matrix:
-        """``K_T`` alone (n x n), for stability checks and tests."""
-        data, g, ok = self.tangent_data(u, p)
-        A = sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n + 1, self.n + 1))
+        """``K_T`` alone (n x n, CSR), for stability checks and tests."""
+        lin = self.linearize(u, p)
+        if self.solver == "banded":
+            ab = lin.data.reshape(self.n, self.kl + 1)
+            L = sp.diags([ab[: self.n - k, k] for k in range(self.kl + 1)], [-k for k in range(self.kl + 1)],
+                         shape=(self.n, self.n), format="csr")
+            return (L + sp.triu(L.T, 1)).tocsr()
+        A = sp.csr_matrix((lin.data, self.indices, self.indptr), shape=(self.n + 1, self.n + 1))
         return A[: self.n, : self.n].tocsr()
 
     def jacobians(self, u: np.ndarray) -> np.ndarray:

@@ -1,0 +1,183 @@
+"""Snap metrics of SPEC section 5 from a traced path: V*, p*, the lower state, dE two ways.
+
+:class:`SnapTracker` is the continuation's stop criterion: it watches the accepted points, and
+
+1. at the first limit point in volume (``dV/ds`` changes sign from + to -) locates it precisely
+   as the root of ``dV/ds`` (regula falsi on the arc length of a re-solved step, SPEC pitfall d):
+   the *upper state* at ``V*``;
+2. follows the path until the volume comes back to ``V*`` with ``dV/ds > 0`` and solves that
+   state exactly at ``V = V*`` (volume control): the *lower state* (``lower_state_method="path"``);
+3. stops (unless the whole curve was asked for) or reports that the path did not come back.
+
+``dE`` is computed both as the strain-energy difference of the two states and as
+``-integral p dV`` along the path between them (cubic Hermite interpolation of ``V(s)`` and
+``p(s)`` from the tangents, so the quadrature is fourth-order accurate in the step).
+"""
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from snapjump_cli.continuation import Path, PathPoint, Tracer
+
+log = logging.getLogger(__name__)
+
+__all__ = ["SnapTracker", "hermite_p_dV", "path_self_crosses", "SnapStates"]
+
+_G3 = np.polynomial.legendre.leggauss(4)
+
+
+def hermite_p_dV(a: PathPoint, b: PathPoint, h: float, sV: float, sp: float) -> float:
+    """``integral p dV`` from ``a`` to ``b`` (arc length ``h``; scaled units), cubic Hermite."""
+    V0, V1 = a.zeta[0] * sV, b.zeta[0] * sV
+    p0, p1 = a.p, b.p
+    dV0, dV1 = a.tangent[0] * sV * h, b.tangent[0] * sV * h  # derivatives w.r.t. t in [0, 1]
+    dp0, dp1 = a.tangent[1] * sp * h, b.tangent[1] * sp * h
+    x, w = _G3
+    t = 0.5 * (x + 1.0)
+    h00 = 2 * t**3 - 3 * t**2 + 1
+    h10 = t**3 - 2 * t**2 + t
+    h01 = -2 * t**3 + 3 * t**2
+    h11 = t**3 - t**2
+    d00 = 6 * t**2 - 6 * t
+    d10 = 3 * t**2 - 4 * t + 1
+    d01 = -6 * t**2 + 6 * t
+    d11 = 3 * t**2 - 2 * t
+    p = h00 * p0 + h10 * dp0 + h01 * p1 + h11 * dp1
+    Vt = d00 * V0 + d10 * dV0 + d01 * V1 + d11 * dV1
+    return float(0.5 * np.sum(w * p * Vt))
+
+
+def path_self_crosses(V: np.ndarray, p: np.ndarray) -> bool:
+    """Whether the polyline ``(V, p)`` crosses itself (non-adjacent segments intersect)."""
+    P = np.stack([V, p], axis=1)
+    n = len(P) - 1
+    if n < 3:
+        return False
+    A, B = P[:-1], P[1:]
+    scale = np.ptp(P, axis=0)
+    scale[scale == 0] = 1.0
+    A = A / scale
+    B = B / scale
+
+    def orient(a, b, c):
+        return (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0])
+
+    i, j = np.triu_indices(n, k=2)
+    a1, b1, a2, b2 = A[i], B[i], A[j], B[j]
+    o1 = orient(a1, b1, a2)
+    o2 = orient(a1, b1, b2)
+    o3 = orient(a2, b2, a1)
+    o4 = orient(a2, b2, b1)
+    return bool(np.any((o1 * o2 < 0) & (o3 * o4 < 0)))
+
+
+@dataclass
+class SnapStates:
+    """What the tracker found (indices refer to ``path.points``)."""
+
+    k_before: int | None = None  # last point with dV/ds > 0 before the first volume limit
+    upper: PathPoint | None = None  # the state at the volume limit point
+    k_return: int | None = None  # first point after the limit with V >= V* and dV/ds > 0
+    lower: PathPoint | None = None  # the lower state solved at V = V*
+    lower_method: str = ""
+    p_max: float = -math.inf
+
+
+@dataclass
+class SnapTracker:
+    """Stop criterion of :func:`snapjump_cli.continuation.trace` that characterises the snap.
+
+    Parameters
+    ----------
+    tracer : the tracer (used for the precise limit-point location and the volume-control solve)
+    p_stop : scaled pressure beyond which a path without a volume limit counts as not snapping
+    V_stop : scaled volume bound (in units of ``sV``) of the trace
+    full : keep tracing after the snap is characterised (to ``p_stop`` or ``V_stop``)
+    """
+
+    tracer: Tracer
+    p_stop: float
+    V_stop: float
+    full: bool = False
+    states: SnapStates = field(default_factory=SnapStates)
+
+    def __call__(self, path: Path) -> str | None:
+        st = self.states
+        pts = path.points
+        new = pts[-1]
+        prev = pts[-2]
+        if st.upper is None:
+            st.p_max = max(st.p_max, new.p)
+            if prev.tangent[0] > 0 and new.tangent[0] <= 0:
+                st.k_before = len(pts) - 2
+                st.upper = self.locate_volume_limit(prev, new.s - prev.s)
+                log.debug("volume limit: V*=%.6g p*=%.6g", st.upper.zeta[0], st.upper.p)
+        elif st.lower is None:
+            Vs = st.upper.zeta[0]
+            if new.tangent[0] > 0 and new.zeta[0] >= Vs and prev.zeta[0] < Vs:
+                st.k_return = len(pts) - 1
+                st.lower = self.solve_at_volume(prev, new, Vs)
+                if st.lower is not None:
+                    st.lower_method = "path"
+                    if not self.full:
+                        return "snap characterised"
+        if new.zeta[0] > self.V_stop:
+            return "volume bound"
+        if new.p > self.p_stop and (st.upper is None or st.lower is not None or self.full):
+            return "pressure bound"
+        return None
+
+    def locate_volume_limit(self, a: PathPoint, h: float, tol: float = 1e-9, max_iter: int = 30) -> PathPoint:
+        """Root of ``dV/ds`` on the step from ``a`` (Illinois regula falsi on the step length)."""
+        tr = self.tracer
+        lo, flo = 0.0, a.tangent[0]
+        b = tr.step(a, h)
+        if b is None:
+            raise RuntimeError("could not re-solve the step across the volume limit")
+        hi, fhi, best = h, b.tangent[0], b
+        side = 0
+        for _ in range(max_iter):
+            if fhi == flo:
+                break
+            s = hi - fhi * (hi - lo) / (fhi - flo)
+            if not (lo < s < hi):
+                s = 0.5 * (lo + hi)
+            c = tr.step(a, s)
+            if c is None:
+                s = 0.5 * (lo + hi)
+                c = tr.step(a, s)
+                if c is None:
+                    break
+            fc = c.tangent[0]
+            best = c
+            if abs(fc) < tol or (hi - lo) < 1e-12:
+                break
+            if fc > 0:
+                lo, flo = s, fc
+                if side == -1:
+                    fhi *= 0.5
+                side = -1
+            else:
+                hi, fhi = s, fc
+                if side == 1:
+                    flo *= 0.5
+                side = 1
+        return best
+
+    def solve_at_volume(self, a: PathPoint, b: PathPoint, V_target: float) -> PathPoint | None:
+        """The equilibrium state at scaled volume ``V_target`` between path points ``a`` and ``b``."""
+        tr = self.tracer
+        w = (V_target - a.zeta[0]) / (b.zeta[0] - a.zeta[0])
+        u0 = (1 - w) * a.u + w * b.u
+        p0 = (1 - w) * a.p + w * b.p
+        res = tr.correct(u0, p0, None, None, 0.0, target=(0, V_target))
+        if res is None:
+            return None
+        lin, it = res
+        t, v, q, z = tr.tangent(lin, b.tangent)
+        h = float(np.linalg.norm(z - a.zeta))
+        return PathPoint(lin.u, lin.p, z, t, v, q, a.s + h, it)
