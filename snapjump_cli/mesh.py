@@ -15,7 +15,10 @@ thickness along them.
 Cross-section points of a design (paper S1, Fig. S1/S2): 1, 2 inner poles (lower, upper), 3, 4
 outer poles, 5 outer cap's outer base corner, 6 the shared corner of both caps, 7 inner cap's inner
 base corner, 8-9-10 ring corners. When ``x5 > x10`` (a thick, shallow outer cap overhangs the ring)
-the outer cap's base is split at ``x10`` and its part beyond ``x10`` is a free surface.
+the outer cap's base is split at ``x10`` and its part beyond ``x10`` is a free surface. When x5 and
+x10 nearly coincide (closer than ``SNAP_FRAC`` of the local element size), the ring's outer face is
+moved onto x5 instead of meshing a sliver (the ring width changes by that much; see
+:func:`meshed_design`).
 
 Edge sets other than ``cavity`` run from the pole towards the base (surfaces) or towards +r
 (``ground``, ``base``). Single caps: ``inner_upper`` / ``inner_lower`` are the only cap's surfaces
@@ -47,14 +50,19 @@ __all__ = [
     "gmsh_session",
     "MESH_SUFFIXES",
     "SNAP_TOL",
+    "SNAP_FRAC",
+    "meshed_design",
 ]
 
 log = logging.getLogger(__name__)
 
 #: File formats :func:`write_mesh` understands.
 MESH_SUFFIXES = (".msh", ".vtu")
-#: Relative (to R_i) distance under which x5 and x10 are taken as the same point.
+#: Relative (to R_i) distance under which x5 and x10 are always taken as the same point.
 SNAP_TOL = 1e-9
+#: ... and the fraction of the local element size (ring element thickness when x10 > x5, outer cap
+#: element thickness when x5 > x10) under which the ring's outer face is moved onto x5.
+SNAP_FRAC = 0.15
 
 REGION_NAMES = {REGION_INNER_CAP: "inner_cap", REGION_RING: "ring", REGION_OUTER_CAP: "outer_cap"}
 
@@ -162,6 +170,17 @@ def boundary_volume(nodes: np.ndarray, edges: np.ndarray) -> float:
     return float(np.pi * ((r * r * dy) @ w).sum())
 
 
+def meshed_design(design: Design, mesh: Mesh) -> Design:
+    """The design whose exact geometry ``mesh`` discretises: ``design`` itself, or with the ring
+    width that snapping onto x5 produced (``mesh.info["w_ring_frac_used"]``)."""
+    w = mesh.info.get("w_ring_frac_used")
+    if not mesh.info.get("ring_snapped") or w is None:
+        return design
+    import dataclasses
+
+    return dataclasses.replace(design, w_ring_frac=w)
+
+
 def element_volumes(mesh: Mesh) -> np.ndarray:
     """Solid volume of revolution of each element, ``sum_q w_q 2 pi r detJ`` [m^3].
 
@@ -244,7 +263,7 @@ class _CapGeom:
         return _count(max(self.a * phi_a, self.b * phi_b), aspect * self.t / nt)
 
 
-def _build(b: _Builder, scene: Design | CapScene, s: MeshSettings) -> dict:
+def _build(b: _Builder, scene: Design | CapScene, s: MeshSettings, snap: float = 0.0) -> dict:
     """Create the geometry and its transfinite constraints; return the bookkeeping needed to
     extract node and edge sets (point tags, curve tags with their start points)."""
     nt, aspect = int(s.nt), float(s.aspect)
@@ -259,25 +278,30 @@ def _build(b: _Builder, scene: Design | CapScene, s: MeshSettings) -> dict:
         co = _CapGeom(d.Delta, d.R_o, d.eta_o, yb)
         x6 = pts["6i"][0]
         x5, x10 = pts["5"][0], pts["10"][0]
-        tol = SNAP_TOL * d.R_i
-        overhang = x5 > x10 + tol
-        coincide = abs(x5 - x10) <= tol
         nt_i = nt
-        nt_o = max(nt, 2) if overhang else nt
         h = ci.t / nt_i
         n_ring = _count(d.t_ring, h)
         h_ring = d.t_ring / n_ring
+        # x5 and x10 closer than a fraction of the local element size would leave a sliver
+        # (a narrow ring column, or a thin row through the outer cap): move the ring's free
+        # outer face (points 9, 10) onto x5 instead.
+        gap = x5 - x10
+        tol = max(SNAP_TOL * d.R_i, snap * (co.t / nt if gap > 0 else h_ring))
+        coincide = abs(gap) <= tol
+        overhang = gap > 0 and not coincide
+        nt_o = max(nt, 2) if overhang else nt
         na_i, na_o = ci.arc_count(nt_i, aspect), co.arc_count(nt_o, aspect)
+        y_g = pts["8"][1]
 
         for k in ("1", "2", "3", "4", "5", "7", "8", "9", "10"):
-            if k == "10" and coincide:
+            if k in ("9", "10") and coincide:
                 continue
             P[k] = b.point(*pts[k])
         P["6"] = b.point(*pts["6i"])
         if coincide:
             P["10"] = P["5"]
+            P["9"] = b.point(x5, y_g)
         c_i, c_o = b.point(0.0, 0.0), b.point(0.0, d.Delta)
-        y_g = pts["8"][1]
         P["11"] = b.point(x6, y_g)  # ring bottom below point 6
 
         # inner cap
@@ -316,7 +340,9 @@ def _build(b: _Builder, scene: Design | CapScene, s: MeshSettings) -> dict:
         bk["dirichlet"] = {"dirichlet_y": ("points", ["6"]), "dirichlet_x": None}
         bk["info"] = {"nt": {"inner_cap": nt_i, "ring": n_ring, "outer_cap": nt_o},
                       "n_arc": {"inner_cap": na_i, "outer_cap": na_o},
-                      "overhang": bool(overhang), "x5_minus_x10": x5 - x10}
+                      "overhang": bool(overhang), "x5_minus_x10": gap,
+                      "ring_snapped": bool(coincide and gap != 0.0),
+                      "w_ring_frac_used": ((x5 if coincide else x10) - x6) / d.R_i}
         bk["scene"] = "design"
         return bk
 
@@ -446,8 +472,12 @@ def _half_bandwidth(elements: np.ndarray) -> int:
     return int((elements.max(axis=1) - elements.min(axis=1)).max()) if elements.size else 0
 
 
-def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()) -> Mesh:
+def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings(), *, snap: float | None = None) -> Mesh:
     """Mesh a design (inner cap + ring + outer cap) or a single cap; see the module docstring.
+
+    ``snap`` (default :data:`SNAP_FRAC`): when ``|x5 - x10|`` is below ``snap`` times the local
+    element size, the ring's outer face is moved onto ``x5`` (``info["ring_snapped"]``,
+    ``info["w_ring_frac_used"]``) rather than meshing a sliver; 0 keeps the exact geometry.
 
     Returns a :class:`~snapjump_cli.meshdata.Mesh` with compact, bandwidth-reduced (RCM) node
     numbering, counter-clockwise elements and the node/edge sets of the scene.
@@ -456,6 +486,9 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
     if not isinstance(scene, (Design, CapScene)):
         raise TypeError(f"scene must be a Design or CapScene, got {type(scene).__name__}")
     order, nt, aspect = settings.order, settings.nt, settings.aspect
+    snap = SNAP_FRAC if snap is None else float(snap)
+    if not (math.isfinite(snap) and 0.0 <= snap < 1.0):
+        raise ValueError(f"snap must lie in [0, 1), got {snap!r}")
     if order not in (1, 2):
         raise ValueError(f"mesh order must be 1 or 2, got {order!r}")
     if isinstance(nt, bool) or not isinstance(nt, (int, np.integer)) or nt < 1:
@@ -468,7 +501,7 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
     t0 = time.perf_counter()
     with gmsh_session() as gmsh:
         b = _Builder(gmsh)
-        bk = _build(b, scene, settings)
+        bk = _build(b, scene, settings, snap)
         gmsh.model.geo.synchronize()
         gmsh.option.setNumber("Mesh.RecombineAll", 1)
         gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 0)

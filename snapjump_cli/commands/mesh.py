@@ -5,7 +5,8 @@ JSON keys (stable): ``R_o_m``, ``Delta_m``, ``n_nodes``, ``n_elements``, ``V_inn
 (inner cap + ring, meshed), ``V_outer_solid_m3`` (meshed), ``V_cavity_m3`` (meshed, exact
 boundary integral), ``h_pole_m`` (lower-surface inner pole above the ring's ground face); keys that
 do not apply to a scene are null. Extra keys: ``scene``, ``name``, ``order``, ``nt``, ``aspect``,
-exact volumes (``*_exact_m3``), ``V_under_m3`` (single caps), ``overhang``, ``mesh_s``, ``out``.
+exact volumes of the meshed geometry (``*_exact_m3``), ``V_under_m3`` (single caps), ``overhang``,
+``ring_snapped``, ``mesh_s``, ``out``.
 """
 from __future__ import annotations
 
@@ -37,7 +38,7 @@ def summary(scene, mesh) -> dict:
     from snapjump_kernels.cavity import cavity_volume
 
     from snapjump_cli.geometry import Design, cap_points, cap_volumes, design_points, design_volumes
-    from snapjump_cli.mesh import solid_volumes
+    from snapjump_cli.mesh import meshed_design, solid_volumes
 
     vol = solid_volumes(mesh)
     out: dict = {
@@ -54,7 +55,7 @@ def summary(scene, mesh) -> dict:
     }
     if isinstance(scene, Design):
         pts = design_points(scene)
-        ex = design_volumes(scene)
+        ex = design_volumes(meshed_design(scene, mesh))  # the ring width may be snapped onto x5
         out.update(
             R_o_m=scene.R_o,
             Delta_m=scene.Delta,
@@ -66,6 +67,7 @@ def summary(scene, mesh) -> dict:
             V_outer_solid_exact_m3=ex["outer_solid"],
             V_cavity_exact_m3=ex["cavity"],
             overhang=bool(mesh.info.get("overhang", False)),
+            ring_snapped=bool(mesh.info.get("ring_snapped", False)),
         )
     else:
         pts = cap_points(scene)
@@ -123,6 +125,8 @@ def _text(scene, s: dict) -> str:
         lines.append(f"  V under loaded surface = {cm3(s['V_under_m3'], s.get('V_under_exact_m3'))}")
     if s.get("overhang"):
         lines.append("  note: the outer cap's base overhangs the ring (x5 > x10): its outer part is free")
+    if s.get("ring_snapped"):
+        lines.append("  note: x5 and x10 nearly coincide: the ring's outer face was moved onto x5 (no sliver)")
     if s.get("out"):
         lines.append(f"  written: {s['out']}")
     return "\n".join(lines)

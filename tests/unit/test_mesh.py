@@ -11,10 +11,12 @@ from scipy.spatial import cKDTree
 from snapjump_cli.designs import get_design
 from snapjump_cli.geometry import CapScene, Design, cap_points, cap_volumes, design_points, design_volumes
 from snapjump_cli.mesh import (
+    SNAP_FRAC,
     boundary_volume,
     element_volumes,
     jacobian_dets,
     mesh_scene,
+    meshed_design,
     solid_volumes,
     write_mesh,
 )
@@ -272,6 +274,62 @@ def test_x5_equal_x10():
     assert abs(v["inner_solid"] / ex["inner_solid"] - 1) < 1e-6
 
 
+def corner_aspect(m: Mesh) -> np.ndarray:
+    """Longest / shortest corner-to-corner edge of each element."""
+    c = m.nodes[m.elements[:, :4]]
+    L = np.linalg.norm(c - np.roll(c, -1, axis=1), axis=2)
+    return L.max(axis=1) / L.min(axis=1)
+
+
+#: Paper-grid designs whose x5 and x10 nearly coincide: 3.7 um ring side, 8.4 um overhang side.
+NEAR = [dict(eta_i=5.6, theta_i_deg=72.5, eta_o=35 / 3, theta_o_deg=76.0, mu_ratio=1.0),
+        dict(eta_i=5.0, theta_i_deg=75.0, eta_o=35 / 3, theta_o_deg=78.0, mu_ratio=1.0)]
+
+
+@pytest.mark.parametrize("params", NEAR, ids=["ring-side", "overhang-side"])
+def test_near_coincident_x5_x10_snaps_instead_of_slivers(params):
+    d = Design(**params)
+    p = design_points(d)
+    assert 0 < abs(p["5"][0] - p["10"][0]) < 1e-5
+    raw = mesh_scene(d, MeshSettings(), snap=0.0)  # exact geometry: a sliver element
+    assert corner_aspect(raw).max() > 100
+    assert not raw.info["ring_snapped"]
+    m = meshed(d)
+    assert m.info["ring_snapped"] and not m.info["overhang"]
+    assert corner_aspect(m).max() < 10
+    check_conforming(m, d.R_i)
+    assert (jacobian_dets(m.nodes, m.elements, 2) > 0).all()
+    # the ring's outer face sits on x5; volumes are those of the snapped ring
+    g = m.node_sets["ground"]
+    assert m.nodes[g, 0].max() == pytest.approx(p["5"][0], abs=1e-12 * d.R_i)
+    dm = meshed_design(d, m)
+    assert dm.w_ring_frac == pytest.approx((p["5"][0] - p["6i"][0]) / d.R_i, rel=1e-12)
+    assert meshed_design(d, raw) is d
+    v, ex = solid_volumes(m), design_volumes(dm)
+    assert abs(v["inner_solid"] / ex["inner_solid"] - 1) < 1e-6
+    assert abs(v["outer_solid"] / ex["outer_solid"] - 1) < 1e-6
+    # the snap is at most SNAP_FRAC of an element
+    assert abs(dm.w_ring - d.w_ring) < SNAP_FRAC * d.t_ring
+
+
+def test_paper_grid_sample_quality():
+    """Every 9th design of the paper's grid: valid, conforming-by-count, no slivers."""
+    grid = [(ei, ti, eo, to) for ei in np.linspace(5, 8, 6) for ti in np.linspace(70, 80, 5)
+            for eo in np.linspace(5, 20, 10) for to in np.linspace(76, 90, 8)]
+    n = 0
+    for ei, ti, eo, to in grid[::9]:
+        try:
+            d = Design(eta_i=ei, theta_i_deg=ti, eta_o=eo, theta_o_deg=to, mu_ratio=1.0)
+        except Exception:
+            continue
+        m = mesh_scene(d, MeshSettings(order=1))
+        assert (jacobian_dets(m.nodes, m.elements, 1) > 0).all()
+        assert corner_aspect(m).max() < 10, (ei, ti, eo, to)
+        assert set(element_edges(m).values()) <= {1, 2}
+        n += 1
+    assert n > 150
+
+
 @pytest.mark.parametrize("order", [1, 2])
 @pytest.mark.parametrize("cap", CAPS, ids=_id)
 def test_cap_sets(cap, order):
@@ -403,6 +461,8 @@ def test_bad_settings():
                    (MeshSettings(aspect=float("nan")), "aspect")):
         with pytest.raises(ValueError, match=msg):
             mesh_scene(d, s)
+    with pytest.raises(ValueError, match="snap"):
+        mesh_scene(d, snap=1.5)
     with pytest.raises(TypeError):
         mesh_scene("C")  # type: ignore[arg-type]
 
