@@ -496,7 +496,9 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
     if not (isinstance(aspect, (int, float)) and math.isfinite(aspect) and aspect > 0):
         raise ValueError(f"aspect must be a finite number > 0, got {aspect!r}")
 
-    import gmsh as _gmsh  # noqa: F401  (first import is slow: keep it out of the timing)
+    # one-time imports (slow on first use) stay out of the timing
+    import gmsh as _gmsh  # noqa: F401
+    import scipy.sparse.csgraph  # noqa: F401
 
     t0 = time.perf_counter()
     with gmsh_session() as gmsh:
