@@ -294,15 +294,17 @@ def _result_to_row(row: dict[str, Any], result: Any) -> None:
                 bad_type.append(f"{k}={result[k]!r}")
                 values[k] = None
     nonfinite = [k for k in res.FLOAT_RESULT_KEYS if values.get(k) is not None and not math.isfinite(values[k])]
+    absent = [k for k in res.FLOAT_RESULT_KEYS if k in result and values.get(k) is None and k not in bad_type]
     snaps = bool(values.get("snaps"))
     status, error = ("ok" if snaps else "no_snap"), ""
     if missing:
         status, error = "failed", "solver result lacks keys: " + ", ".join(missing)
     elif bad_type:
         status, error = "failed", "solver result has values of the wrong type: " + ", ".join(bad_type)
-    elif status == "ok" and nonfinite:
+    elif status == "ok" and (nonfinite or absent):
         status = "failed"
-        error = "non-finite metrics in a snapping result: " + ", ".join(f"{k}={values[k]}" for k in nonfinite)
+        error = "non-finite metrics in a snapping result: " + ", ".join(
+            [f"{k}={values[k]}" for k in nonfinite] + [f"{k}=None" for k in absent])
     for k in nonfinite:  # never store inf; NaN only as null
         values[k] = None
     row.update(values)

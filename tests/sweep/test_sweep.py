@@ -82,12 +82,14 @@ def test_statuses_failures_and_invalid_designs(grid_file, tmp_path, monkeypatch)
     assert s.counts == {"ok": 4, "no_snap": 4, "invalid_geometry": 8, "failed": 24}
 
 
-def test_missing_result_key_is_failed(grid_file, tmp_path):
-    cfg = load_config(grid_file(grid={"eta_o": [7], "theta_o": [82], "mu_ratio": [5.8]}))
+def test_missing_result_key_or_none_metric_is_failed(grid_file, tmp_path):
+    cfg = load_config(grid_file(grid={"eta_o": [7, 9], "theta_o": [82], "mu_ratio": [5.8]}))
     out = tmp_path / "r.parquet"
     run_sweep(cfg, output=out, n_jobs=1, solve_fn=fake.flaky_solve, progress=False)
     df = res.read_results(out)
-    assert (df["status"] == "failed").all() and df["error"].str.contains("lacks keys: L0_m").all()
+    assert (df["status"] == "failed").all()
+    assert df.loc[df["eta_o"] == 7, "error"].str.contains("lacks keys: L0_m").all()
+    assert df.loc[df["eta_o"] == 9, "error"].str.contains("dy_pole_upper_m=None").all()
 
 
 def test_chunks_are_atomic_parts_then_consolidated(grid_file, tmp_path):
