@@ -130,8 +130,9 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
 
     Returns
     -------
-    (energy, ok, max_abs_J_minus_1)
-        ``ok`` is False if any quadrature point left the Gent domain (a failed iterate).
+    (energy, ok, max_dilatation)
+        ``ok`` is False if any quadrature point left the Gent domain (a failed iterate);
+        ``max_dilatation`` is the largest ``|theta - 1|`` of the projected (constrained) dilatation.
     """
     ne, nen = conn.shape
     nq = Wq.shape[1]
@@ -166,9 +167,6 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
                 return energy, False, maxdev
             W = Wq[e, q]
             energy += W * psi
-            dev = abs(J - 1.0)
-            if dev > maxdev:
-                maxdev = dev
             for k in range(npr):
                 g[k] += W * Np[q, k] * (J - 1.0)
         # volumetric part: pbar = kappa M^-1 g, energy kappa/2 g^T M^-1 g
@@ -178,6 +176,14 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
                 s += Minv[e, k, m] * g[m]
             pb[k] = ka * s
             energy += 0.5 * g[k] * pb[k]
+        # projected dilatation theta - 1 = p / kappa at the quadrature points (what is constrained)
+        for q in range(nq):
+            th = 0.0
+            for k in range(npr):
+                th += Np[q, k] * pb[k]
+            dev = abs(th) / ka
+            if dev > maxdev:
+                maxdev = dev
         if want == 0:
             continue
         # pass 2: stress and tangent with the element pressure at each point

@@ -114,7 +114,7 @@ class SnapTracker:
             st.p_max = max(st.p_max, new.p)
             if prev.tangent[0] > 0 and new.tangent[0] <= 0:
                 st.k_before = len(pts) - 2
-                st.upper = self.locate_volume_limit(prev, new.s - prev.s)
+                st.upper = self.locate_volume_limit(prev, new)
                 log.debug("volume limit: V*=%.6g p*=%.6g", st.upper.zeta[0], st.upper.p)
         elif st.lower is None:
             Vs = st.upper.zeta[0]
@@ -131,23 +131,21 @@ class SnapTracker:
             return "pressure bound"
         return None
 
-    def locate_volume_limit(self, a: PathPoint, h: float, tol: float = 1e-9, max_iter: int = 30) -> PathPoint:
-        """Root of ``dV/ds`` on the step from ``a`` (Illinois regula falsi on the step length)."""
+    def locate_volume_limit(self, a: PathPoint, b: PathPoint, tol: float = 1e-9, max_iter: int = 30) -> PathPoint:
+        """Root of ``dV/ds`` between the path points ``a`` (dV/ds > 0) and ``b`` (dV/ds <= 0):
+        Illinois regula falsi on the length of a re-solved step from ``a``."""
         tr = self.tracer
         lo, flo = 0.0, a.tangent[0]
-        b = tr.step(a, h)
-        if b is None:
-            raise RuntimeError("could not re-solve the step across the volume limit")
-        hi, fhi, best = h, b.tangent[0], b
+        hi, fhi, best = b.s - a.s, b.tangent[0], b
         side = 0
         for _ in range(max_iter):
-            if fhi == flo:
+            if abs(fhi) < tol:
                 break
             s = hi - fhi * (hi - lo) / (fhi - flo)
             if not (lo < s < hi):
                 s = 0.5 * (lo + hi)
             c = tr.step(a, s)
-            if c is None:
+            if c is None:  # the linear predictor may fail where the path curves: bisect
                 s = 0.5 * (lo + hi)
                 c = tr.step(a, s)
                 if c is None:

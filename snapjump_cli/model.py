@@ -345,6 +345,16 @@ class Model:
         A = sp.csr_matrix((lin.data, self.indices, self.indptr), shape=(self.n + 1, self.n + 1))
         return A[: self.n, : self.n].tocsr()
 
+    def max_dilatation(self, u: np.ndarray) -> float:
+        """Largest ``|theta - 1|`` of the projected dilatation, the incompressibility error of the
+        mixed element (``theta = 1 + p / kappa``)."""
+        U = self.full_displacement(u)
+        E, ok, dev = assemble(
+            U, self.conn, self.mat, self.mu, self.jm, self.kappa, self.dNdX, self.N_ref, self.Rq, self.Wq,
+            self.Np, self.Minv, self.edofs, self.epos, 0, np.zeros(self.n), np.zeros(1),
+        )
+        return dev if ok else float("nan")
+
     def jacobians(self, u: np.ndarray) -> np.ndarray:
         """``J`` at every quadrature point (volume preservation diagnostic)."""
         return quadrature_jacobians(self.full_displacement(u), self.conn, self.dNdX, self.N_ref, self.Rq)
