@@ -325,6 +325,25 @@ class _Osc:
     def acc(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
         return -(self.c * v + self.k * x) / self.m
 
+    def sup_bound(self, x0: float, v0: float) -> float:
+        """Upper bound on ``sup_{t >= 0} |x(t)|`` from ``x(0) = x0``, ``x'(0) = v0``.
+
+        Modal envelope: ``R exp(-sig t)`` (under-damped), ``|A| e^{r1 t} + |B| e^{r2 t}``
+        (over-damped), ``max (|x0| + |b| t) exp(-sig t)`` (critical). Evaluated along a
+        trajectory it never increases.
+        """
+        sig, w = self.sig, self.w
+        b = v0 + sig * x0
+        if self.D > 0.0:
+            return math.hypot(x0, b / w)
+        if self.D < 0.0:
+            A = (b + w * x0) / (2.0 * w)  # coefficient of exp((-sig + w) t)
+            return abs(A) + abs(x0 - A)
+        if b == 0.0:
+            return abs(x0)
+        s = max(0.0, 1.0 / sig - abs(x0) / abs(b))
+        return (abs(x0) + abs(b) * s) * math.exp(-sig * s)
+
 
 @dataclass(frozen=True)
 class _Phase:
@@ -377,16 +396,21 @@ class _Model:
         """Net non-contact upward force on a resting ``m_i``; it lifts off when this is ``> 0``."""
         return self.k * e + self.c * ed - self.m_i * self.g
 
-    def can_lift(self, e: float, ed: float) -> bool:
-        """``False`` if the resting oscillator's energy can no longer produce a lift-off.
+    def lift_margin(self, e: float, ed: float) -> float:
+        """Bound on the future upward pull on a resting ``m_i`` minus what lift-off needs.
 
-        ``k x + c x' <= sqrt(2 k + 2 c^2 / m_o) sqrt(E_osc)`` (Cauchy-Schwarz) and ``E_osc``
-        never increases, so lift-off (``k x + c x' > M g``) is impossible once
-        ``(2 k + 2 c^2 / m_o) E_osc < (M g)^2``.
+        ``F = k x + c x'`` (``x = e - e_eq``) obeys the same oscillator equation as ``x``, and
+        lift-off needs ``F > M g``; so no lift-off can ever happen once
+        ``sup_future |F| <= `` :meth:`_Osc.sup_bound` ``< M g`` (a non-increasing quantity).
         """
         x = e - self.e_eq
-        E_osc = 0.5 * self.m_o * ed**2 + 0.5 * self.k * x**2
-        return (2.0 * self.k + 2.0 * self.c**2 / self.m_o) * E_osc >= (self.M * self.g) ** 2
+        F = self.k * x + self.c * ed
+        dF = self.k * ed + self.c * self.rest.acc(x, ed)
+        return self.rest.sup_bound(F, dF) - self.M * self.g
+
+    def can_lift(self, e: float, ed: float) -> bool:
+        """``False`` once a resting ``m_i`` can provably never lift off again."""
+        return self.lift_margin(e, ed) >= 0.0
 
     # ---- energy bound ----
     def height_bound(self, y: float, v: float, e: float, ed: float) -> float:
@@ -843,9 +867,7 @@ def jump_height_ode(dE_J: float, dy_pole_m: float, h_imp_m: float, m_i_kg: float
     ev_lift.direction = 1
 
     def ev_settle(_t, Z):
-        x = Z[0] - L_rest - md.e_eq
-        E_osc = 0.5 * mo * Z[1] ** 2 + 0.5 * k * x * x
-        return (2.0 * k + 2.0 * c * c / mo) * E_osc - (M * g) ** 2
+        return md.lift_margin(Z[0] - L_rest, Z[1])
     ev_settle.terminal = True
     ev_settle.direction = -1
 

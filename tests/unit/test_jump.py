@@ -420,3 +420,28 @@ def test_grazing_dip_between_samples_is_found():
     out = _maxima(G, dG, T2, G(T2), dG(T2))
     assert len(out) == 1
     assert out[0][0] == pytest.approx(0.5, abs=1e-7) and out[0][1] == pytest.approx(1e-6, rel=1e-9)
+
+
+@pytest.mark.parametrize("m,c,k", [(0.01, 0.4, 600.0), (0.01, 0.0, 600.0), (0.01, 2.0, 10.0),
+                                   (0.01, 0.4, 4.0), (0.01, 0.4, 4.0 * (1 + 1e-9))])
+def test_oscillator_sup_bound_is_a_nonincreasing_envelope(m, c, k):
+    """The resting-phase certificate: sup_future |x| <= bound, and the bound never grows."""
+    from snapjump_cli.jump import _Osc
+
+    osc = _Osc(m, c, k)
+    rng = np.random.default_rng(0)
+    T = 40.0 * osc.dt * 64
+    t = np.linspace(0.0, T, 20001)
+    for _ in range(20):
+        x0, v0 = rng.normal(size=2) * (1.0, math.sqrt(k / m))
+        _, x, v = osc.xv(x0, v0, t)
+        b = np.array([osc.sup_bound(xi, vi) for xi, vi in zip(x[::50], v[::50])])
+        assert np.all(np.diff(b) <= 1e-12 * b[0])
+        suffix_max = np.maximum.accumulate(np.abs(x)[::-1])[::-1]
+        assert np.all(suffix_max[::50] <= b * (1 + 1e-12) + 1e-14 * abs(x0))
+
+
+def test_heavily_damped_weak_design_settles_and_is_certified():
+    for fn in (jump_height, jump_height_ode):
+        r = fn(h_imp_m=0.0, params=JumpParams(c_d=2.0), **A_LIKE)
+        assert r.complete and not r.jumped and not r.lift_off and r.y_jump_m == 0.0
