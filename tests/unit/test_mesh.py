@@ -491,7 +491,7 @@ def test_fast():
         t = time.perf_counter()
         mesh_scene(d)
         ts.append(time.perf_counter() - t)
-    assert sorted(ts)[2] < 0.1  # measured ~15 ms
+    assert sorted(ts)[2] < 0.25  # the whole per-design budget; measured ~15 ms (loaded machine: <= 25 ms)
 
 
 # ---------------------------------------------------------------------------------------------
