@@ -38,6 +38,10 @@ with a reason. The simulation stops once the maximum is certified: the energy
 ``E(t)`` (kinetic + gravitational + spring) never increases (dashpot, impacts with
 ``alpha <= 1``, a workless resting contact), and ``M g y_i <= E + (m_o g)^2 / (2 k_s)`` (up to a
 constant), so once that bound falls below the running maximum no later height can exceed it.
+A resting phase also ends the simulation once a lift-off is provably impossible (modal envelope
+of the upward pull, :meth:`_Model.lift_margin`). ``JumpResult.complete`` is ``False`` only when
+``t_max`` / ``max_contacts`` stop it first (e.g. no dissipation at all: ``c_d = 0``,
+``alpha = 1``).
 
 Micro-bounces: a rebound slower than ``1e-7`` times the relative-speed scale
 ``sqrt(2 dE / mu)`` while the spring presses ``m_i`` down is treated as the end of the bounce
