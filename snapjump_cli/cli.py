@@ -57,7 +57,9 @@ def cli(verbose: int, quiet: bool) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit code (0 ok, 1 failure, 2 bad input)."""
     try:
-        cli.main(args=list(argv) if argv is not None else None, prog_name="snapjump", standalone_mode=False)
+        rc = cli.main(args=list(argv) if argv is not None else None, prog_name="snapjump", standalone_mode=False)
+        if isinstance(rc, int):  # ctx.exit(n) under standalone_mode=False returns n
+            return rc
     except click.exceptions.Exit as e:
         return int(e.exit_code or 0)
     except click.ClickException as e:  # UsageError, BadParameter, ... -> exit 2 (one line, no traceback)

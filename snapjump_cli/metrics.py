@@ -9,6 +9,13 @@
    state exactly at ``V = V*`` (volume control): the *lower state* (``lower_state_method="path"``);
 3. stops (unless the whole curve was asked for) or reports that the path did not come back.
 
+Where the path does not come back to ``V*`` (it can fold several times and turn back, SPEC
+section 5) or comes back on an unstable branch, the lower state is found instead by
+:func:`descend_at_volume`: a volume-constrained energy descent (implicit gradient flow in pseudo
+time) from the upper state, started along the path's unstable direction
+(``lower_state_method="descent"``). Stability at fixed volume is read off the inertia of the
+band LDL^T (:func:`constrained_instability`).
+
 ``dE`` is computed both as the strain-energy difference of the two states and as
 ``-integral p dV`` along the path between them (cubic Hermite interpolation of ``V(s)`` and
 ``p(s)`` from the tangents, so the quadrature is fourth-order accurate in the step).
@@ -25,7 +32,7 @@ from snapjump_cli.continuation import Path, PathPoint, Tracer
 
 log = logging.getLogger(__name__)
 
-__all__ = ["SnapTracker", "hermite_p_dV", "path_self_crosses", "SnapStates"]
+__all__ = ["SnapTracker", "hermite_p_dV", "path_self_crosses", "SnapStates", "descend_at_volume", "constrained_instability"]
 
 _G3 = np.polynomial.legendre.leggauss(4)
 
@@ -103,6 +110,7 @@ class SnapTracker:
     p_stop: float
     V_stop: float
     full: bool = False
+    post_snap_steps: int = 200
     states: SnapStates = field(default_factory=SnapStates)
 
     def __call__(self, path: Path) -> str | None:
@@ -125,6 +133,8 @@ class SnapTracker:
                     st.lower_method = "path"
                     if not self.full:
                         return "snap characterised"
+            elif len(pts) - 1 - st.k_before > self.post_snap_steps:
+                return "path did not return to V*"
         if new.zeta[0] > self.V_stop:
             return "volume bound"
         if new.p > self.p_stop and (st.upper is None or st.lower is not None or self.full):
@@ -179,3 +189,97 @@ class SnapTracker:
         t, v, q, z = tr.tangent(lin, b.tangent)
         h = float(np.linalg.norm(z - a.zeta))
         return PathPoint(lin.u, lin.p, z, t, v, q, a.s + h, it)
+
+
+def constrained_instability(tracer: Tracer, lin) -> int:
+    """Number of unstable modes of the equilibrium ``lin`` under volume control.
+
+    With ``K`` the tangent and ``g = dV/du``, the inertia of the bordered matrix gives
+    ``neg(Z^T K Z) = neg(K) - [g^T K^-1 g < 0]`` (Haynsworth), ``Z`` spanning ``g``'s complement.
+    Returns -1 if the inertia is not available (SuperLU solver).
+    """
+    z, dz_du, dz_dp = tracer.zeta(lin.u, lin.p)
+    solver = lin.factor(dz_du[0], 0.0)
+    if solver is None or getattr(solver, "n_negative", -1) < 0:
+        return -1
+    gKg = -float(lin.g @ solver.Kib)  # Kib = K^-1 (-g)
+    return int(solver.n_negative - (1 if gKg < 0 else 0))
+
+
+def descend_at_volume(
+    tracer: Tracer, upper: PathPoint, kick: float = 0.05, max_iter: int = 400, tol: float | None = None
+) -> tuple[PathPoint | None, str]:
+    """The stable state reached from the upper state at fixed volume by energy descent.
+
+    Implicit gradient flow of ``W(u) - p (V(u) - V*)`` in pseudo time: each iteration solves
+    ``[[K + sigma I, -g], [g^T, 0]] [du; dp] = [-R; V* - V]``, accepts it if the energy does not
+    rise (``sigma`` then shrinks, i.e. the pseudo-time step grows, ending in plain Newton) and
+    otherwise grows ``sigma``. Started at ``kick`` (scaled arc length) along the path tangent at
+    the volume limit, the unstable direction. Converged when the residual is below ``tol`` and
+    the state is stable under volume control.
+
+    Returns
+    -------
+    (PathPoint or None, message)
+    """
+    cfg = tracer.cfg
+    tol = cfg.tol if tol is None else tol
+    V_star = upper.zeta[0]
+    pb = tracer.pb
+    u = upper.u + kick * upper.du_ds
+    p = upper.p + kick * upper.dp_ds
+    sigma_rel = 1.0
+    E_old = None
+    msg = "descent did not converge"
+    u_prev = p_prev = lin_prev = None
+    for it in range(max_iter):
+        lin = pb.linearize(u, p)
+        if lin is None:  # left the material domain: a shorter pseudo-time step
+            if lin_prev is None:
+                kick *= 0.25
+                u = upper.u + kick * upper.du_ds
+                p = upper.p + kick * upper.dp_ds
+                continue
+            u, p, lin = u_prev, p_prev, lin_prev
+            sigma_rel *= 8.0
+            z, dz_du, dz_dp = tracer.zeta(u, p)
+            sigma = sigma_rel * lin.diag_mean()
+            solver = lin.factor(dz_du[0], 0.0, shift=sigma)
+            if solver is None:
+                continue
+            x = solver.solve(np.concatenate([-lin.R, [-(z[0] - V_star)]]))
+            u, p = u + x[:-1], p + x[-1]
+            continue
+        z, dz_du, dz_dp = tracer.zeta(u, p)
+        ref = float(np.linalg.norm(dz_du[0])) * tracer.sc[0] * max(abs(p), 1e-3 * tracer.sc[1])
+        rn = float(np.linalg.norm(lin.R)) / ref
+        h = float(z[0] - V_star)
+        E = pb.energy(u) - p * (z[0] - V_star) * tracer.sc[0]
+        if E_old is not None and E > E_old + 1e-12 * max(1.0, abs(E_old)):
+            # rejected: back to the previous iterate with a shorter pseudo-time step
+            u, p, lin_prev = u_prev, p_prev, lin_prev
+            sigma_rel *= 8.0
+            lin = lin_prev
+            z, dz_du, dz_dp = tracer.zeta(u, p)
+            h = float(z[0] - V_star)
+        else:
+            if rn < tol and abs(h) < tol and sigma_rel < 1e-8:
+                if constrained_instability(tracer, lin) <= 0:
+                    t, v, q, zz = tracer.tangent(lin, upper.tangent)
+                    return PathPoint(lin.u, lin.p, zz, t, v, q, float("nan"), it), "descent converged"
+                sigma_rel = 1.0  # a saddle: keep descending
+                u = u + 1e-3 * np.random.default_rng(it).standard_normal(u.shape) * float(np.abs(u).max())
+                E_old = None
+                continue
+            E_old = E
+            sigma_rel = max(sigma_rel * 0.25, 1e-12)
+        u_prev, p_prev, lin_prev = u, p, lin
+        sigma = sigma_rel * lin.diag_mean()
+        solver = lin.factor(dz_du[0], 0.0, shift=sigma)
+        if solver is None:
+            sigma_rel *= 8.0
+            continue
+        x = solver.solve(np.concatenate([-lin.R, [-h]]))
+        u = u + x[:-1]
+        p = p + x[-1]
+    return None, msg

@@ -74,9 +74,21 @@ class Linearization:
     def __init__(self, model: "Model", u, p, R, g, data):
         self.model, self.u, self.p, self.R, self.g, self.data = model, u, p, R, g, data
 
-    def factor(self, c_u: np.ndarray, c_p: float) -> "BorderedSolver | None":
-        """Factorise ``[[K_T, -dV/du], [c_u^T, c_p]]``; ``None`` if it is singular."""
-        return self.model._factor(self.data, -self.g, c_u, c_p)
+    def factor(self, c_u: np.ndarray, c_p: float, shift: float = 0.0) -> "BorderedSolver | None":
+        """Factorise ``[[K_T + shift I, -dV/du], [c_u^T, c_p]]``; ``None`` if it is singular.
+
+        A positive ``shift`` turns a Newton step into an implicit gradient-flow (pseudo-time)
+        step, used by the volume-constrained energy descent.
+        """
+        data = self.data
+        if shift:
+            data = data.copy()
+            data[self.model.diag_pos] += shift
+        return self.model._factor(data, -self.g, c_u, c_p)
+
+    def diag_mean(self) -> float:
+        """Mean absolute diagonal entry of ``K_T`` (a scale for ``shift``)."""
+        return float(np.abs(self.data[self.model.diag_pos]).mean())
 
 
 class BorderedSolver:
@@ -222,6 +234,8 @@ class Model:
         self.epos = np.ascontiguousarray(pos(ri, ci).reshape(self.conn.shape[0], nd, nd).astype(np.int64))
         self.edge_pos = np.ascontiguousarray(pos(rg, cg).reshape(self.edges.shape[0], nde, nde).astype(np.int64))
         self.ndata = (self.kl + 1) * n if solver == "banded" else len(keys)
+        ar = np.arange(n)
+        self.diag_pos = (band_pos if solver == "banded" else csr_pos)(ar, ar)
         if solver == "superlu":
             self.col_pos = csr_pos(bd, np.full(len(bd), n))
             self.row_pos = csr_pos(np.full(len(bd), n), bd)

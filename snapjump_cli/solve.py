@@ -15,7 +15,7 @@ import numpy as np
 from snapjump_cli.continuation import ContinuationFailed, ContinuationSettings, Path, Tracer, trace
 from snapjump_cli.geometry import CapScene, Design, cap_volumes, design_volumes
 from snapjump_cli.meshdata import Mesh
-from snapjump_cli.metrics import SnapTracker, hermite_p_dV, path_self_crosses
+from snapjump_cli.metrics import SnapTracker, constrained_instability, descend_at_volume, hermite_p_dV, path_self_crosses
 from snapjump_cli.model import Model
 from snapjump_cli.settings import MeshSettings, SolverSettings
 
@@ -147,10 +147,22 @@ def solve_scene(
     p_curve = np.array([pt.p for pt in pts])
     metrics["self_crossing"] = path_self_crosses(V_curve, p_curve)
     metrics["snaps"] = st.upper is not None
-    metrics["lower_state_method"] = st.lower_method or None
+    lower_note = ""
+    if st.upper is not None and st.lower is not None:
+        lin = model.linearize(st.lower.u, st.lower.p)
+        n_unstable = constrained_instability(tracer, lin) if lin is not None else 1
+        if n_unstable > 0:
+            lower_note = f"the path returned to V* on an unstable branch ({n_unstable} unstable modes)"
+            st.lower, st.lower_method = None, ""
     if st.upper is not None and st.lower is None:
-        why = failure or path.stop_reason
-        raise SolveFailed(f"volume limit found (V*={st.upper.zeta[0] * sV * L**3:.4g} m^3) but no lower state: {why}")
+        why = lower_note or failure or path.stop_reason
+        low, msg = descend_at_volume(tracer, st.upper)
+        if low is None:
+            raise SolveFailed(f"volume limit found (V*={st.upper.zeta[0] * sV * L**3:.4g} m^3) but no lower state "
+                              f"({why}; {msg})")
+        st.lower, st.lower_method = low, "descent"
+        log.info("lower state by descent (%s)", why)
+    metrics["lower_state_method"] = st.lower_method or None
     if st.upper is None and failure:
         raise SolveFailed(f"no volume limit reached before the continuation failed: {failure}")
     if outer_alone:
@@ -160,16 +172,19 @@ def solve_scene(
         W_up, W_lo = model.energy(up.u), model.energy(lo.u)
         dE_energy = W_up - W_lo
         # path integral: upper -> points after it -> lower
-        k0, k1 = st.k_before, st.k_return
-        seq = [up] + pts[k0 + 1 : k1] + [lo]
-        integral = 0.0
-        for a, b in zip(seq[:-1], seq[1:]):
-            h = b.s - a.s
-            integral += hermite_p_dV(a, b, h, sV, sp)
-        dE_path = -integral
+        if st.lower_method == "path":
+            k0, k1 = st.k_before, st.k_return
+            seq = [up] + pts[k0 + 1 : k1] + [lo]
+            integral = 0.0
+            for a, b in zip(seq[:-1], seq[1:]):
+                integral += hermite_p_dV(a, b, b.s - a.s, sV, sp)
+            dE_path = -integral
+        else:  # the descent state is not on the traced path: no path integral
+            dE_path = float("nan")
         metrics.update(
-            dE_J=dE_energy * E_unit, dE_energy_J=dE_energy * E_unit, dE_path_J=dE_path * E_unit,
-            dE_rel_diff=abs(dE_energy - dE_path) / max(abs(dE_energy), 1e-300),
+            dE_J=dE_energy * E_unit, dE_energy_J=dE_energy * E_unit,
+            dE_path_J=dE_path * E_unit if math.isfinite(dE_path) else None,
+            dE_rel_diff=abs(dE_energy - dE_path) / max(abs(dE_energy), 1e-300) if math.isfinite(dE_path) else None,
             dE_norm=dE_energy * E_unit / (S * L**3),
             p_star_Pa=up.p * S, V_star_m3=up.zeta[0] * sV * L**3,
             dy_pole_m=y_of(up.u, pole1) - y_of(lo.u, pole1),
@@ -193,7 +208,7 @@ def solve_scene(
         n_nodes=mesh.n_nodes, n_elements=mesh.n_elements, n_dofs=model.n,
         V_inner_solid_m3=vols.get("inner_solid"), V_outer_solid_m3=vols.get("outer_solid"),
         max_dilatation=float(max(model.max_dilatation(pt.u) for pt in ([st.upper, st.lower] if st.lower else pts[-1:]))),
-        stop_reason=path.stop_reason, mesh_s=t_mesh,
+        stop_reason=path.stop_reason, lower_state_note=lower_note, mesh_s=t_mesh,
         t_assembly_s=model.t_assembly, t_factor_s=model.t_factor, n_factorizations=model.n_factorizations,
         wall_s=time.perf_counter() - t0,
     )
