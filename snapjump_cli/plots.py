@@ -167,3 +167,35 @@ def make_plots(ranked: pd.DataFrame, out_dir: str | Path) -> list[Path]:
     for f in files:
         log.info("wrote %s", f)
     return files
+
+
+def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "") -> Path:
+    """The pressure-volume path of one scene, normalised as the paper's Fig. 2A
+    (``p / mu_i`` against ``dV / R_i^3``), with the released energy dE shaded (the area between
+    the path and the vertical line ``V = V*``), the volume limit point (black) and the isochoric
+    point on the lower branch (white) marked."""
+    plt = _pyplot()
+    L, mu, V0 = curve["L_m"], curve["mu_Pa"], curve["V0_m3"]
+    x = (np.asarray(curve["V_m3"]) - V0) / L**3
+    y = np.asarray(curve["p_Pa"]) / mu
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    ax.plot(x, y, "-", color="tab:blue", lw=1.4, label="equilibrium path")
+    if metrics.get("snaps") and "snap_V_m3" in curve:
+        sx = (np.asarray(curve["snap_V_m3"]) - V0) / L**3
+        sy = np.asarray(curve["snap_p_Pa"]) / mu
+        ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:blue", alpha=0.25,
+                label=f"dE = {metrics['dE_J'] * 1e3:.4g} mJ ({metrics['lower_state_method']})")
+        ax.plot(sx[0], sy[0], "o", mfc="k", mec="k", ms=7, label="volume limit V*")
+        ax.plot(sx[-1], sy[-1], "o", mfc="w", mec="k", ms=7, label="isochoric point")
+    ax.set_xlabel(r"$\Delta V / R_i^3$")
+    ax.set_ylabel(r"$p / \mu_i$")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    out = Path(path)
+    tmp = out.with_name(f".{out.name}.tmp{out.suffix}")
+    fig.savefig(tmp, dpi=120)
+    plt.close(fig)
+    tmp.replace(out)
+    return out

@@ -181,6 +181,7 @@ def solve_scene(
             dE_path = -integral
         else:  # the descent state is not on the traced path: no path integral
             dE_path = float("nan")
+            seq = [up, lo]
         metrics.update(
             dE_J=dE_energy * E_unit, dE_energy_J=dE_energy * E_unit,
             dE_path_J=dE_path * E_unit if math.isfinite(dE_path) else None,
@@ -191,6 +192,8 @@ def solve_scene(
             dy_pole_upper_m=y_of(up.u, pole2) - y_of(lo.u, pole2),
         )
         metrics["dy_pole_norm"] = metrics["dy_pole_m"] / L
+        metrics["p_lower_Pa"] = lo.p * S
+        snap_seq = seq if st.lower_method == "path" else [up, lo]
         if "ground" in mesh.node_sets and len(mesh.node_sets["ground"]):
             xg = model.positions(up.u)[mesh.node_sets["ground"], 1] * L
             metrics["h_imp_m"] = y_of(up.u, pole1) - float(xg.min())
@@ -213,12 +216,19 @@ def solve_scene(
         wall_s=time.perf_counter() - t0,
     )
     curve = {
+        "p0_Pa": 0.0,
+        "V0_m3": V0 * L**3,
+        "L_m": L,
+        "mu_Pa": S,
         "p_Pa": p_curve * S,
         "V_m3": V_curve * L**3,
         "y_pole_m": np.array([y_of(pt.u, pole1) for pt in pts]),
         "energy_J": np.array([model.energy(pt.u) for pt in pts]) * E_unit,
         "s": np.array([pt.s for pt in pts]),
     }
+    if st.upper is not None:
+        curve["snap_V_m3"] = np.array([pt.zeta[0] * sV for pt in snap_seq]) * L**3
+        curve["snap_p_Pa"] = np.array([pt.p for pt in snap_seq]) * S
     return SceneResult(metrics=metrics, curve=curve, model=model, path=path)
 
 

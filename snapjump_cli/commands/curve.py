@@ -1,0 +1,143 @@
+"""``snapjump curve``: trace one scene's pressure-volume path and report its snap metrics.
+
+JSON keys (stable): ``dE_J``, ``dE_norm`` (dE / (mu_i R_i^3)), ``dE_energy_J``, ``dE_path_J``,
+``dy_pole_m``, ``dy_pole_norm`` (/R_i), ``p_star_Pa``, ``V_star_m3``, ``p_max_Pa``, ``h_imp_m``,
+``L0_m``, ``snaps``, ``self_crossing``, ``lower_state_method``, ``n_steps``, ``n_newton``,
+``wall_s``; plus diagnostics (``dE_rel_diff``, ``dy_pole_upper_m``, ``p_lower_Pa``, mesh size,
+``max_dilatation``, timings, ``stop_reason``; ``E_o_J`` for an outer cap alone).
+"""
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import math
+import os
+from pathlib import Path
+from typing import Sequence
+
+import click
+import numpy as np
+
+from snapjump_cli.errors import BadInput
+from snapjump_cli.scenes import (
+    mesh_options,
+    mesh_settings_from_options,
+    pick_mesh_options,
+    pick_scene_options,
+    scene_from_options,
+    scene_options,
+)
+
+__all__ = ["command", "main", "to_jsonable"]
+
+log = logging.getLogger(__name__)
+
+
+def to_jsonable(metrics: dict) -> dict:
+    """Plain Python scalars (numpy scalars become floats/ints; NaN becomes None)."""
+    out = {}
+    for k, v in metrics.items():
+        if isinstance(v, (np.floating, float)):
+            v = float(v)
+            v = v if math.isfinite(v) else None
+        elif isinstance(v, (np.integer,)):
+            v = int(v)
+        elif isinstance(v, np.bool_):
+            v = bool(v)
+        out[k] = v
+    return out
+
+
+def _write_csv(curve: dict, path: Path) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    cols = ["p_Pa", "V_m3", "y_pole_m", "energy_J", "s"]
+    names = ["p_Pa", "V_m3", "y_pole_m", "strain_energy_J", "arc_length"]
+    with open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(names)
+        for row in zip(*(curve[c] for c in cols)):
+            w.writerow([f"{float(x):.12g}" for x in row])
+    os.replace(tmp, path)
+
+
+def _text(scene, m: dict) -> str:
+    name = getattr(scene, "name", None) or type(scene).__name__
+    lines = [f"scene            {name}"]
+    if not m["snaps"]:
+        lines.append("snaps            no (no limit point in volume before the trace bound)")
+    else:
+        lines += [
+            f"dE               {m['dE_J'] * 1e3:.6g} mJ   (dE/(mu_i R_i^3) = {m['dE_norm']:.5g})",
+            f"  energy / path  {m['dE_energy_J'] * 1e3:.6g} / "
+            + (f"{m['dE_path_J'] * 1e3:.6g} mJ  (rel. diff {m['dE_rel_diff']:.1e})" if m.get("dE_path_J") is not None else "n/a (descent)"),
+            f"dy_pole          {m['dy_pole_m'] * 1e3:.5g} mm   (dy/R_i = {m['dy_pole_norm']:.5g})",
+            f"p* / V*          {m['p_star_Pa'] / 1e3:.5g} kPa / {m['V_star_m3'] * 1e6:.5g} ml",
+            f"lower state      {m['lower_state_method']}",
+        ]
+        if m.get("h_imp_m") is not None:
+            lines.append(f"h_imp            {m['h_imp_m'] * 1e3:.5g} mm")
+        if m.get("L0_m") is not None:
+            lines.append(f"L_0              {m['L0_m'] * 1e3:.5g} mm")
+    if m.get("E_o_J") is not None:
+        lines.append(f"E_o (p/mu_o=0.5) {m['E_o_J'] * 1e3:.6g} mJ")
+    lines += [
+        f"p_max            {m['p_max_Pa'] / 1e3:.5g} kPa",
+        f"self-crossing    {'yes' if m['self_crossing'] else 'no'}",
+        f"solver           {m['n_steps']} steps, {m['n_newton']} Newton iterations, {m['n_dofs']} dofs, {m['wall_s']:.3g} s",
+    ]
+    return "\n".join(lines)
+
+
+@click.command("curve", context_settings={"help_option_names": ["-h", "--help"]})
+@scene_options
+@mesh_options
+@click.option("--full", is_flag=True, help="Trace the whole curve (to 1.5 p_c or the volume bound) instead of stopping once the snap is characterised.")
+@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True, help="Output format.")
+@click.option("--csv", "csv_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write the traced path (p_Pa, V_m3, y_pole_m, strain_energy_J, arc_length) to this CSV file.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Draw the p-V curve (paper Fig. 2A normalisation, dE shaded) to this PNG file.")
+def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, **kw) -> None:
+    """Trace one scene's pressure-volume path through its limit points and report the snap.
+
+    \b
+    Examples:
+      snapjump curve --design D
+      snapjump curve --cap --theta 60 --eta 30 --bc clamped --format json
+      snapjump curve --design C --plot c.png --csv c.csv
+      snapjump curve --cap outer --theta 90 --eta 16.5
+    """
+    from snapjump_cli.settings import SolverSettings
+    from snapjump_cli.solve import SolveFailed, solve_scene
+
+    scene = scene_from_options(**pick_scene_options(kw))
+    ms = mesh_settings_from_options(**pick_mesh_options(kw))
+    for p, suffix in ((csv_path, ".csv"), (plot_path, ".png")):
+        if p is not None:
+            if p.suffix.lower() != suffix:
+                raise BadInput(f"{p}: expected a {suffix} file")
+            if not p.parent.exists():
+                raise BadInput(f"{p}: directory {p.parent} does not exist")
+    try:
+        res = solve_scene(scene, ms, SolverSettings(full=full))
+    except SolveFailed as exc:
+        raise click.ClickException(f"solve failed: {exc}") from None
+    m = to_jsonable(res.metrics)
+    if csv_path is not None:
+        _write_csv(res.curve, csv_path)
+    if plot_path is not None:
+        from snapjump_cli.plots import plot_pv_curve
+
+        plot_pv_curve(res.curve, m, plot_path, title=getattr(scene, "name", None) or "")
+    if fmt == "json":
+        click.echo(json.dumps(m, sort_keys=False))
+    else:
+        click.echo(_text(scene, m))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``snapjump curve`` with ``argv``; returns the exit code."""
+    from snapjump_cli.cli import main as cli_main
+
+    return cli_main(["curve", *(argv or [])])
