@@ -32,7 +32,7 @@ from snapjump_cli.continuation import Path, PathPoint, Tracer
 
 log = logging.getLogger(__name__)
 
-__all__ = ["SnapTracker", "hermite_p_dV", "path_self_crosses", "SnapStates", "descend_at_volume", "constrained_instability"]
+__all__ = ["SnapTracker", "hermite_p_dV", "path_self_crosses", "SnapStates", "descend_at_volume", "constrained_instability", "descent_starts"]
 
 _G3 = np.polynomial.legendre.leggauss(4)
 
@@ -110,7 +110,7 @@ class SnapTracker:
     p_stop: float
     V_stop: float
     full: bool = False
-    post_snap_steps: int = 200
+    post_snap_steps: int = 600
     states: SnapStates = field(default_factory=SnapStates)
 
     def __call__(self, path: Path) -> str | None:
@@ -207,16 +207,21 @@ def constrained_instability(tracer: Tracer, lin) -> int:
 
 
 def descend_at_volume(
-    tracer: Tracer, upper: PathPoint, kick: float = 0.05, max_iter: int = 400, tol: float | None = None
+    tracer: Tracer, upper: PathPoint, kick: float = 0.2, max_iter: int = 600, tol: float | None = None,
+    sigma_unstable: float = 1e-2, start: PathPoint | None = None,
 ) -> tuple[PathPoint | None, str]:
     """The stable state reached from the upper state at fixed volume by energy descent.
 
-    Implicit gradient flow of ``W(u) - p (V(u) - V*)`` in pseudo time: each iteration solves
-    ``[[K + sigma I, -g], [g^T, 0]] [du; dp] = [-R; V* - V]``, accepts it if the energy does not
-    rise (``sigma`` then shrinks, i.e. the pseudo-time step grows, ending in plain Newton) and
-    otherwise grows ``sigma``. Started at ``kick`` (scaled arc length) along the path tangent at
-    the volume limit, the unstable direction. Converged when the residual is below ``tol`` and
-    the state is stable under volume control.
+    Implicit gradient flow of ``W(u)`` at ``V(u) = V*`` in pseudo time: each iteration solves
+    ``[[K + sigma I, -g], [g^T, 0]] [du; dp] = [-R; V* - V]`` and is accepted if the merit
+    ``W - p (V - V*)`` (with the new multiplier) does not rise. ``sigma`` (relative to the mean
+    diagonal of ``K``) shrinks after an accepted step and grows after a rejected one; while the
+    state is unstable at fixed volume (read off the LDL^T inertia) it is kept above
+    ``sigma_unstable`` so that the step follows the negative curvature away from the saddle
+    instead of Newton's way back to it. Once stable, ``sigma -> 0`` ends in Newton's method.
+    Started at ``kick`` (scaled arc length) along the path tangent at the volume limit, the
+    unstable direction of the fold, or at ``start`` (a post-snap path point, already past the
+    flat neighbourhood of the degenerate saddle, where the flow would crawl).
 
     Returns
     -------
@@ -226,60 +231,74 @@ def descend_at_volume(
     tol = cfg.tol if tol is None else tol
     V_star = upper.zeta[0]
     pb = tracer.pb
-    u = upper.u + kick * upper.du_ds
-    p = upper.p + kick * upper.dp_ds
+    if start is not None:
+        u, p = start.u.copy(), start.p
+    else:
+        u = upper.u + kick * upper.du_ds
+        p = upper.p + kick * upper.dp_ds
     sigma_rel = 1.0
-    E_old = None
-    msg = "descent did not converge"
-    u_prev = p_prev = lin_prev = None
+    dh_max = 0.05  # largest volume change per iteration (scaled) while restoring V*
+    step_small = False
+    accepted = None  # (u, p, lin, merit-function pieces)
     for it in range(max_iter):
         lin = pb.linearize(u, p)
-        if lin is None:  # left the material domain: a shorter pseudo-time step
-            if lin_prev is None:
-                kick *= 0.25
-                u = upper.u + kick * upper.du_ds
-                p = upper.p + kick * upper.dp_ds
-                continue
-            u, p, lin = u_prev, p_prev, lin_prev
-            sigma_rel *= 8.0
-            z, dz_du, dz_dp = tracer.zeta(u, p)
-            sigma = sigma_rel * lin.diag_mean()
-            solver = lin.factor(dz_du[0], 0.0, shift=sigma)
-            if solver is None:
-                continue
-            x = solver.solve(np.concatenate([-lin.R, [-(z[0] - V_star)]]))
-            u, p = u + x[:-1], p + x[-1]
-            continue
         z, dz_du, dz_dp = tracer.zeta(u, p)
+        ok = lin is not None
+        if ok:
+            E_new = pb.energy(u)
+            h = float(z[0] - V_star)
+        if accepted is not None:
+            u0, p0, lin0, E0, h0 = accepted
+            # compare with the new multiplier: merit W - p (V - V*); while the volume is still
+            # being restored (|V - V*| not small) any step inside the material domain is taken
+            feasible = abs(h0) < 1e-6
+            if not ok and not feasible:
+                dh_max *= 0.5
+            if not ok or (feasible and E_new - p * h * tracer.sc[0] > E0 - p * h0 * tracer.sc[0] + 1e-13 * max(1.0, abs(E0))):
+                sigma_rel = min(sigma_rel * 8.0, 1e6)
+                u, p, lin = u0, p0, lin0
+                z, dz_du, dz_dp = tracer.zeta(u, p)
+                ok = True
+                E_new, h = E0, h0
+            else:
+                sigma_rel *= 0.25
+        elif not ok:
+            kick *= 0.25
+            u = upper.u + kick * upper.du_ds
+            p = upper.p + kick * upper.dp_ds
+            continue
+        accepted = (u, p, lin, E_new, h)
         ref = float(np.linalg.norm(dz_du[0])) * tracer.sc[0] * max(abs(p), 1e-3 * tracer.sc[1])
         rn = float(np.linalg.norm(lin.R)) / ref
-        h = float(z[0] - V_star)
-        E = pb.energy(u) - p * (z[0] - V_star) * tracer.sc[0]
-        if E_old is not None and E > E_old + 1e-12 * max(1.0, abs(E_old)):
-            # rejected: back to the previous iterate with a shorter pseudo-time step
-            u, p, lin_prev = u_prev, p_prev, lin_prev
-            sigma_rel *= 8.0
-            lin = lin_prev
-            z, dz_du, dz_dp = tracer.zeta(u, p)
-            h = float(z[0] - V_star)
-        else:
-            if rn < tol and abs(h) < tol and sigma_rel < 1e-8:
-                if constrained_instability(tracer, lin) <= 0:
-                    t, v, q, zz = tracer.tangent(lin, upper.tangent)
-                    return PathPoint(lin.u, lin.p, zz, t, v, q, float("nan"), it), "descent converged"
-                sigma_rel = 1.0  # a saddle: keep descending
-                u = u + 1e-3 * np.random.default_rng(it).standard_normal(u.shape) * float(np.abs(u).max())
-                E_old = None
-                continue
-            E_old = E
-            sigma_rel = max(sigma_rel * 0.25, 1e-12)
-        u_prev, p_prev, lin_prev = u, p, lin
-        sigma = sigma_rel * lin.diag_mean()
+        n_unstable = constrained_instability(tracer, lin)
+        if n_unstable > 0:
+            sigma_rel = max(sigma_rel, sigma_unstable)
+        log.debug("descent %d: E=%.12g rn=%.2e h=%.2e sigma_rel=%.1e unstable=%d", it, E_new, rn, h, sigma_rel, n_unstable)
+        if n_unstable == 0 and abs(h) < tol and (rn < tol or (rn < 100 * tol and step_small)):
+            t, v, q, zz = tracer.tangent(lin, upper.tangent)
+            return PathPoint(lin.u, lin.p, zz, t, v, q, float("nan"), it), "descent converged"
+        sigma = sigma_rel * lin.diag_mean() if n_unstable != 0 or sigma_rel > 1e-10 else 0.0
         solver = lin.factor(dz_du[0], 0.0, shift=sigma)
         if solver is None:
-            sigma_rel *= 8.0
+            sigma_rel = max(sigma_rel * 8.0, 1e-8)
             continue
-        x = solver.solve(np.concatenate([-lin.R, [-h]]))
+        # restore the volume gradually when starting far from V* (a homotopy in the constraint)
+        h_step = float(np.clip(h, -dh_max, dh_max))
+        x = solver.solve(np.concatenate([-lin.R, [-h_step]]))
         u = u + x[:-1]
         p = p + x[-1]
-    return None, msg
+        step_small = float(np.linalg.norm(dz_du @ x[:-1] + dz_dp * x[-1])) < 1e-12
+    return None, f"descent did not converge in {max_iter} iterations"
+
+
+def descent_starts(path_points: list[PathPoint], upper: PathPoint, k_before: int, n: int = 3) -> list[PathPoint]:
+    """Start states for :func:`descend_at_volume`: post-snap path points whose volume is closest
+    to ``V*``, skipping the first fifth of the post-snap arc (the flat neighbourhood of the
+    degenerate saddle, where a descent would crawl)."""
+    after = path_points[k_before + 1 :]
+    if not after:
+        return []
+    s0, s1 = upper.s, after[-1].s
+    far = [pt for pt in after if pt.s >= s0 + 0.2 * (s1 - s0)]
+    far.sort(key=lambda pt: abs(pt.zeta[0] - upper.zeta[0]))
+    return far[:n]

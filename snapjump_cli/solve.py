@@ -15,7 +15,14 @@ import numpy as np
 from snapjump_cli.continuation import ContinuationFailed, ContinuationSettings, Path, Tracer, trace
 from snapjump_cli.geometry import CapScene, Design, cap_volumes, design_volumes
 from snapjump_cli.meshdata import Mesh
-from snapjump_cli.metrics import SnapTracker, constrained_instability, descend_at_volume, hermite_p_dV, path_self_crosses
+from snapjump_cli.metrics import (
+    SnapTracker,
+    constrained_instability,
+    descend_at_volume,
+    descent_starts,
+    hermite_p_dV,
+    path_self_crosses,
+)
 from snapjump_cli.model import Model
 from snapjump_cli.settings import MeshSettings, SolverSettings
 
@@ -36,6 +43,8 @@ class SceneResult:
     curve: dict = field(default_factory=dict)
     model: Model | None = None
     path: Path | None = None
+    states: object | None = None  # SnapStates
+    tracer: Tracer | None = None
 
 
 def _scales(scene: Design | CapScene) -> dict:
@@ -156,7 +165,11 @@ def solve_scene(
             st.lower, st.lower_method = None, ""
     if st.upper is not None and st.lower is None:
         why = lower_note or failure or path.stop_reason
-        low, msg = descend_at_volume(tracer, st.upper)
+        low, msg = None, "no post-snap path to start from"
+        for start in descent_starts(pts, st.upper, st.k_before) + [None]:
+            low, msg = descend_at_volume(tracer, st.upper, start=start)
+            if low is not None:
+                break
         if low is None:
             raise SolveFailed(f"volume limit found (V*={st.upper.zeta[0] * sV * L**3:.4g} m^3) but no lower state "
                               f"({why}; {msg})")
@@ -229,7 +242,7 @@ def solve_scene(
     if st.upper is not None:
         curve["snap_V_m3"] = np.array([pt.zeta[0] * sV for pt in snap_seq]) * L**3
         curve["snap_p_Pa"] = np.array([pt.p for pt in snap_seq]) * S
-    return SceneResult(metrics=metrics, curve=curve, model=model, path=path)
+    return SceneResult(metrics=metrics, curve=curve, model=model, path=path, states=st, tracer=tracer)
 
 
 def _outer_energy(tracer: Tracer, path: Path, model: Model, E_unit: float, sV: float, sp: float) -> float | None:
