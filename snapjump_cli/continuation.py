@@ -4,7 +4,9 @@ The continuation sees only (see :mod:`snapjump_cli.model`): ``n``, ``residual(u,
 ``measures(u, p)`` and ``factor_bordered(u, p, c_u, c_p)``. The arc length is measured in the
 space of scaled path measures ``zeta = (V / s_V, p / s_p, w / s_w)`` (cavity volume, pressure,
 pole displacement), so a step means the same thing for every design and neither u nor p
-dominates it. Each step is a Riks step: the corrector stays on the hyperplane orthogonal to the
+dominates it, plus (``u_scale > 0``) the RMS displacement ``|u| / (sqrt(n) u_scale)``, which keeps
+the path smooth where all three measures are momentarily stationary (sharp corners in the
+measure space would otherwise force tiny steps). Each step is a Riks step: the corrector stays on the hyperplane orthogonal to the
 unit tangent ``t`` at the previous point, ``t . (zeta - zeta_0) = ds``, solved together with the
 equilibrium equations as one bordered system ``[[K_T, dR/dp], [c_u^T, c_p]]``, which stays
 regular at limit points in pressure and in volume. The tangent at a converged point solves the
@@ -60,8 +62,9 @@ class ContinuationSettings:
     max_steps: int = 400
     max_newton: int = 8
     max_turn_deg: float = 10.0
-    n_opt: int = 5
+    n_opt: int = 4
     quadratic_predictor: bool = True
+    u_scale: float = 0.0
 
 
 @dataclass
@@ -100,6 +103,8 @@ class Tracer:
         self.cfg = settings
         self.sc = np.asarray(settings.scales, float)
         self.n_newton = 0
+        # weight of the RMS displacement in the arc length (0: measures only)
+        self.alpha = 1.0 / (math.sqrt(problem.n) * settings.u_scale) if settings.u_scale > 0 else 0.0
 
     # ---- measures -----------------------------------------------------------------------------
     def zeta(self, u, p):
@@ -114,7 +119,9 @@ class Tracer:
         """
         u, p = lin.u, lin.p
         z, dz_du, dz_dp = self.zeta(u, p)
-        solver = lin.factor(t_prev @ dz_du, float(t_prev @ dz_dp))
+        t_z, t_u = t_prev
+        a = self.alpha
+        solver = lin.factor(t_z @ dz_du + a * t_u, float(t_z @ dz_dp))
         if solver is None:
             raise ContinuationFailed("singular bordered matrix at a converged state")
         rhs = np.zeros(self.pb.n + 1)
@@ -122,7 +129,7 @@ class Tracer:
         x = solver.solve(rhs)
         v, q = x[:-1], x[-1]
         dz = dz_du @ v + dz_dp * q
-        nrm = float(np.linalg.norm(dz))
+        nrm = math.sqrt(float(dz @ dz) + a * a * float(v @ v))
         if not np.isfinite(nrm) or nrm == 0.0:
             raise ContinuationFailed("degenerate tangent (no change of volume, pressure or pole)")
         return dz / nrm, v / nrm, q / nrm, z
@@ -147,9 +154,10 @@ class Tracer:
             R = lin.R
             z, dz_du, dz_dp = self.zeta(u, p)
             if target is None:
-                h = float(t @ (z - z0) - ds)
-                c_u = t @ dz_du
-                c_p = float(t @ dz_dp)
+                t_z, t_u, u_0 = t
+                h = float(t_z @ (z - z0) + self.alpha**2 * (t_u @ (u - u_0)) - ds)
+                c_u = t_z @ dz_du + self.alpha**2 * t_u
+                c_p = float(t_z @ dz_dp)
             else:
                 k, val = target
                 h = float(z[k] - val)
@@ -189,12 +197,12 @@ class Tracer:
                 w = (ds / h) ** 2
                 u0 = u0 + w * (prev.u - pt.u + h * pt.du_ds)
                 p0 = p0 + w * (prev.p - pt.p + h * pt.dp_ds)
-        res = self.correct(u0, p0, pt.zeta, pt.tangent, ds)
+        res = self.correct(u0, p0, pt.zeta, (pt.tangent, pt.du_ds, pt.u), ds)
         if res is None:
             return None
         lin, it = res
         try:
-            t, v, q, z = self.tangent(lin, pt.tangent)
+            t, v, q, z = self.tangent(lin, (pt.tangent, self.alpha * pt.du_ds))
         except ContinuationFailed:
             return None
         return PathPoint(lin.u, lin.p, z, t, v, q, pt.s + ds, it)
@@ -207,13 +215,14 @@ def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0) -> PathPoint:
     lin = tracer.pb.linearize(u0, p0)
     if lin is None:
         raise ContinuationFailed("the initial state lies outside the material domain")
-    t, v, q, z = tracer.tangent(lin, t_prev)
+    t, v, q, z = tracer.tangent(lin, (t_prev, np.zeros(tracer.pb.n)))
     return PathPoint(u0.copy(), p0, z, t, v, q, 0.0, 0)
 
 
-def turn_angle(t1: np.ndarray, t2: np.ndarray) -> float:
-    """Angle between two unit tangents, degrees."""
-    return math.degrees(math.acos(max(-1.0, min(1.0, float(t1 @ t2)))))
+def turn_angle(a: PathPoint, b: PathPoint, alpha: float = 0.0) -> float:
+    """Angle between the unit tangents of two path points (measure and weighted u parts), degrees."""
+    c = float(a.tangent @ b.tangent) + alpha * alpha * float(a.du_ds @ b.du_ds)
+    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
 
 
 def trace(
@@ -252,7 +261,7 @@ def trace(
         prev = path.points[-2] if (cfg.quadratic_predictor and len(path.points) > 1) else None
         new = tr.step(pt, ds, prev)
         if new is not None:
-            ang = turn_angle(pt.tangent, new.tangent)
+            ang = turn_angle(pt, new, tr.alpha)
             if ang > cfg.max_turn_deg and ds > 4 * cfg.ds_min:
                 new = None
                 cause = f"tangent turned {ang:.1f} deg"
@@ -263,10 +272,13 @@ def trace(
                 if reason:
                     path.stop_reason = reason
                     break
-                grow = math.sqrt(cfg.n_opt / max(new.newton, 1))
+                # Newton's iteration count hardly depends on the step while the predictor is in
+                # its basin: grow while it converges in <= n_opt iterations, shrink beyond
+                its = max(new.newton, 1)
+                grow = 1.6 if its <= cfg.n_opt else (1.0 if its <= cfg.n_opt + 2 else 0.6)
                 if ang > 0:
                     grow = min(grow, 0.5 * cfg.max_turn_deg / ang)
-                ds = min(cfg.ds_max, ds * min(2.0, max(0.5, grow)))
+                ds = min(cfg.ds_max, ds * max(0.5, grow))
                 continue
         else:
             cause = "corrector did not converge"
@@ -275,9 +287,13 @@ def trace(
         log.debug("step rejected (%s); ds -> %.3g", cause, ds)
         if ds < cfg.ds_min:
             z = pt.zeta * tr.sc
-            raise ContinuationFailed(
+            path.n_newton = tr.n_newton
+            path.stop_reason = "continuation failed"
+            exc = ContinuationFailed(
                 f"step cut below ds_min={cfg.ds_min:g} ({cause}) at V={z[0]:.6g}, p={z[1]:.6g} (scaled), "
                 f"after {len(path.points) - 1} steps"
             )
+            exc.path = path  # the partial path, for the caller's fallbacks
+            raise exc
     path.n_newton = tr.n_newton
     return path

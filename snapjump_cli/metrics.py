@@ -186,8 +186,8 @@ class SnapTracker:
         if res is None:
             return None
         lin, it = res
-        t, v, q, z = tr.tangent(lin, b.tangent)
-        h = float(np.linalg.norm(z - a.zeta))
+        t, v, q, z = tr.tangent(lin, (b.tangent, tr.alpha * b.du_ds))
+        h = float(np.sqrt(np.sum((z - a.zeta) ** 2) + tr.alpha**2 * np.sum((lin.u - a.u) ** 2)))
         return PathPoint(lin.u, lin.p, z, t, v, q, a.s + h, it)
 
 
@@ -275,7 +275,7 @@ def descend_at_volume(
             sigma_rel = max(sigma_rel, sigma_unstable)
         log.debug("descent %d: E=%.12g rn=%.2e h=%.2e sigma_rel=%.1e unstable=%d", it, E_new, rn, h, sigma_rel, n_unstable)
         if n_unstable == 0 and abs(h) < tol and (rn < tol or (rn < 100 * tol and step_small)):
-            t, v, q, zz = tracer.tangent(lin, upper.tangent)
+            t, v, q, zz = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
             return PathPoint(lin.u, lin.p, zz, t, v, q, float("nan"), it), "descent converged"
         sigma = sigma_rel * lin.diag_mean() if n_unstable != 0 or sigma_rel > 1e-10 else 0.0
         solver = lin.factor(dz_du[0], 0.0, shift=sigma)

@@ -18,7 +18,7 @@ class MeshSettings:
     """
 
     order: int = 2
-    nt: int = 4
+    nt: int = 2
     aspect: float = 2.0
 
     def as_dict(self) -> dict:
@@ -40,16 +40,19 @@ class SolverSettings:
     full : trace the whole curve (to 1.5 p_c or the volume bound) instead of stopping once the snap
         is characterised
     bulk_ratio : kappa / mu of the volumetric penalty of the mixed formulation
+    u_scale : scale of the RMS displacement in the arc length, in units of the pole-displacement
+        scale (0 = arc length in (V, p, pole) only)
     """
 
     tol: float = 1e-8
     ds0: float = 0.02
-    ds_max: float = 0.2
+    ds_max: float = 1.0
     max_steps: int = 400
     max_newton: int = 8
     max_turn_deg: float = 10.0
     full: bool = False
     bulk_ratio: float = 1.0e4
+    u_scale: float = 1.0
 
     def as_dict(self) -> dict:
         return asdict(self)

@@ -120,6 +120,7 @@ def solve_scene(
     cfg = ContinuationSettings(
         scales=scales, tol=solver.tol, ds0=solver.ds0 / 0.02 * 0.05, ds_max=solver.ds_max,
         max_steps=solver.max_steps, max_newton=solver.max_newton, max_turn_deg=solver.max_turn_deg,
+        u_scale=solver.u_scale * sc["sw"],
     )
     tracer = Tracer(model, cfg)
     if outer_alone:
@@ -136,7 +137,7 @@ def solve_scene(
         path = getattr(exc, "path", None)
     st = tracker.states
     if path is None:
-        raise SolveFailed(f"continuation failed at the first step: {failure}")
+        raise SolveFailed(f"continuation failed: {failure}")
 
     # ---- quantities along the path ---------------------------------------------------------------
     pts = path.points

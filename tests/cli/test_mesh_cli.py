@@ -41,7 +41,7 @@ def test_help(capsys):
 
 
 def test_design_json(capsys):
-    s = run_json(capsys, "--design", "C")
+    s = run_json(capsys, "--design", "C", "--nt", "4")
     assert all(k in s for k in STABLE_KEYS)
     d = get_design("C")
     p, ex = design_points(d), design_volumes(d)
@@ -52,7 +52,7 @@ def test_design_json(capsys):
     assert s["V_outer_solid_m3"] == pytest.approx(ex["outer_solid"], rel=1e-6)
     assert s["V_cavity_m3"] == pytest.approx(ex["cavity"], rel=1e-6)
     assert s["V_inner_solid_m3"] != ex["inner_solid"]  # meshed, not the exact value
-    assert s["n_nodes"] == 1437 and s["n_elements"] == 316  # Q9, nt = 4, aspect 2 (defaults)
+    assert s["n_nodes"] == 1437 and s["n_elements"] == 316  # Q9, nt = 4, aspect 2
     assert s["order"] == 2 and s["nt"] == {"inner_cap": 4, "ring": 2, "outer_cap": 4}
     assert s["name"] == "C" and s["scene"] == "design"
 
@@ -88,7 +88,7 @@ def test_cap_json(capsys):
     assert s["scene"] == "cap-outer" and s["R_o_m"] == pytest.approx(0.040)
     assert s["V_inner_solid_m3"] is None and s["V_outer_solid_m3"] > 0
 
-    s = run_json(capsys, "--cap", "--theta", "60", "--eta", "8.5", "--bc", "ring-roller")
+    s = run_json(capsys, "--cap", "--theta", "60", "--eta", "8.5", "--bc", "ring-roller", "--nt", "4")
     assert s["h_pole_m"] == pytest.approx(0.030 * (1 - 0.5 / 8.5) - (0.030 * 0.5 - 0.001), rel=1e-12)
     assert s["nt"]["ring"] == 2
 
