@@ -1,0 +1,92 @@
+"""The benchmark scenes: the Fig. 1 caps, the named designs A-D and random paper-grid designs."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from snapjump_cli.geometry import CapScene, Design, InvalidDesign
+
+REPO = Path(__file__).resolve().parents[1]
+PAPER_GRID = REPO / "configs" / "paper_grid.yaml"
+
+
+@dataclass(frozen=True)
+class Case:
+    """One benchmark scene.
+
+    Attributes
+    ----------
+    name : short identifier used in tables and on the command line
+    scene : the :class:`CapScene` or :class:`Design`
+    group : ``cap``, ``named`` or ``grid``
+    label : human-readable description
+    """
+
+    name: str
+    scene: CapScene | Design
+    group: str
+    label: str
+
+
+def cap_cases() -> list[Case]:
+    """The caps of Fig. 1: theta = 60 deg, eta = 30 clamped; eta = 8.5 under the four base conditions."""
+    out = [Case("cap30-clamped", CapScene(theta_deg=60.0, eta=30.0, bc="clamped"), "cap",
+                "cap theta=60, eta=30, clamped")]
+    for bc in ("clamped", "roller", "roller-point", "ring-roller"):
+        out.append(Case(f"cap8.5-{bc}", CapScene(theta_deg=60.0, eta=8.5, bc=bc), "cap",
+                        f"cap theta=60, eta=8.5, {bc}"))
+    return out
+
+
+def named_cases(names: tuple[str, ...] = ("A", "B", "C", "D")) -> list[Case]:
+    """The paper's named designs (``configs/designs.yaml``)."""
+    from snapjump_cli.designs import get_design
+
+    out = []
+    for n in names:
+        d = get_design(n)
+        out.append(Case(f"design-{n}", d, "named",
+                        f"design {n} (eta_i={d.eta_i:g}, theta_i={d.theta_i_deg:g}, eta_o={d.eta_o:g}, "
+                        f"theta_o={d.theta_o_deg:g}, mu_i/mu_o={d.mu_ratio:g})"))
+    return out
+
+
+def grid_cases(n: int = 10, seed: int = 20240605, config: Path = PAPER_GRID) -> list[Case]:
+    """``n`` valid designs drawn uniformly (without replacement, fixed ``seed``) from the points of
+    the paper grid (``configs/paper_grid.yaml``, SPEC section 8); invalid ones are skipped."""
+    from snapjump_cli.config import load_config
+
+    cfg = load_config(config)
+    points = list(cfg.designs())
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in rng.permutation(len(points)):
+        p = points[int(i)]
+        try:
+            d = Design(**p.design_kwargs())
+        except InvalidDesign:
+            continue
+        out.append(Case(f"grid-{p.index:04d}", d, "grid",
+                        f"grid #{p.index} (eta_i={p.eta_i:.3g}, theta_i={p.theta_i_deg:.3g}, eta_o={p.eta_o:.3g}, "
+                        f"theta_o={p.theta_o_deg:.3g}, mu_i/mu_o={p.mu_ratio:g})"))
+        if len(out) >= n:
+            break
+    return out
+
+
+def all_cases(n_grid: int = 10, seed: int = 20240605) -> list[Case]:
+    return cap_cases() + named_cases() + grid_cases(n_grid, seed)
+
+
+def select(cases: list[Case], patterns: list[str] | None) -> list[Case]:
+    """Cases whose name matches any of the shell-style ``patterns`` (all when None), or a group name."""
+    if not patterns:
+        return cases
+    import fnmatch
+
+    out = [c for c in cases if any(fnmatch.fnmatchcase(c.name, p) or c.group == p for p in patterns)]
+    if not out:
+        raise SystemExit(f"--scenes {' '.join(patterns)}: no scene matches; known: {', '.join(c.name for c in cases)}")
+    return out
