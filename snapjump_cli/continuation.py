@@ -13,6 +13,11 @@ regular at limit points in pressure and in volume. The tangent at a converged po
 same system with right-hand side ``[0, 1]``; its orientation follows the previous tangent
 automatically (``t_prev . t_new > 0``).
 
+Bifurcations: the sign of the bordered Jacobian's determinant (from the LDL^T inertia and the
+Schur complement) flips at a simple bifurcation point but not at limit points; a step that
+crosses one is redone with a short step so that the corrector stays on the branch it follows,
+and the crossing is counted.
+
 Step control: the step grows when Newton converges fast and the tangent turns little, and is cut
 back (halved, then retried) on a failed corrector, a Gent-domain violation or a tangent that
 turns by more than ``max_turn_deg`` (which would skip small folds; SPEC pitfall b).
@@ -65,6 +70,7 @@ class ContinuationSettings:
     n_opt: int = 4
     quadratic_predictor: bool = True
     u_scale: float = 0.0
+    ds_bifurcation: float = 1e-3
 
 
 @dataclass
@@ -79,6 +85,7 @@ class PathPoint:
     dp_ds: float
     s: float  # arc length from the start
     newton: int = 0
+    det_sign: int = 0  # sign of det of the bordered Jacobian (0: unknown); flips at bifurcations
 
 
 @dataclass
@@ -86,6 +93,7 @@ class Path:
     points: list[PathPoint] = field(default_factory=list)
     n_newton: int = 0
     n_rejected: int = 0
+    n_bifurcations: int = 0
     stop_reason: str = ""
 
 
@@ -103,6 +111,7 @@ class Tracer:
         self.cfg = settings
         self.sc = np.asarray(settings.scales, float)
         self.n_newton = 0
+        self.last_det_sign = 0
         # weight of the RMS displacement in the arc length (0: measures only)
         self.alpha = 1.0 / (math.sqrt(problem.n) * settings.u_scale) if settings.u_scale > 0 else 0.0
 
@@ -132,6 +141,7 @@ class Tracer:
         nrm = math.sqrt(float(dz @ dz) + a * a * float(v @ v))
         if not np.isfinite(nrm) or nrm == 0.0:
             raise ContinuationFailed("degenerate tangent (no change of volume, pressure or pole)")
+        self.last_det_sign = _det_sign(solver)
         return dz / nrm, v / nrm, q / nrm, z
 
     def correct(self, u, p, z0, t, ds, target=None):
@@ -205,7 +215,17 @@ class Tracer:
             t, v, q, z = self.tangent(lin, (pt.tangent, self.alpha * pt.du_ds))
         except ContinuationFailed:
             return None
-        return PathPoint(lin.u, lin.p, z, t, v, q, pt.s + ds, it)
+        return PathPoint(lin.u, lin.p, z, t, v, q, pt.s + ds, it, self.last_det_sign)
+
+
+def _det_sign(solver) -> int:
+    """Sign of the determinant of a factorised bordered matrix, if the solver knows its inertia:
+    ``det [[K, b], [c^T, d]] = det K * (d - c^T K^-1 b)``."""
+    nneg = getattr(solver, "n_negative", -1)
+    schur = getattr(solver, "schur", None)
+    if nneg < 0 or schur is None:
+        return 0
+    return (-1) ** nneg * (1 if schur > 0 else -1)
 
 
 def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0) -> PathPoint:
@@ -216,13 +236,30 @@ def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0) -> PathPoint:
     if lin is None:
         raise ContinuationFailed("the initial state lies outside the material domain")
     t, v, q, z = tracer.tangent(lin, (t_prev, np.zeros(tracer.pb.n)))
-    return PathPoint(u0.copy(), p0, z, t, v, q, 0.0, 0)
+    return PathPoint(u0.copy(), p0, z, t, v, q, 0.0, 0, tracer.last_det_sign)
 
 
 def turn_angle(a: PathPoint, b: PathPoint, alpha: float = 0.0) -> float:
     """Angle between the unit tangents of two path points (measure and weighted u parts), degrees."""
     c = float(a.tangent @ b.tangent) + alpha * alpha * float(a.du_ds @ b.du_ds)
     return math.degrees(math.acos(max(-1.0, min(1.0, c))))
+
+
+def chord_angle(a: PathPoint, b: PathPoint, alpha: float = 0.0) -> float:
+    """Largest angle between the chord from ``a`` to ``b`` and either end tangent, degrees.
+
+    Equal end tangents do not prove a smooth step: a small fold can lie entirely inside it, and
+    then the chord points elsewhere (SPEC pitfall b)."""
+    dz = b.zeta - a.zeta
+    du = alpha * (b.u - a.u)
+    n = math.sqrt(float(dz @ dz) + float(du @ du))
+    if n == 0.0:
+        return 0.0
+    out = 0.0
+    for t in (a, b):
+        c = (float(dz @ t.tangent) + alpha * float(du @ t.du_ds)) / n
+        out = max(out, math.degrees(math.acos(max(-1.0, min(1.0, c)))))
+    return out
 
 
 def trace(
@@ -261,11 +298,19 @@ def trace(
         prev = path.points[-2] if (cfg.quadratic_predictor and len(path.points) > 1) else None
         new = tr.step(pt, ds, prev)
         if new is not None:
-            ang = turn_angle(pt, new, tr.alpha)
+            ang = max(turn_angle(pt, new, tr.alpha), chord_angle(pt, new, tr.alpha))
+            crossed = pt.det_sign * new.det_sign < 0  # a bifurcation point lies inside the step
             if ang > cfg.max_turn_deg and ds > 4 * cfg.ds_min:
                 new = None
-                cause = f"tangent turned {ang:.1f} deg"
+                cause = f"tangent or chord turned {ang:.1f} deg"
+            elif crossed and ds > cfg.ds_bifurcation:
+                # cross a bifurcation with a short step so that the corrector stays on this branch
+                new = None
+                cause = "bifurcation inside the step"
+                ds = 2.0 * max(cfg.ds_bifurcation, ds / 8.0)
             else:
+                if crossed:
+                    path.n_bifurcations += 1
                 path.points.append(new)
                 path.n_newton = tr.n_newton
                 reason = stop(path)

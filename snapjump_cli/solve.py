@@ -221,7 +221,7 @@ def solve_scene(
         metrics.update(dE_J=0.0, dE_norm=0.0)
     vols = solid_volumes(mesh)
     metrics.update(
-        n_steps=len(pts) - 1, n_newton=path.n_newton, n_rejected=path.n_rejected,
+        n_steps=len(pts) - 1, n_newton=path.n_newton, n_rejected=path.n_rejected, n_bifurcations=path.n_bifurcations,
         n_nodes=mesh.n_nodes, n_elements=mesh.n_elements, n_dofs=model.n,
         V_inner_solid_m3=vols.get("inner_solid"), V_outer_solid_m3=vols.get("outer_solid"),
         max_dilatation=float(max(model.max_dilatation(pt.u) for pt in ([st.upper, st.lower] if st.lower else pts[-1:]))),

@@ -1,0 +1,64 @@
+"""``snapjump curve``: help, JSON keys, CSV/plot outputs, bad input (exit 2, nothing written)."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from snapjump_cli.commands.curve import main
+
+STABLE_KEYS = (
+    "dE_J", "dE_norm", "dE_energy_J", "dE_path_J", "dy_pole_m", "dy_pole_norm", "p_star_Pa",
+    "V_star_m3", "p_max_Pa", "h_imp_m", "L0_m", "snaps", "self_crossing", "lower_state_method",
+    "n_steps", "n_newton", "wall_s",
+)
+CHEAP = ["--cap", "--theta", "60", "--eta", "8.5", "--bc", "roller-point"]
+
+
+def test_help(capsys):
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    for opt in ("--design", "--cap", "--bc", "--order", "--nt", "--full", "--format", "--csv", "--plot"):
+        assert opt in out
+
+
+def test_json_keys_and_outputs(capsys, tmp_path):
+    csv_path, png = tmp_path / "c.csv", tmp_path / "c.png"
+    rc = main([*CHEAP, "--format", "json", "--csv", str(csv_path), "--plot", str(png)])
+    out = capsys.readouterr().out
+    assert rc == 0
+    m = json.loads(out)
+    assert all(k in m for k in STABLE_KEYS)
+    assert m["snaps"] is True and m["lower_state_method"] in ("path", "descent")
+    assert m["dE_J"] > 0 and m["dy_pole_m"] > 0
+    assert abs(m["dE_energy_J"] - m["dE_path_J"]) <= 5e-3 * m["dE_J"]
+    assert m["dE_norm"] == pytest.approx(m["dE_J"] / (0.35e6 * 0.03**3), rel=1e-12)
+    lines = csv_path.read_text().splitlines()
+    assert lines[0] == "p_Pa,V_m3,y_pole_m,strain_energy_J,arc_length"
+    assert len(lines) == m["n_steps"] + 2
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_text_summary(capsys):
+    assert main(CHEAP) == 0
+    out = capsys.readouterr().out
+    assert "dE" in out and "dy_pole" in out and "mJ" in out
+
+
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["--design", "Z"], "Z"),
+        (["--cap", "--theta", "nan", "--eta", "8"], "--theta"),
+        (["--cap", "--theta", "60", "--eta", "-3"], "eta"),
+        (["--design", "C", "--plot", "out.txt"], "out.txt"),
+        (["--design", "C", "--csv", "nodir/x.csv"], "nodir"),
+        (["--eta-i", "8", "--theta-i", "80", "--eta-o", "10", "--theta-o", "70", "--mu-ratio", "1"], "theta_i"),
+    ],
+)
+def test_bad_input_exit_2(capsys, tmp_path, monkeypatch, args, needle):
+    monkeypatch.chdir(tmp_path)
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
