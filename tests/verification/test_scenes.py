@@ -1,0 +1,106 @@
+"""Snap metrics of the paper's scenes at the default mesh: built-in consistency checks (SPEC
+section 5), the comparisons with the paper that the SPEC says must hold, and regression values.
+
+Regression values were produced by ``snapjump curve`` at the default settings (order 2, nt 2,
+aspect 2) and are listed in the README table beside the paper's values; a change of more than
+0.3 % means the numerics changed and the README table must be regenerated.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from snapjump_cli.designs import get_design
+from snapjump_cli.geometry import CapScene
+from snapjump_cli.metrics import constrained_instability, descend_at_volume, descent_starts
+from snapjump_cli.settings import MeshSettings, SolverSettings
+from snapjump_cli.solve import solve_scene
+
+SCENES = {
+    "cap30-clamped": CapScene(theta_deg=60, eta=30, bc="clamped"),
+    "cap8.5-roller-point": CapScene(theta_deg=60, eta=8.5, bc="roller-point"),
+    "A": get_design("A"),
+    "B": get_design("B"),
+    "C": get_design("C"),
+    "D": get_design("D"),
+}
+# (dE [J], dy_pole [m]) at the default mesh
+REGRESSION = {
+    "cap30-clamped": (1.5441919e-04, 3.8406749e-03),
+    "cap8.5-roller-point": (3.3818771e-03, 6.9140667e-03),
+    "A": (2.7800103e-03, 1.0213380e-02),
+    "B": (1.2460825e-02, 1.0216149e-02),
+    "C": (2.9431153e-02, 1.8937141e-02),
+    "D": (3.1089187e-01, 3.8934970e-02),
+}
+MU, R = 0.35e6, 0.030
+
+
+@pytest.fixture(scope="module")
+def results():
+    return {name: solve_scene(sc, MeshSettings(), SolverSettings()) for name, sc in SCENES.items()}
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_dE_two_ways_agree(results, name):
+    m = results[name].metrics
+    assert m["snaps"] and m["lower_state_method"] == "path"
+    assert m["dE_rel_diff"] <= 5e-3
+    assert abs(m["dE_energy_J"] - m["dE_path_J"]) <= 5e-3 * m["dE_J"]
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_upper_is_a_volume_limit_and_lower_is_stable_at_the_same_volume(results, name):
+    r = results[name]
+    up, lo = r.states.upper, r.states.lower
+    assert abs(up.tangent[0]) < 1e-6  # dV/ds = 0 located precisely, not read off a step
+    assert lo.zeta[0] == pytest.approx(up.zeta[0], rel=1e-9)
+    assert lo.tangent[0] > 0
+    lin = r.model.linearize(lo.u, lo.p)
+    assert constrained_instability(r.tracer, lin) == 0
+    assert r.metrics["max_dilatation"] < 1e-3  # incompressible: |theta - 1| = |p_e| / kappa
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_regression(results, name):
+    m = results[name].metrics
+    dE, dy = REGRESSION[name]
+    assert m["dE_J"] == pytest.approx(dE, rel=3e-3)
+    assert m["dy_pole_m"] == pytest.approx(dy, rel=3e-3)
+
+
+def test_thin_clamped_cap_against_paper(results):
+    m = results["cap30-clamped"].metrics
+    assert m["dE_J"] / (MU * R**3) == pytest.approx(1.50e-5, rel=0.10)
+    assert m["dy_pole_m"] / R == pytest.approx(0.131, rel=0.03)
+
+
+def test_designs_C_and_D_against_paper(results):
+    c, d = results["C"].metrics, results["D"].metrics
+    assert c["dE_J"] == pytest.approx(31.4e-3, rel=0.10)
+    assert c["dy_pole_m"] == pytest.approx(20.89e-3, rel=0.12)
+    assert d["dE_J"] == pytest.approx(0.324, rel=0.06)
+    # D's pole travel is ~23 % above the paper's (SPEC section 7 reports ~20 % from an independent
+    # solver); asserted as a regression above, documented in the README
+    for m in (c, d):
+        assert 0 < m["h_imp_m"] < m["L0_m"]
+
+
+@pytest.mark.parametrize("name", ["C", "D"])
+def test_descent_lands_on_the_path_lower_state(results, name):
+    r = results[name]
+    st = r.states
+    starts = descent_starts(r.path.points[: st.k_return], st.upper, st.k_before)
+    low, msg = descend_at_volume(r.tracer, st.upper, start=starts[0])
+    assert low is not None, msg
+    E = r.model.energy
+    assert E(low.u) == pytest.approx(E(st.lower.u), rel=1e-8)
+    assert np.abs(low.u - st.lower.u).max() < 1e-6
+
+
+def test_thin_cap_mesh_convergence():
+    vals = [solve_scene(SCENES["cap30-clamped"], MeshSettings(order=2, nt=nt, aspect=a), SolverSettings()).metrics["dE_J"]
+            for nt, a in ((1, 4.0), (2, 2.0), (4, 1.0))]
+    d1, d2 = abs(vals[1] - vals[0]), abs(vals[2] - vals[1])
+    assert d2 < 0.5 * d1, vals
+    assert d2 / vals[2] < 5e-3
