@@ -22,7 +22,7 @@ test: install
 	$(BIN)/python -m pytest -q -x --durations=15
 
 bench: install
-	$(BIN)/python -m bench.run_bench
+	$(BIN)/python -m bench.run_bench $(BENCH_ARGS)
 
 stress: install
 	$(BIN)/python -m pytest -q -m stress tests/

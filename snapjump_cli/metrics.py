@@ -122,13 +122,13 @@ class SnapTracker:
             st.p_max = max(st.p_max, new.p)
             if prev.tangent[0] > 0 and new.tangent[0] <= 0:
                 st.k_before = len(pts) - 2
-                st.upper = self.locate_volume_limit(prev, new)
+                st.upper = self.locate_volume_limit(prev, new, pts[-3] if len(pts) > 2 else None)
                 log.debug("volume limit: V*=%.6g p*=%.6g", st.upper.zeta[0], st.upper.p)
         elif st.lower is None:
             Vs = st.upper.zeta[0]
             if new.tangent[0] > 0 and new.zeta[0] >= Vs and prev.zeta[0] < Vs:
                 st.k_return = len(pts) - 1
-                st.lower = self.solve_at_volume(prev, new, Vs)
+                st.lower = self.locate_volume(prev, new, Vs, pts[-3] if len(pts) > 2 else None)
                 if st.lower is not None:
                     st.lower_method = "path"
                     if not self.full:
@@ -141,7 +141,8 @@ class SnapTracker:
             return "pressure bound"
         return None
 
-    def locate_volume_limit(self, a: PathPoint, b: PathPoint, tol: float = 1e-9, max_iter: int = 30) -> PathPoint:
+    def locate_volume_limit(self, a: PathPoint, b: PathPoint, a_prev: PathPoint | None = None,
+                            tol: float = 1e-9, max_iter: int = 30) -> PathPoint:
         """Root of ``dV/ds`` between the path points ``a`` (dV/ds > 0) and ``b`` (dV/ds <= 0):
         Illinois regula falsi on the length of a re-solved step from ``a``."""
         tr = self.tracer
@@ -154,10 +155,10 @@ class SnapTracker:
             s = hi - fhi * (hi - lo) / (fhi - flo)
             if not (lo < s < hi):
                 s = 0.5 * (lo + hi)
-            c = tr.step(a, s)
-            if c is None:  # the linear predictor may fail where the path curves: bisect
+            c = tr.step(a, s, a_prev)
+            if c is None:  # the predictor may fail where the path curves: bisect
                 s = 0.5 * (lo + hi)
-                c = tr.step(a, s)
+                c = tr.step(a, s, a_prev)
                 if c is None:
                     break
             fc = c.tangent[0]
@@ -176,10 +177,54 @@ class SnapTracker:
                 side = 1
         return best
 
+    def locate_volume(self, a: PathPoint, b: PathPoint, V_target: float, a_prev: PathPoint | None = None,
+                      max_iter: int = 40) -> PathPoint | None:
+        """The path point at scaled volume ``V_target`` between path points ``a`` and ``b``
+        (``V_a < V_target <= V_b``): regula falsi (Illinois) on the length of a re-solved step from
+        ``a``, then a volume-control Newton polish at exactly ``V_target``. Being on the path, the
+        point's arc length is exact for the path integral of dE."""
+        tr = self.tracer
+        tol = 1e-10 * max(1.0, abs(V_target))
+        lo, flo = 0.0, a.zeta[0] - V_target
+        hi, fhi, best = b.s - a.s, b.zeta[0] - V_target, b
+        side = 0
+        for _ in range(max_iter):
+            if abs(fhi) < tol:
+                break
+            s = hi - fhi * (hi - lo) / (fhi - flo)
+            if not (lo < s < hi):
+                s = 0.5 * (lo + hi)
+            c = tr.step(a, s, a_prev)
+            if c is None:
+                s = 0.5 * (lo + hi)
+                c = tr.step(a, s, a_prev)
+                if c is None:
+                    break
+            fc = c.zeta[0] - V_target
+            if fc < 0:
+                lo, flo = s, fc
+                if side == -1:
+                    fhi *= 0.5
+                side = -1
+            else:
+                hi, fhi, best = s, fc, c
+                if side == 1:
+                    flo *= 0.5
+                side = 1
+            if abs(fc) < tol or hi - lo < 1e-13:
+                break
+        polished = self.solve_at_volume(best, best, V_target) if best.tangent[0] > 0 else None
+        if polished is None:  # fall back on interpolating between the bracketing points
+            log.debug("locate_volume: regula falsi did not reach V*; interpolating")
+            return self.solve_at_volume(a, b, V_target)
+        polished.s = best.s  # the polish moves the state by ~tol: keep the path's arc length
+        return polished
+
     def solve_at_volume(self, a: PathPoint, b: PathPoint, V_target: float) -> PathPoint | None:
         """The equilibrium state at scaled volume ``V_target`` between path points ``a`` and ``b``."""
         tr = self.tracer
-        w = (V_target - a.zeta[0]) / (b.zeta[0] - a.zeta[0])
+        dV = b.zeta[0] - a.zeta[0]
+        w = (V_target - a.zeta[0]) / dV if dV != 0 else 0.0
         u0 = (1 - w) * a.u + w * b.u
         p0 = (1 - w) * a.p + w * b.p
         res = tr.correct(u0, p0, None, None, 0.0, target=(0, V_target))
