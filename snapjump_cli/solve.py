@@ -178,7 +178,9 @@ def solve_scene(
         log.info("lower state by descent (%s)", why)
     metrics["lower_state_method"] = st.lower_method or None
     if st.upper is None and failure:
-        raise SolveFailed(f"no volume limit reached before the continuation failed: {failure}")
+        exc = SolveFailed(f"no volume limit reached before the continuation failed: {failure}")
+        exc.path, exc.model = path, model  # for diagnostics
+        raise exc
     if outer_alone:
         metrics["E_o_J"] = _outer_energy(tracer, path, model, E_unit, sV, sp)
     if st.upper is not None:
