@@ -101,7 +101,8 @@ class SnapTracker:
     Parameters
     ----------
     tracer : the tracer (used for the precise limit-point location and the volume-control solve)
-    p_stop : scaled pressure beyond which a path without a volume limit counts as not snapping
+    p_stop : pressure (in units of the stress scale, like ``PathPoint.p``) beyond which a path
+        without a volume limit counts as not snapping
     V_stop : scaled volume bound (in units of ``sV``) of the trace
     full : keep tracing after the snap is characterised (to ``p_stop`` or ``V_stop``)
     """

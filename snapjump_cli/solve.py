@@ -127,7 +127,7 @@ def solve_scene(
         p_stop = 0.5  # E_o at p / mu_o = 0.5 (Fig. 3C)
     else:
         p_stop = 1.5 * sc["p_c"]
-    tracker = SnapTracker(tracer, p_stop=p_stop / sc["sp"], V_stop=_V_stop(scene, V0) / sc["sV"], full=solver.full)
+    tracker = SnapTracker(tracer, p_stop=p_stop, V_stop=_V_stop(scene, V0) / sc["sV"], full=solver.full)
     failure = ""
     path: Path | None = None
     try:
