@@ -71,6 +71,7 @@ class ContinuationSettings:
     quadratic_predictor: bool = True
     u_scale: float = 0.0
     ds_bifurcation: float = 1e-3
+    tol_path: float | None = None  # Newton tolerance of ordinary path points (None: tol)
 
 
 @dataclass
@@ -144,7 +145,7 @@ class Tracer:
         self.last_det_sign = _det_sign(solver)
         return dz / nrm, v / nrm, q / nrm, z
 
-    def correct(self, u, p, z0, t, ds, target=None):
+    def correct(self, u, p, z0, t, ds, target=None, tol=None):
         """Newton on ``R = 0`` and one linear constraint in measure space.
 
         With ``target=None`` the constraint is the Riks hyperplane ``t . (zeta - z0) = ds``;
@@ -155,6 +156,7 @@ class Tracer:
         1e-3 of the pressure scale), or at its round-off floor after a negligible correction.
         """
         cfg = self.cfg
+        tol = cfg.tol if tol is None else tol
         u = u.copy()
         step_small = False
         for it in range(0, cfg.max_newton + 1):
@@ -175,8 +177,8 @@ class Tracer:
                 c_p = float(dz_dp[k])
             ref = float(np.linalg.norm(dz_du[0])) * self.sc[0] * max(abs(p), 1e-3 * self.sc[1])
             rn = float(np.linalg.norm(R)) / ref
-            if it > 0 and abs(h) < cfg.tol * max(1.0, abs(ds)):
-                if rn < cfg.tol or (step_small and rn < 100.0 * cfg.tol):
+            if it > 0 and abs(h) < tol * max(1.0, abs(ds)):
+                if rn < tol or (step_small and rn < 100.0 * tol):
                     self.n_newton += it
                     return lin, it
             if it == cfg.max_newton or not np.isfinite(rn):
@@ -193,7 +195,7 @@ class Tracer:
             step_small = float(np.linalg.norm(dz_du @ du + dz_dp * dp)) < 1e-12
         return None
 
-    def step(self, pt: PathPoint, ds: float, prev: PathPoint | None = None):
+    def step(self, pt: PathPoint, ds: float, prev: PathPoint | None = None, tol: float | None = None):
         """One predictor-corrector step of length ``ds`` from ``pt``; ``PathPoint`` or ``None``.
 
         The predictor is the tangent line, or with ``prev`` (the point before ``pt``) the
@@ -207,7 +209,7 @@ class Tracer:
                 w = (ds / h) ** 2
                 u0 = u0 + w * (prev.u - pt.u + h * pt.du_ds)
                 p0 = p0 + w * (prev.p - pt.p + h * pt.dp_ds)
-        res = self.correct(u0, p0, pt.zeta, (pt.tangent, pt.du_ds, pt.u), ds)
+        res = self.correct(u0, p0, pt.zeta, (pt.tangent, pt.du_ds, pt.u), ds, tol=tol)
         if res is None:
             return None
         lin, it = res
@@ -296,7 +298,7 @@ def trace(
             break
         pt = path.points[-1]
         prev = path.points[-2] if (cfg.quadratic_predictor and len(path.points) > 1) else None
-        new = tr.step(pt, ds, prev)
+        new = tr.step(pt, ds, prev, tol=cfg.tol_path)
         if new is not None:
             ang = max(turn_angle(pt, new, tr.alpha), chord_angle(pt, new, tr.alpha))
             crossed = pt.det_sign * new.det_sign < 0  # a bifurcation point lies inside the step

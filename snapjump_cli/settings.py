@@ -40,6 +40,8 @@ class SolverSettings:
     full : trace the whole curve (to 1.5 p_c or the volume bound) instead of stopping once the snap
         is characterised
     bulk_ratio : kappa / mu of the volumetric penalty of the mixed formulation
+    tol_path : Newton tolerance of ordinary path points; the limit point, the lower state and the
+        descent always use ``tol``
     u_scale : scale of the RMS displacement in the arc length, in units of the pole-displacement
         scale (0 = arc length in (V, p, pole) only)
     """
@@ -53,6 +55,7 @@ class SolverSettings:
     full: bool = False
     bulk_ratio: float = 1.0e4
     u_scale: float = 1.0
+    tol_path: float = 1e-6
 
     def as_dict(self) -> dict:
         return asdict(self)

@@ -120,7 +120,7 @@ def solve_scene(
     cfg = ContinuationSettings(
         scales=scales, tol=solver.tol, ds0=solver.ds0 / 0.02 * 0.05, ds_max=solver.ds_max,
         max_steps=solver.max_steps, max_newton=solver.max_newton, max_turn_deg=solver.max_turn_deg,
-        u_scale=solver.u_scale * sc["sw"],
+        u_scale=solver.u_scale * sc["sw"], tol_path=solver.tol_path,
     )
     tracer = Tracer(model, cfg)
     if outer_alone:
