@@ -114,7 +114,7 @@ def case_reference(runs: list[dict], ref_aspect: float) -> CaseVerdict:
         nts, f = [v[0] for v in vals], [float(v[1]) for v in vals]
         val, method, p = richardson(nts, f)
         ref = Reference(val, method, p, levels=nts[-3:])
-        ref.est_err = _rel(f[-1], val) if val else None
+        ref.est_err = _rel(f[-1], val) if val and method == "richardson" else None
         ref.pair_diff = _rel(f[-2], f[-1]) if len(f) >= 2 else None
         refs[m] = ref
     conv = not reasons
@@ -199,7 +199,7 @@ def summarize_settings(runs: Iterable[dict], verdicts: dict[str, CaseVerdict]) -
                 max_err[m] = max(max_err[m], e[m])
                 bad |= e[m] > THRESH[m]
             if bad:
-                failing.append(c)
+                failing.append(c + (f" ({r['status']})" if r["status"] not in ("ok", "no_snap") else ""))
             if r.get("wall_s") is not None:
                 walls.append(r["wall_s"])
             else:
