@@ -67,8 +67,10 @@ INPUT_COLUMNS: tuple[str, ...] = (
 #: Key of the provenance JSON in the parquet schema metadata.
 METADATA_KEY = b"snapjump"
 
-BOOL_RESULT_KEYS: frozenset[str] = frozenset({"snaps", "self_crossing"})
-STR_RESULT_KEYS: frozenset[str] = frozenset({"lower_state_method"})
+BOOL_RESULT_KEYS: frozenset[str] = frozenset({"snaps", "self_crossing", "mesh_sensitive"})
+STR_RESULT_KEYS: frozenset[str] = frozenset({"lower_state_method", "mesh_check"})
+#: Float metrics that may be null in an ok row (set only after a mesh-sensitivity re-solve).
+OPTIONAL_FLOAT_KEYS: frozenset[str] = frozenset({"dE_J_coarse", "dy_pole_m_coarse"})
 INT_RESULT_KEYS: frozenset[str] = frozenset({"n_steps", "n_newton", "n_nodes", "n_elements", "n_dofs"})
 #: Every other result key is a float metric.
 FLOAT_RESULT_KEYS: tuple[str, ...] = tuple(

@@ -74,4 +74,5 @@ RESULT_KEYS: tuple[str, ...] = (
     "n_steps", "n_newton", "wall_s",
     "n_nodes", "n_elements", "n_dofs",
     "V_inner_solid_m3", "V_outer_solid_m3",
+    "mesh_sensitive", "dE_J_coarse", "dy_pole_m_coarse", "mesh_check",
 )

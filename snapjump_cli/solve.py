@@ -261,9 +261,58 @@ def _outer_energy(tracer: Tracer, path: Path, model: Model, E_unit: float, sV: f
     return None
 
 
-def solve_design(design: Design, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings()) -> dict:
-    """Sweep entry point: the metrics dict of one design (see :func:`solve_scene`)."""
-    return solve_scene(design, mesh, solver).metrics
+#: A snap is re-solved at one mesh refinement when it is suspicious (see :func:`suspicious_snap`);
+#: it is flagged ``mesh_sensitive`` when dE or dy_pole then move by more than this fraction.
+MESH_SENSITIVE_REL = 0.05
+
+
+def suspicious_snap(m: dict) -> str:
+    """Why a snap may be a mesh artefact ('' if it looks sound): the pole moves up, the snap is
+    tiny (dE < 1e-4 mu_i R_i^3), or its lower state had to be found by descent."""
+    if not m.get("snaps"):
+        return ""
+    if m["dy_pole_m"] is None or m["dy_pole_m"] <= 0:
+        return "pole moves up"
+    if m["dE_norm"] < 1e-4:
+        return "tiny snap"
+    if m.get("lower_state_method") == "descent":
+        return "lower state by descent"
+    return ""
+
+
+def solve_design(
+    design: Design, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings(),
+    check_mesh: bool = True,
+) -> dict:
+    """Sweep entry point: the metrics dict of one design (see :func:`solve_scene`).
+
+    With ``check_mesh``, a suspicious snap (:func:`suspicious_snap`) is re-solved with one more
+    element through the thickness; the refined metrics are reported, the first ones kept as
+    ``dE_J_coarse`` / ``dy_pole_m_coarse``, and ``mesh_sensitive`` is set when dE or dy_pole moved
+    by more than ``MESH_SENSITIVE_REL`` (or the refined run no longer snaps or fails).
+    """
+    m = solve_scene(design, mesh, solver).metrics
+    m.update(mesh_sensitive=False, dE_J_coarse=None, dy_pole_m_coarse=None, mesh_check="")
+    why = suspicious_snap(m) if check_mesh else ""
+    if not why:
+        return m
+    finer = MeshSettings(order=mesh.order, nt=mesh.nt + 1, aspect=mesh.aspect)
+    coarse = m
+    try:
+        m = solve_scene(design, finer, solver).metrics
+        m.update(mesh_sensitive=False, mesh_check=f"{why}; re-solved at nt={finer.nt}")
+    except SolveFailed as exc:
+        coarse["mesh_sensitive"] = True
+        coarse["mesh_check"] = f"{why}; refined run failed: {exc}"
+        return coarse
+    m["dE_J_coarse"], m["dy_pole_m_coarse"] = coarse["dE_J"], coarse["dy_pole_m"]
+    if not m["snaps"]:
+        m["mesh_sensitive"] = True
+        return m
+    for k in ("dE_J", "dy_pole_m"):
+        if abs(m[k] - coarse[k]) > MESH_SENSITIVE_REL * max(abs(m[k]), abs(coarse[k])):
+            m["mesh_sensitive"] = True
+    return m
 
 
 def warm_up() -> float:

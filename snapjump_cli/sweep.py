@@ -295,6 +295,7 @@ def _result_to_row(row: dict[str, Any], result: Any) -> None:
                 values[k] = None
     nonfinite = [k for k in res.FLOAT_RESULT_KEYS if values.get(k) is not None and not math.isfinite(values[k])]
     absent = [k for k in res.FLOAT_RESULT_KEYS if k in result and values.get(k) is None and k not in bad_type]
+    absent = [k for k in absent if k not in res.OPTIONAL_FLOAT_KEYS]
     if values.get("lower_state_method") == "descent":
         # a lower state found by energy descent is not on the traced path: no path integral
         absent = [k for k in absent if k not in ("dE_path_J", "dE_rel_diff")]

@@ -1,0 +1,46 @@
+"""The mesh-sensitivity re-solve of suspicious snaps in ``solve_design`` (issue 5, item 3)."""
+from __future__ import annotations
+
+import pytest
+
+import snapjump_cli.solve as solve
+from snapjump_cli.designs import get_design
+from snapjump_cli.settings import MeshSettings, SolverSettings
+
+
+def _fake(results_by_nt):
+    def fake_solve_scene(scene, mesh, solver):
+        r = results_by_nt[mesh.nt]
+        if isinstance(r, Exception):
+            raise r
+        return solve.SceneResult(metrics=dict(r))
+    return fake_solve_scene
+
+
+def _m(dE, dy, method="path", snaps=True):
+    return {"snaps": snaps, "dE_J": dE, "dE_norm": dE / (0.35e6 * 0.03**3), "dy_pole_m": dy, "lower_state_method": method}
+
+
+def test_sound_snap_is_not_resolved(monkeypatch):
+    monkeypatch.setattr(solve, "solve_scene", _fake({2: _m(0.03, 0.019), 3: RuntimeError("must not run")}))
+    m = solve.solve_design(get_design("C"), MeshSettings(nt=2), SolverSettings())
+    assert m["mesh_sensitive"] is False and m["dE_J_coarse"] is None and m["mesh_check"] == ""
+
+
+@pytest.mark.parametrize("coarse,fine,sensitive", [
+    (_m(1e-5, -0.001), _m(1.2e-5, -0.0011), True),     # pole moves up, dE moves 20 %
+    (_m(0.03, 0.019, "descent"), _m(0.0301, 0.019), False),  # descent, confirmed by refinement
+    (_m(1e-5, 0.001), _m(0.0, 0.0, snaps=False), True),    # tiny snap vanishes under refinement
+])
+def test_suspicious_snap_is_resolved_and_flagged(monkeypatch, coarse, fine, sensitive):
+    monkeypatch.setattr(solve, "solve_scene", _fake({2: coarse, 3: fine}))
+    m = solve.solve_design(get_design("C"), MeshSettings(nt=2), SolverSettings())
+    assert m["mesh_sensitive"] is sensitive
+    assert m["dE_J_coarse"] == coarse["dE_J"] and m["dy_pole_m_coarse"] == coarse["dy_pole_m"]
+    assert m["dE_J"] == fine["dE_J"] and "re-solved at nt=3" in m["mesh_check"]
+
+
+def test_refined_failure_keeps_coarse_and_flags(monkeypatch):
+    monkeypatch.setattr(solve, "solve_scene", _fake({2: _m(1e-5, -0.001), 3: solve.SolveFailed("boom")}))
+    m = solve.solve_design(get_design("C"), MeshSettings(nt=2), SolverSettings())
+    assert m["mesh_sensitive"] is True and m["dE_J"] == 1e-5 and "boom" in m["mesh_check"]
