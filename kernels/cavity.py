@@ -52,62 +52,6 @@ def cavity_volume(x: np.ndarray, edges: np.ndarray) -> float:
 
 
 @njit(cache=True)
-def cavity_volume_derivatives(x: np.ndarray, edges: np.ndarray):
-    """Volume, gradient and Hessian entries of the cavity volume.
-
-    Returns
-    -------
-    V : float
-    grad : (n, 2) float64
-        ``dV/dx`` per node and component.
-    hrows, hcols, hvals : int64, int64, float64 arrays
-        COO triplets of ``d2V/dx2`` in the global dof numbering ``2*node + component``
-        (duplicates are to be summed).
-    """
-    nen = edges.shape[1]
-    ne = edges.shape[0]
-    N = np.empty(nen)
-    dN = np.empty(nen)
-    grad = np.zeros((x.shape[0], 2))
-    nh = ne * (2 * nen) * (2 * nen)
-    hr = np.empty(nh, np.int64)
-    hc = np.empty(nh, np.int64)
-    hv = np.zeros(nh)
-    he = np.zeros((2 * nen, 2 * nen))
-    v = 0.0
-    k = 0
-    for e in range(ne):
-        he[:, :] = 0.0
-        for q in range(3):
-            _edge_shape(_GP[q], nen, N, dN)
-            r = 0.0
-            dy = 0.0
-            for a in range(nen):
-                r += N[a] * x[edges[e, a], 0]
-                dy += dN[a] * x[edges[e, a], 1]
-            w = np.pi * _GW[q]
-            v += w * r * r * dy
-            for a in range(nen):
-                na = edges[e, a]
-                grad[na, 0] += w * 2.0 * r * N[a] * dy
-                grad[na, 1] += w * r * r * dN[a]
-                for b in range(nen):
-                    # d2/dr_a dr_b = 2 N_a N_b y',  d2/dr_a dy_b = 2 r N_a N'_b
-                    he[2 * a, 2 * b] += w * 2.0 * N[a] * N[b] * dy
-                    he[2 * a, 2 * b + 1] += w * 2.0 * r * N[a] * dN[b]
-                    he[2 * b + 1, 2 * a] += w * 2.0 * r * N[a] * dN[b]
-        for a in range(nen):
-            for ca in range(2):
-                for b in range(nen):
-                    for cb in range(2):
-                        hr[k] = 2 * edges[e, a] + ca
-                        hc[k] = 2 * edges[e, b] + cb
-                        hv[k] = he[2 * a + ca, 2 * b + cb]
-                        k += 1
-    return v, grad, hr, hc, hv
-
-
-@njit(cache=True)
 def _edge_terms(x, nodes, N, dN, ge, he):
     """Volume of one edge; fills its gradient ``ge`` (2 nen) and Hessian ``he`` (2 nen, 2 nen)."""
     nen = nodes.shape[0]
@@ -132,6 +76,45 @@ def _edge_terms(x, nodes, N, dN, ge, he):
                 he[2 * a, 2 * b + 1] += t
                 he[2 * b + 1, 2 * a] += t
     return v
+
+
+@njit(cache=True)
+def cavity_volume_derivatives(x: np.ndarray, edges: np.ndarray):
+    """Volume, gradient and Hessian entries of the cavity volume.
+
+    Returns
+    -------
+    V : float
+    grad : (n, 2) float64
+        ``dV/dx`` per node and component.
+    hrows, hcols, hvals : int64, int64, float64 arrays
+        COO triplets of ``d2V/dx2`` in the global dof numbering ``2*node + component``
+        (duplicates are to be summed).
+    """
+    ne, nen = edges.shape
+    N = np.empty(nen)
+    dN = np.empty(nen)
+    ge = np.empty(2 * nen)
+    he = np.empty((2 * nen, 2 * nen))
+    grad = np.zeros((x.shape[0], 2))
+    nh = ne * (2 * nen) * (2 * nen)
+    hr = np.empty(nh, np.int64)
+    hc = np.empty(nh, np.int64)
+    hv = np.zeros(nh)
+    v = 0.0
+    k = 0
+    for e in range(ne):
+        v += _edge_terms(x, edges[e], N, dN, ge, he)
+        for a in range(nen):
+            for ca in range(2):
+                grad[edges[e, a], ca] += ge[2 * a + ca]
+                for b in range(nen):
+                    for cb in range(2):
+                        hr[k] = 2 * edges[e, a] + ca
+                        hc[k] = 2 * edges[e, b] + cb
+                        hv[k] = he[2 * a + ca, 2 * b + cb]
+                        k += 1
+    return v, grad, hr, hc, hv
 
 
 @njit(cache=True)

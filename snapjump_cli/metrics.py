@@ -37,6 +37,45 @@ __all__ = ["SnapTracker", "hermite_p_dV", "path_self_crosses", "SnapStates", "de
 _G3 = np.polynomial.legendre.leggauss(4)
 
 
+def _root_on_step(tr: Tracer, a: PathPoint, b: PathPoint, a_prev: PathPoint | None, f, tol: float,
+                  max_iter: int) -> PathPoint:
+    """Illinois regula falsi on the length of a re-solved step from ``a`` for a root of ``f``
+    (a function of a path point; ``f(a)`` and ``f(b)`` have opposite signs). Returns the point
+    where ``|f| < tol``, else the last one found on ``b``'s side of the root (``b`` if none)."""
+    lo, flo = 0.0, f(a)
+    hi, fhi, best = b.s - a.s, f(b), b
+    b_positive = fhi > 0
+    side = 0
+    for _ in range(max_iter):
+        if abs(fhi) < tol:
+            break
+        s = hi - fhi * (hi - lo) / (fhi - flo)
+        if not (lo < s < hi):
+            s = 0.5 * (lo + hi)
+        c = tr.step(a, s, a_prev)
+        if c is None:  # the predictor may fail where the path curves: bisect
+            s = 0.5 * (lo + hi)
+            c = tr.step(a, s, a_prev)
+            if c is None:
+                break
+        fc = f(c)
+        if abs(fc) < tol:
+            return c
+        if (fc > 0) == b_positive:
+            hi, fhi, best = s, fc, c
+            if side == 1:
+                flo *= 0.5
+            side = 1
+        else:
+            lo, flo = s, fc
+            if side == -1:
+                fhi *= 0.5
+            side = -1
+        if hi - lo < 1e-13:
+            break
+    return best
+
+
 def hermite_p_dV(a: PathPoint, b: PathPoint, h: float, sV: float, sp: float) -> float:
     """``integral p dV`` from ``a`` to ``b`` (arc length ``h``; scaled units), cubic Hermite."""
     V0, V1 = a.zeta[0] * sV, b.zeta[0] * sV
@@ -144,76 +183,16 @@ class SnapTracker:
 
     def locate_volume_limit(self, a: PathPoint, b: PathPoint, a_prev: PathPoint | None = None,
                             tol: float = 1e-9, max_iter: int = 30) -> PathPoint:
-        """Root of ``dV/ds`` between the path points ``a`` (dV/ds > 0) and ``b`` (dV/ds <= 0):
-        Illinois regula falsi on the length of a re-solved step from ``a``."""
-        tr = self.tracer
-        lo, flo = 0.0, a.tangent[0]
-        hi, fhi, best = b.s - a.s, b.tangent[0], b
-        side = 0
-        for _ in range(max_iter):
-            if abs(fhi) < tol:
-                break
-            s = hi - fhi * (hi - lo) / (fhi - flo)
-            if not (lo < s < hi):
-                s = 0.5 * (lo + hi)
-            c = tr.step(a, s, a_prev)
-            if c is None:  # the predictor may fail where the path curves: bisect
-                s = 0.5 * (lo + hi)
-                c = tr.step(a, s, a_prev)
-                if c is None:
-                    break
-            fc = c.tangent[0]
-            best = c
-            if abs(fc) < tol or (hi - lo) < 1e-12:
-                break
-            if fc > 0:
-                lo, flo = s, fc
-                if side == -1:
-                    fhi *= 0.5
-                side = -1
-            else:
-                hi, fhi = s, fc
-                if side == 1:
-                    flo *= 0.5
-                side = 1
-        return best
+        """Root of ``dV/ds`` between the path points ``a`` (dV/ds > 0) and ``b`` (dV/ds <= 0)."""
+        return _root_on_step(self.tracer, a, b, a_prev, lambda pt: pt.tangent[0], tol, max_iter)
 
     def locate_volume(self, a: PathPoint, b: PathPoint, V_target: float, a_prev: PathPoint | None = None,
                       max_iter: int = 40) -> PathPoint | None:
         """The path point at scaled volume ``V_target`` between path points ``a`` and ``b``
-        (``V_a < V_target <= V_b``): regula falsi (Illinois) on the length of a re-solved step from
-        ``a``, then a volume-control Newton polish at exactly ``V_target``. Being on the path, the
-        point's arc length is exact for the path integral of dE."""
-        tr = self.tracer
+        (``V_a < V_target <= V_b``), then a volume-control Newton polish at exactly ``V_target``.
+        Being on the path, the point's arc length is exact for the path integral of dE."""
         tol = 1e-10 * max(1.0, abs(V_target))
-        lo, flo = 0.0, a.zeta[0] - V_target
-        hi, fhi, best = b.s - a.s, b.zeta[0] - V_target, b
-        side = 0
-        for _ in range(max_iter):
-            if abs(fhi) < tol:
-                break
-            s = hi - fhi * (hi - lo) / (fhi - flo)
-            if not (lo < s < hi):
-                s = 0.5 * (lo + hi)
-            c = tr.step(a, s, a_prev)
-            if c is None:
-                s = 0.5 * (lo + hi)
-                c = tr.step(a, s, a_prev)
-                if c is None:
-                    break
-            fc = c.zeta[0] - V_target
-            if fc < 0:
-                lo, flo = s, fc
-                if side == -1:
-                    fhi *= 0.5
-                side = -1
-            else:
-                hi, fhi, best = s, fc, c
-                if side == 1:
-                    flo *= 0.5
-                side = 1
-            if abs(fc) < tol or hi - lo < 1e-13:
-                break
+        best = _root_on_step(self.tracer, a, b, a_prev, lambda pt: pt.zeta[0] - V_target, tol, max_iter)
         polished = self.solve_at_volume(best, best, V_target) if best.tangent[0] > 0 else None
         if polished is None:  # fall back on interpolating between the bracketing points
             log.debug("locate_volume: regula falsi did not reach V*; interpolating")
