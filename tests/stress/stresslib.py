@@ -190,16 +190,21 @@ def check_rows(df) -> list[str]:
             isnull = v is None or v is np.nan or (isinstance(v, float) and math.isnan(v)) or _is_na(v)
             if not isnull and isinstance(v, (float, np.floating)) and math.isinf(v):
                 bad.append(f"{where}: {k} = inf stored")
-            if st == "ok" and isnull and k not in OK_MAY_BE_NULL:
+            if st == "ok" and isnull and not may_be_null(k, r):
                 bad.append(f"{where}: ok row with {k} = NaN/null")
         if st == "ok" and not bool(r["snaps"]):
             bad.append(f"{where}: ok row with snaps = False")
     return bad
 
 
-#: Float metrics an ok row may leave empty (none: the sweep turns a None metric of a snapping
-#: result into ``failed``).
-OK_MAY_BE_NULL: frozenset[str] = frozenset()
+def may_be_null(key: str, row) -> bool:
+    """Float metrics an ok row may leave empty (the sweep turns any other None metric of a snapping
+    result into ``failed``): the optional keys of :mod:`snapjump_cli.results` (e.g. the coarse
+    values of a re-solved snap) and, for a lower state found by descent (not on the traced path),
+    the path integral ``dE_path_J`` and ``dE_rel_diff``."""
+    if key in getattr(res, "OPTIONAL_FLOAT_KEYS", frozenset()):
+        return True
+    return key in ("dE_path_J", "dE_rel_diff") and row.get("lower_state_method") == "descent"
 
 
 def _is_na(v) -> bool:
@@ -217,11 +222,12 @@ def summarize(df, title: str) -> str:
     counts = Counter(df["status"])
     ok = df[df["status"] == "ok"]
     n_sc = int(ok["self_crossing"].fillna(False).astype(bool).sum()) if len(ok) else 0
+    n_ms = int(ok["mesh_sensitive"].fillna(False).astype(bool).sum()) if len(ok) and "mesh_sensitive" in ok else 0
     n_valid = len(df) - counts.get("invalid_geometry", 0)
     n_fail = counts.get("failed", 0)
     rate = n_fail / n_valid if n_valid else 0.0
     L = [f"### {title}", "",
-         f"{len(df)} designs: ok {counts.get('ok', 0)} (of which self_crossing {n_sc}), "
+         f"{len(df)} designs: ok {counts.get('ok', 0)} (of which self_crossing {n_sc}, mesh_sensitive {n_ms}), "
          f"no_snap {counts.get('no_snap', 0)}, invalid_geometry {counts.get('invalid_geometry', 0)}, "
          f"failed {n_fail} — failure rate {100 * rate:.1f}% of the {n_valid} valid designs.", ""]
     if "lower_state_method" in ok:
@@ -253,10 +259,12 @@ def summarize(df, title: str) -> str:
 
 # ---- invariance -------------------------------------------------------------------------------
 def variant_solvers(base: SolverSettings) -> dict[str, SolverSettings]:
-    """The invariance variants of issue 5: initial arc length x0.25 and x4, tolerance / 10."""
+    """The invariance variants of issue 5: initial arc length x0.25 and x4, every Newton tolerance
+    (the fields ``tol``, ``tol_path``, ... of :class:`SolverSettings`) / 10."""
+    tols = {f.name: getattr(base, f.name) * 0.1 for f in dataclasses.fields(base) if f.name.startswith("tol")}
     return {"ds0 x0.25": dataclasses.replace(base, ds0=base.ds0 * 0.25),
             "ds0 x4": dataclasses.replace(base, ds0=base.ds0 * 4.0),
-            "tol /10": dataclasses.replace(base, tol=base.tol * 0.1)}
+            "tol /10": dataclasses.replace(base, **tols)}
 
 
 def compare_dE(base_df, var_df, label: str, rel: float = 0.005) -> tuple[list[str], list[dict]]:

@@ -34,6 +34,14 @@ def test_sample_rows_are_classified_and_deterministic(tmp_path, warm, monkeypatc
     b = sl.sweep(pts[2:], tmp_path / "b.parquet", mesh=COARSE, n_jobs=1)
     assert len(b) == 2 and not sl.compare_bitwise(a, b, common_only=True)
     assert "designs: ok" in sl.summarize(a, "sample")
+    # the checker itself: a NaN metric in an ok row, an inf anywhere, a failed row without cause
+    bad = a.copy()
+    bad.loc[0, ["status", "snaps", "error"]] = ["ok", True, ""]
+    bad.loc[0, "dE_J"] = float("nan")
+    bad.loc[1, "p_star_Pa"] = float("inf")
+    bad.loc[3, ["status", "error"]] = ["failed", ""]
+    msgs = "\n".join(sl.check_rows(bad))
+    assert "ok row with dE_J = NaN" in msgs and "p_star_Pa = inf" in msgs and "failed without a cause" in msgs
 
 
 @pytest.mark.parametrize("variant", ["ds0 x0.25", "ds0 x4", "tol /10"])
