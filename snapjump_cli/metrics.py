@@ -150,7 +150,7 @@ class SnapTracker:
     p_stop: float
     V_stop: float
     full: bool = False
-    post_snap_steps: int = 600
+    post_snap_steps: int = 1500
     states: SnapStates = field(default_factory=SnapStates)
 
     def __call__(self, path: Path) -> str | None:

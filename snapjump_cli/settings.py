@@ -49,7 +49,7 @@ class SolverSettings:
     tol: float = 1e-8
     ds0: float = 0.02
     ds_max: float = 1.0
-    max_steps: int = 1000
+    max_steps: int = 2000
     max_newton: int = 8
     max_turn_deg: float = 10.0
     full: bool = False
