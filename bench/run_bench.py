@@ -152,7 +152,7 @@ def main(argv=None) -> int:
 
         print(f"warm-up (numba compile or cache load): {warm_up():.1f} s", flush=True)
         history: dict[tuple, list] = {}
-        dead: set[tuple] = set()  # (case, order, aspect) whose finer levels are skipped
+        dead: dict[tuple, str] = {}  # (case, order, aspect) whose finer levels are skipped -> why
         with open(runs_file, "a") as fh:
             for s in settings:
                 o, nt, asp = s
@@ -163,7 +163,7 @@ def main(argv=None) -> int:
                     if rec is not None and rec["status"] != "skipped":
                         history.setdefault(hk, []).append((nt, rec.get("wall_s")))
                         if rec["status"] in ("timeout",):
-                            dead.add(hk)
+                            dead[hk] = f"nt={nt} timed out"
                         continue
                     base = {"key": key, "case": c.name, "group": c.group, "order": o, "nt": nt, "aspect": asp,
                             "git": git["commit"], "dirty": bool(git["dirty_files"]),
@@ -171,7 +171,7 @@ def main(argv=None) -> int:
                     pred = predict(history.get(hk, []), nt)
                     why = None
                     if hk in dead:
-                        why = "a coarser level timed out"
+                        why = f"a coarser level was skipped or timed out ({dead[hk]})"
                     elif pred is not None and pred > a.timeout:
                         why = f"predicted {pred:.0f} s > timeout {a.timeout:g} s"
                     elif a.budget is not None and time.perf_counter() - t_start > a.budget:
@@ -179,7 +179,8 @@ def main(argv=None) -> int:
                     if why:
                         rec = dict(base, status="skipped", error=why, predicted_s=pred, metrics={}, wall_s=None)
                         recorded[key] = rec
-                        dead.add(hk)
+                        fh.write(json.dumps(rec) + "\n")  # reported; retried by the next invocation
+                        dead.setdefault(hk, f"nt={nt} {why}")
                         print(f"  skip {c.name:22s} {analysis.setting_label(s):18s} ({why})", flush=True)
                         continue
                     r = run_one(c.scene, MeshSettings(order=o, nt=nt, aspect=asp), solver, a.timeout, a.repeats)
@@ -189,7 +190,7 @@ def main(argv=None) -> int:
                     fh.flush()
                     history.setdefault(hk, []).append((nt, rec.get("wall_s")))
                     if rec["status"] == "timeout":
-                        dead.add(hk)
+                        dead[hk] = f"nt={nt} timed out"
                     m = rec["metrics"]
                     dE = m.get("dE_J")
                     dy = m.get("dy_pole_m")
