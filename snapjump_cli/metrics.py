@@ -177,6 +177,8 @@ class SnapTracker:
                 return "path did not return to V*"
         if new.zeta[0] > self.V_stop:
             return "volume bound"
+        if new.zeta[0] <= 0.0:  # the caps interpenetrate (no contact is modelled): nothing physical follows
+            return "cavity volume reached zero"
         if new.p > self.p_stop and (st.upper is None or st.lower is not None or self.full):
             return "pressure bound"
         return None
@@ -224,29 +226,38 @@ def constrained_instability(tracer: Tracer, lin) -> int:
     Returns -1 if the inertia is not available (SuperLU solver).
     """
     z, dz_du, dz_dp = tracer.zeta(lin.u, lin.p)
-    solver = lin.factor(dz_du[0], 0.0)
+    return _constrained_negatives(lin.factor(dz_du[0], 0.0), lin.g)
+
+
+def _constrained_negatives(solver, g: np.ndarray) -> int:
+    """Negative eigenvalues of ``K`` restricted to ``g^T du = 0`` from a bordered solver's
+    ``LDL^T`` (Haynsworth); -1 if the inertia is not available."""
     if solver is None or getattr(solver, "n_negative", -1) < 0:
         return -1
-    gKg = -float(lin.g @ solver.Kib)  # Kib = K^-1 (-g)
+    gKg = -float(g @ solver.Kib)  # Kib = K^-1 (-g)
     return int(solver.n_negative - (1 if gKg < 0 else 0))
 
 
 def descend_at_volume(
     tracer: Tracer, upper: PathPoint, kick: float = 0.2, max_iter: int = 600, tol: float | None = None,
-    sigma_unstable: float = 1e-2, start: PathPoint | None = None,
+    start: PathPoint | None = None,
 ) -> tuple[PathPoint | None, str]:
     """The stable state reached from the upper state at fixed volume by energy descent.
 
     Implicit gradient flow of ``W(u)`` at ``V(u) = V*`` in pseudo time: each iteration solves
-    ``[[K + sigma I, -g], [g^T, 0]] [du; dp] = [-R; V* - V]`` and is accepted if the merit
-    ``W - p (V - V*)`` (with the new multiplier) does not rise. ``sigma`` (relative to the mean
-    diagonal of ``K``) shrinks after an accepted step and grows after a rejected one; while the
-    state is unstable at fixed volume (read off the LDL^T inertia) it is kept above
-    ``sigma_unstable`` so that the step follows the negative curvature away from the saddle
-    instead of Newton's way back to it. Once stable, ``sigma -> 0`` ends in Newton's method.
+    ``[[K + diag(sigma), -g], [g^T, 0]] [du; dp] = [-R; V* - V]`` and is accepted if the merit
+    ``W - p (V - V*)`` (with the new multiplier) does not rise. The shift is
+    ``sigma = sigma_rel |diag K|`` (a Jacobi metric: a soft thin outer cap and a stiff thick inner
+    cap relax at comparable rates). ``sigma_rel`` shrinks after an accepted step and grows after
+    a rejected one, and is raised until the shifted system is positive definite on the
+    constraint (its inertia from the LDL^T, Haynsworth): every step then goes downhill in every
+    mode, so the flow leaves a saddle along its negative curvature, and where that curvature is
+    small it leaves at the rate ``|lambda| / sigma`` with the smallest ``sigma`` that allows it
+    (a fixed floor on ``sigma`` made the flow crawl for thousands of iterations on ballooning
+    soft outer caps). Once stable, ``sigma -> 0`` ends in Newton's method.
     Started at ``kick`` (scaled arc length) along the path tangent at the volume limit, the
-    unstable direction of the fold, or at ``start`` (a post-snap path point, already past the
-    flat neighbourhood of the degenerate saddle, where the flow would crawl).
+    unstable direction of the fold, or at ``start`` (a post-snap path point; its volume is
+    brought back to ``V*`` by at most ``max(0.05, 0.01 V*)`` per iteration).
 
     Returns
     -------
@@ -262,7 +273,7 @@ def descend_at_volume(
         u = upper.u + kick * upper.du_ds
         p = upper.p + kick * upper.dp_ds
     sigma_rel = 1.0
-    dh_max = 0.05  # largest volume change per iteration (scaled) while restoring V*
+    dh_max = max(0.05, 0.01 * abs(V_star))  # largest volume change per iteration (scaled) while restoring V*
     step_small = False
     accepted = None  # (u, p, lin, merit-function pieces)
     for it in range(max_iter):
@@ -296,17 +307,22 @@ def descend_at_volume(
         ref = float(np.linalg.norm(dz_du[0])) * tracer.sc[0] * max(abs(p), 1e-3 * tracer.sc[1])
         rn = float(np.linalg.norm(lin.R)) / ref
         n_unstable = constrained_instability(tracer, lin)
-        if n_unstable > 0:
-            sigma_rel = max(sigma_rel, sigma_unstable)
         log.debug("descent %d: E=%.12g rn=%.2e h=%.2e sigma_rel=%.1e unstable=%d", it, E_new, rn, h, sigma_rel, n_unstable)
         if n_unstable == 0 and abs(h) < tol and (rn < tol or (rn < 100 * tol and step_small)):
             t, v, q, zz = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
-            return PathPoint(lin.u, lin.p, zz, t, v, q, float("nan"), it), "descent converged"
-        sigma = sigma_rel * lin.diag_mean() if n_unstable != 0 or sigma_rel > 1e-10 else 0.0
-        solver = lin.factor(dz_du[0], 0.0, shift=sigma)
+            return PathPoint(lin.u, lin.p, zz, t, v, q, float("nan"), it), f"descent converged in {it} iterations"
+        # the smallest shift (from the current sigma_rel up) that makes the shifted system
+        # positive definite on the constraint: the step then goes downhill in every mode
+        solver = None
+        while sigma_rel <= 1e6:
+            shift = sigma_rel * lin.diag_abs() if n_unstable != 0 or sigma_rel > 1e-10 else 0.0
+            solver = lin.factor(dz_du[0], 0.0, shift=shift)
+            if solver is not None and (n_unstable == 0 or _constrained_negatives(solver, lin.g) == 0):
+                break
+            sigma_rel = max(sigma_rel * 8.0, 1e-10)
+            solver = None
         if solver is None:
-            sigma_rel = max(sigma_rel * 8.0, 1e-8)
-            continue
+            return None, f"descent: no positive definite shift at iteration {it}"
         # restore the volume gradually when starting far from V* (a homotopy in the constraint)
         h_step = float(np.clip(h, -dh_max, dh_max))
         x = solver.solve(np.concatenate([-lin.R, [-h_step]]))

@@ -74,17 +74,32 @@ class Linearization:
     def __init__(self, model: "Model", u, p, R, g, data):
         self.model, self.u, self.p, self.R, self.g, self.data = model, u, p, R, g, data
 
-    def factor(self, c_u: np.ndarray, c_p: float, shift: float = 0.0) -> "BorderedSolver | None":
-        """Factorise ``[[K_T + shift I, -dV/du], [c_u^T, c_p]]``; ``None`` if it is singular.
+    def factor(self, c_u: np.ndarray, c_p: float, shift: "float | np.ndarray" = 0.0) -> "BorderedSolver | None":
+        """Factorise ``[[K_T + diag(shift), -dV/du], [c_u^T, c_p]]``; ``None`` if it is singular.
 
-        A positive ``shift`` turns a Newton step into an implicit gradient-flow (pseudo-time)
-        step, used by the volume-constrained energy descent.
+        A positive ``shift`` (a scalar, or one value per dof) turns a Newton step into an
+        implicit gradient-flow (pseudo-time) step, used by the volume-constrained energy descent.
         """
         data = self.data
-        if shift:
+        if np.any(shift):
             data = data.copy()
             data[self.model.diag_pos] += shift
         return self.model._factor(data, -self.g, c_u, c_p)
+
+    def stiffness(self) -> sp.csr_matrix:
+        """``K_T`` alone (n x n, CSR)."""
+        m, n = self.model, self.model.n
+        if m.solver == "banded":
+            ab = self.data.reshape(n, m.kl + 1)
+            L = sp.diags([ab[: n - k, k] for k in range(m.kl + 1)], [-k for k in range(m.kl + 1)],
+                         shape=(n, n), format="csr")
+            return (L + sp.triu(L.T, 1)).tocsr()
+        A = sp.csr_matrix((self.data, m.indices, m.indptr), shape=(n + 1, n + 1))
+        return A[:n, :n].tocsr()
+
+    def diag_abs(self) -> np.ndarray:
+        """``|diag K_T|`` per dof (a Jacobi metric for ``shift``)."""
+        return np.abs(self.data[self.model.diag_pos])
 
     def diag_mean(self) -> float:
         """Mean absolute diagonal entry of ``K_T`` (a scale for ``shift``)."""
@@ -350,14 +365,7 @@ class Model:
 
     def stiffness_matrix(self, u: np.ndarray, p: float) -> sp.csr_matrix:
         """``K_T`` alone (n x n, CSR), for stability checks and tests."""
-        lin = self.linearize(u, p)
-        if self.solver == "banded":
-            ab = lin.data.reshape(self.n, self.kl + 1)
-            L = sp.diags([ab[: self.n - k, k] for k in range(self.kl + 1)], [-k for k in range(self.kl + 1)],
-                         shape=(self.n, self.n), format="csr")
-            return (L + sp.triu(L.T, 1)).tocsr()
-        A = sp.csr_matrix((lin.data, self.indices, self.indptr), shape=(self.n + 1, self.n + 1))
-        return A[: self.n, : self.n].tocsr()
+        return self.linearize(u, p).stiffness()
 
     def max_dilatation(self, u: np.ndarray) -> float:
         """Largest ``|theta - 1|`` of the projected dilatation, the incompressibility error of the

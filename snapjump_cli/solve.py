@@ -167,7 +167,8 @@ def solve_scene(
     if st.upper is not None and st.lower is None:
         why = lower_note or failure or path.stop_reason
         low, msg = None, "no post-snap path to start from"
-        for start in descent_starts(pts, st.upper, st.k_before) + [None]:
+        # SPEC: from the upper state along its unstable mode first; post-snap path points as fallbacks
+        for start in [None] + descent_starts(pts, st.upper, st.k_before):
             low, msg = descend_at_volume(tracer, st.upper, start=start)
             if low is not None:
                 break
