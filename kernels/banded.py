@@ -4,6 +4,13 @@ Storage: the lower band of a symmetric matrix, column by column: ``ab`` of shape
 with ``A[i, j] = ab[j, i - j]`` for ``0 <= i - j <= kl`` (the transpose of LAPACK's ``'L'`` band
 storage, so that the inner loops run over contiguous memory).
 
+Envelope: ``ext[j]`` is the number of entries below the diagonal of column ``j`` that can be
+non-zero in ``L`` (every row ``r <= j + ext[j]`` whose first non-zero lies at or left of ``j``; see
+:func:`envelope_extents`). LDL^T creates no fill outside the rows' envelope, so the kernels touch
+only those entries: the arithmetic on them is exactly that of the plain band algorithm (the
+skipped terms are exact zeros), at the cost of a profile solver. On the C-shaped actuators the
+band is widest only where the ring joins the caps: 3.6-7.5x fewer flops than the full band.
+
 No pivoting: like the LDL^T solvers of commercial FE codes, the factorisation relies on the
 stiffness matrix being symmetric with few negative eigenvalues; a pivot that is zero to round-off
 is reported as a failure (the continuation then cuts its step). The number of negative pivots is
@@ -16,8 +23,37 @@ import numpy as np
 from numba import njit
 
 
+def envelope_extents(rows: np.ndarray, cols: np.ndarray, n: int, kl: int) -> np.ndarray:
+    """Column extents ``ext`` of the envelope of a symmetric sparsity pattern.
+
+    Parameters
+    ----------
+    rows, cols : indices of the structurally non-zero entries (either triangle, any order)
+    n : matrix size
+    kl : half-bandwidth of the storage
+
+    Returns
+    -------
+    ext : int64 array of length ``n``, ``0 <= ext[j] <= min(kl, n - 1 - j)``
+    """
+    r = np.maximum(rows, cols).astype(np.int64)
+    c = np.minimum(rows, cols).astype(np.int64)
+    first = np.arange(n, dtype=np.int64)  # first non-zero column of each row (the diagonal at most)
+    np.minimum.at(first, r, c)
+    last_row = np.full(n, -1, dtype=np.int64)  # the last row whose envelope starts at column j
+    np.maximum.at(last_row, first, np.arange(n, dtype=np.int64))
+    reach = np.maximum.accumulate(last_row)  # the last row whose envelope contains column j
+    ext = reach - np.arange(n, dtype=np.int64)
+    return np.minimum(np.maximum(ext, 0), np.minimum(kl, n - 1 - np.arange(n, dtype=np.int64)))
+
+
+def full_extents(n: int, kl: int) -> np.ndarray:
+    """The extents of a full band (no envelope information)."""
+    return np.minimum(kl, n - 1 - np.arange(n, dtype=np.int64))
+
+
 @njit(cache=True)
-def band_ldlt(ab: np.ndarray):
+def band_ldlt(ab: np.ndarray, ext: np.ndarray):
     """Factorise in place: on return ``ab[:, 0]`` holds ``D`` and ``ab[:, 1:]`` the unit-lower ``L``.
 
     Returns
@@ -40,7 +76,7 @@ def band_ldlt(ab: np.ndarray):
             return False, nneg
         if d < 0.0:
             nneg += 1
-        m = min(kl, n - 1 - j)
+        m = ext[j]
         for i in range(1, m + 1):
             l[i] = ab[j, i] / d
         # trailing update: A[j+k, j+i] -= l_k d l_i for k >= i
@@ -55,34 +91,32 @@ def band_ldlt(ab: np.ndarray):
 
 
 @njit(cache=True)
-def band_ldlt_solve(fac: np.ndarray, b: np.ndarray) -> np.ndarray:
+def band_ldlt_solve(fac: np.ndarray, b: np.ndarray, ext: np.ndarray) -> np.ndarray:
     """Solve ``A x = b`` with the factors from :func:`band_ldlt`."""
-    n, m1 = fac.shape
-    kl = m1 - 1
+    n = fac.shape[0]
     x = b.copy()
     for j in range(n):  # L y = b
         xj = x[j]
-        for i in range(1, min(kl, n - 1 - j) + 1):
+        for i in range(1, ext[j] + 1):
             x[j + i] -= fac[j, i] * xj
     for j in range(n):  # D z = y
         x[j] /= fac[j, 0]
     for j in range(n - 1, -1, -1):  # L^T x = z
         s = x[j]
-        for i in range(1, min(kl, n - 1 - j) + 1):
+        for i in range(1, ext[j] + 1):
             s -= fac[j, i] * x[j + i]
         x[j] = s
     return x
 
 
 @njit(cache=True)
-def sym_band_matvec(ab: np.ndarray, x: np.ndarray) -> np.ndarray:
+def sym_band_matvec(ab: np.ndarray, x: np.ndarray, ext: np.ndarray) -> np.ndarray:
     """``A @ x`` for the symmetric matrix whose lower band is ``ab`` (unfactorised)."""
-    n, m1 = ab.shape
-    kl = m1 - 1
+    n = ab.shape[0]
     y = np.zeros(n)
     for j in range(n):
         y[j] += ab[j, 0] * x[j]
-        for i in range(1, min(kl, n - 1 - j) + 1):
+        for i in range(1, ext[j] + 1):
             a = ab[j, i]
             y[j + i] += a * x[j]
             y[j] += a * x[j + i]

@@ -34,7 +34,7 @@ import scipy.sparse.linalg as spla
 
 from snapjump_cli.meshdata import Mesh
 from snapjump_kernels.assembly import assemble, pressure_mass_inverse, quadrature_jacobians, reference_geometry
-from snapjump_kernels.banded import band_ldlt, band_ldlt_solve, sym_band_matvec
+from snapjump_kernels.banded import band_ldlt, band_ldlt_solve, envelope_extents, sym_band_matvec
 from snapjump_kernels.cavity import cavity_assemble
 from snapjump_kernels.elements import element_tables
 
@@ -113,15 +113,16 @@ class BorderedSolver:
     ``kind="superlu"``: ``fac`` is the SuperLU factorisation of the whole bordered matrix.
     """
 
-    def __init__(self, kind, fac, K, b, c, d, n, n_negative=-1):
+    def __init__(self, kind, fac, K, b, c, d, n, n_negative=-1, ext=None):
         self.kind, self.fac, self.K, self.b, self.c, self.d, self.n = kind, fac, K, b, c, d, n
         self.n_negative = n_negative  # negative eigenvalues of K (banded only)
+        self.ext = ext  # envelope column extents of the band (banded only)
         if kind == "banded":
-            self.Kib = band_ldlt_solve(fac, b)
+            self.Kib = band_ldlt_solve(fac, b, ext)
             self.schur = d - float(c @ self.Kib)
 
     def _solve_once(self, r, s):
-        z = band_ldlt_solve(self.fac, r)
+        z = band_ldlt_solve(self.fac, r, self.ext)
         y = (s - float(self.c @ z)) / self.schur
         return z - y * self.Kib, y
 
@@ -133,7 +134,7 @@ class BorderedSolver:
         r, s = rhs[:-1], float(rhs[-1])
         x, y = self._solve_once(r, s)
         # one step of iterative refinement on the full bordered system
-        top = sym_band_matvec(self.K, x) + self.b * y
+        top = sym_band_matvec(self.K, x, self.ext) + self.b * y
         bot = float(self.c @ x) + self.d * y
         dx, dy = self._solve_once(r - top, s - bot)
         return np.concatenate([x + dx, [y + dy]])
@@ -225,6 +226,10 @@ class Model:
         valid = (ri >= 0) & (ci >= 0)
         self.kl = int(np.abs(ri - ci)[valid].max()) if valid.any() else 0
         n = self.n
+        # the envelope of K_T (elements and the cavity's load stiffness): the LDL^T works inside it
+        vg = (rg >= 0) & (cg >= 0)
+        self.band_ext = envelope_extents(np.concatenate([ri[valid], rg[vg]]), np.concatenate([ci[valid], cg[vg]]),
+                                         n, self.kl)
         # CSR pattern of K_T alone (tests, stability checks) and of the bordered matrix (superlu)
         gd = np.unique(edge_dofs[edge_dofs >= 0])
         self.border_dofs = np.union1d(gd, [self.pole_dof])
@@ -342,10 +347,10 @@ class Model:
             if self.solver == "banded":
                 K = data.reshape(n, self.kl + 1)
                 fac = K.copy()
-                ok, nneg = band_ldlt(fac)
+                ok, nneg = band_ldlt(fac, self.band_ext)
                 if not ok:
                     return None
-                s = BorderedSolver("banded", fac, K, b, c_u, float(c_p), n, nneg)
+                s = BorderedSolver("banded", fac, K, b, c_u, float(c_p), n, nneg, self.band_ext)
                 if not np.isfinite(s.schur) or s.schur == 0.0:
                     return None
             else:
