@@ -9,6 +9,8 @@ Environment knobs (all optional):
 * ``SNAPJUMP_STRESS_MESH``: ``order,nt,aspect`` (default: the sweep default :class:`MeshSettings`);
 * ``SNAPJUMP_STRESS_GRID_SAMPLE``: solve only this many paper-grid designs drawn at random (default:
   the whole grid, 4800);
+* ``SNAPJUMP_STRESS_GRID_RESULTS``: check this finished paper-grid sweep (parquet) instead of
+  running the grid again;
 * ``SNAPJUMP_STRESS_N``: number of random extended-domain designs (default 1000);
 * ``SNAPJUMP_STRESS_INVARIANCE_N``: designs in the invariance sample (default 12);
 * ``SNAPJUMP_STRESS_SEED``: seed of every random draw (default 5).

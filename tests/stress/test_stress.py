@@ -36,6 +36,29 @@ def _finish(df, title: str, name: str, stress_report) -> None:
 
 
 def test_paper_grid(stress_report):
+    """The whole paper grid through the sweep; or, with ``SNAPJUMP_STRESS_GRID_RESULTS`` set to
+    the parquet of a finished ``snapjump sweep configs/paper_grid.yaml``, that run checked as is
+    (the same row contract, and every grid point present exactly once)."""
+    import os
+
+    existing = os.environ.get("SNAPJUMP_STRESS_GRID_RESULTS", "").strip()
+    if existing:
+        from pathlib import Path
+
+        from snapjump_cli import results as res
+
+        df = res.read_results(Path(existing))
+        pts = sl.paper_grid_points(None)
+        got = {tuple(round(float(r[k]), 9) for k in ("eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio"))
+               for _, r in df.iterrows()}
+        want = {tuple(round(float(p[k]), 9) for k in ("eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio"))
+                for p in pts}
+        assert len(df) == len(pts) and df["key"].is_unique and got == want
+        m = df.iloc[0]
+        tag = f"o{m['mesh_order']}nt{m['mesh_nt']}a{float(m['mesh_aspect']):g}"
+        _finish(df, f"paper grid ({len(pts)} designs, mesh {tag}, from {existing})", f"paper_grid_{tag}_existing",
+                stress_report)
+        return
     sample = sl.env_int("SNAPJUMP_STRESS_GRID_SAMPLE", 0) or None
     seed = sl.env_int("SNAPJUMP_STRESS_SEED", 5)
     pts = sl.paper_grid_points(sample, seed)
