@@ -79,7 +79,11 @@ def gmsh_session(model_name: str = "snapjump"):
 
     owner = not gmsh.isInitialized()
     if owner:
+        saved = _python_signal_handlers()
         gmsh.initialize(readConfigFiles=False, interruptible=False)
+        # gmsh's C++ initialisation resets SIGINT/SIGTERM to their defaults behind Python's back
+        # (the sweep's clean stop on SIGTERM was lost: the process died, its workers ran on)
+        _reinstall(saved)
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.option.setNumber("General.Verbosity", 0)
@@ -92,6 +96,23 @@ def gmsh_session(model_name: str = "snapjump"):
         else:  # pragma: no cover - only when embedded in a caller's gmsh session
             with contextlib.suppress(Exception):
                 gmsh.model.remove()
+
+
+def _python_signal_handlers() -> dict:
+    """Python's handlers of SIGINT and SIGTERM (empty off the main thread, where they cannot be set)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(sig) is not None}
+
+
+def _reinstall(handlers: dict) -> None:
+    import signal
+
+    for sig, h in handlers.items():
+        signal.signal(sig, h)
 
 
 # ------------------------------------------------------------------------------------------------

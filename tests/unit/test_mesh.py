@@ -509,3 +509,25 @@ def test_write_mesh_bad_suffix(tmp_path):
     with pytest.raises(ValueError, match="x.stl"):
         write_mesh(meshed(get_design("C")), tmp_path / "x.stl")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(not __import__("os").path.exists("/proc/self/status"), reason="reads /proc (Linux)")
+def test_gmsh_session_keeps_the_python_signal_handlers():
+    """gmsh's C++ initialisation resets SIGTERM/SIGINT to their defaults; the sweep's clean stop
+    (exit 130, finished rows kept, workers shut down) relies on its Python SIGTERM handler."""
+    import signal
+
+    from snapjump_cli.mesh import gmsh_session
+
+    def caught() -> int:
+        line = [x for x in open("/proc/self/status").read().splitlines() if x.startswith("SigCgt:")][0]
+        return int(line.split()[1], 16)
+
+    old = signal.signal(signal.SIGTERM, lambda signum, frame: None)
+    try:
+        assert caught() & (1 << (signal.SIGTERM - 1))
+        with gmsh_session():
+            pass
+        assert caught() & (1 << (signal.SIGTERM - 1)), "gmsh removed the SIGTERM handler"
+    finally:
+        signal.signal(signal.SIGTERM, old)
