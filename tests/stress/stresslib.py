@@ -11,6 +11,8 @@ Environment knobs (all optional):
   the whole grid, 4800);
 * ``SNAPJUMP_STRESS_GRID_RESULTS``: check this finished paper-grid sweep (parquet) instead of
   running the grid again;
+* ``SNAPJUMP_STRESS_RETRY_FAILED=1``: solve the designs a resumed result file holds as failed again
+  (after a solver fix);
 * ``SNAPJUMP_STRESS_N``: number of random extended-domain designs (default 1000);
 * ``SNAPJUMP_STRESS_INVARIANCE_N``: designs in the invariance sample (default 12);
 * ``SNAPJUMP_STRESS_SEED``: seed of every random draw (default 5).
@@ -149,6 +151,7 @@ def sweep(points: list[dict], output: Path, **kw) -> "Any":
     from snapjump_cli.sweep import run_sweep
 
     cfg = points_config(points, **{k: kw.pop(k) for k in ("mesh", "solver", "n_jobs") if k in kw})
+    kw.setdefault("retry_failed", bool(env_int("SNAPJUMP_STRESS_RETRY_FAILED", 0)))
     run_sweep(cfg, output=output, progress=kw.pop("progress", False), **kw)
     return res.read_results(output)
 
