@@ -104,6 +104,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     ap.add_argument("--orders", type=int, nargs="+", default=[1, 2], choices=[1, 2])
     ap.add_argument("--nts", type=int, nargs="+", default=list(NTS), help="elements through the thickness")
     ap.add_argument("--max-nt", type=int, default=None, help="drop nt above this")
+    ap.add_argument("--setting", action="append", default=[], metavar="ORDER,NT,ASPECT",
+                    help="an extra mesh setting to run on every case, e.g. 2,2,3 (the paper-grid sweep's); "
+                         "repeatable")
     ap.add_argument("--timeout", type=float, default=300.0,
                     help="per run [s]: a run predicted to take longer is skipped, one that does is killed (default 300)")
     ap.add_argument("--budget", type=float, default=None,
@@ -140,6 +143,17 @@ def main(argv=None) -> int:
     solver = SolverSettings()
     cases = cases_mod.select(cases_mod.all_cases(a.n_grid, a.seed), a.scenes)
     settings = settings_for(a.orders, sorted(set(a.nts)), not a.no_extra_aspects)
+    for spec in a.setting:
+        try:
+            o, nt, asp = spec.split(",")
+            extra = (int(o), int(nt), float(asp))
+        except ValueError:
+            print(f"--setting: expected ORDER,NT,ASPECT (e.g. 2,2,3), got {spec!r}", file=sys.stderr)
+            return 2
+        if extra[0] not in (1, 2) or extra[1] < 1 or extra[2] <= 0:
+            print(f"--setting: order must be 1 or 2, nt >= 1 and aspect > 0, got {spec!r}", file=sys.stderr)
+            return 2
+        settings = sorted(set(settings) | {extra}, key=lambda s: (s[1], s[0], s[2]))
     git = git_state()
     t_start = time.perf_counter()
     state = json.loads(state_file.read_text()) if state_file.exists() and not a.fresh else {}
