@@ -101,10 +101,6 @@ class Linearization:
         """``|diag K_T|`` per dof (a Jacobi metric for ``shift``)."""
         return np.abs(self.data[self.model.diag_pos])
 
-    def diag_mean(self) -> float:
-        """Mean absolute diagonal entry of ``K_T`` (a scale for ``shift``)."""
-        return float(np.abs(self.data[self.model.diag_pos]).mean())
-
 
 class BorderedSolver:
     """Solves the bordered system ``[[K, b], [c^T, d]] [x; y] = [r; s]``.
