@@ -310,7 +310,8 @@ def descend_at_volume(
         accepted = (u, p, lin, E_new, h)
         ref = float(np.linalg.norm(dz_du[0])) * tracer.sc[0] * max(abs(p), 1e-3 * tracer.sc[1])
         rn = float(np.linalg.norm(lin.R)) / ref
-        n_unstable = constrained_instability(tracer, lin)
+        base = lin.factor(dz_du[0], 0.0)  # unshifted: the inertia, and Newton's step once sigma -> 0
+        n_unstable = _constrained_negatives(base, lin.g)
         log.debug("descent %d: E=%.12g rn=%.2e h=%.2e sigma_rel=%.1e unstable=%d", it, E_new, rn, h, sigma_rel, n_unstable)
         E_hist.append(E_new)
         # Newton at round-off: a snap at p ~ 0 has a tiny residual scale (the pressure load), and
@@ -325,8 +326,10 @@ def descend_at_volume(
         # positive definite on the constraint: the step then goes downhill in every mode
         solver = None
         while sigma_rel <= 1e6:
-            shift = sigma_rel * lin.diag_abs() if n_unstable != 0 or sigma_rel > 1e-10 else 0.0
-            solver = lin.factor(dz_du[0], 0.0, shift=shift)
+            if n_unstable != 0 or sigma_rel > 1e-10:
+                solver = lin.factor(dz_du[0], 0.0, shift=sigma_rel * lin.diag_abs())
+            else:
+                solver = base
             if solver is not None and (n_unstable == 0 or _constrained_negatives(solver, lin.g) == 0):
                 break
             sigma_rel = max(sigma_rel * 8.0, 1e-10)
