@@ -87,6 +87,7 @@ class PathPoint:
     s: float  # arc length from the start
     newton: int = 0
     det_sign: int = 0  # sign of det of the bordered Jacobian (0: unknown); flips at bifurcations
+    n_neg: int = -1  # negative eigenvalues of K_T (unstable modes under pressure control; -1: unknown)
 
 
 @dataclass
@@ -113,6 +114,7 @@ class Tracer:
         self.sc = np.asarray(settings.scales, float)
         self.n_newton = 0
         self.last_det_sign = 0
+        self.last_n_neg = -1
         # weight of the RMS displacement in the arc length (0: measures only)
         self.alpha = 1.0 / (math.sqrt(problem.n) * settings.u_scale) if settings.u_scale > 0 else 0.0
 
@@ -143,6 +145,7 @@ class Tracer:
         if not np.isfinite(nrm) or nrm == 0.0:
             raise ContinuationFailed("degenerate tangent (no change of volume, pressure or pole)")
         self.last_det_sign = _det_sign(solver)
+        self.last_n_neg = int(getattr(solver, "n_negative", -1))
         return dz / nrm, v / nrm, q / nrm, z
 
     def correct(self, u, p, z0, t, ds, target=None, tol=None):
@@ -217,7 +220,7 @@ class Tracer:
             t, v, q, z = self.tangent(lin, (pt.tangent, self.alpha * pt.du_ds))
         except ContinuationFailed:
             return None
-        return PathPoint(lin.u, lin.p, z, t, v, q, pt.s + ds, it, self.last_det_sign)
+        return PathPoint(lin.u, lin.p, z, t, v, q, pt.s + ds, it, self.last_det_sign, self.last_n_neg)
 
 
 def _det_sign(solver) -> int:
@@ -238,7 +241,7 @@ def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0) -> PathPoint:
     if lin is None:
         raise ContinuationFailed("the initial state lies outside the material domain")
     t, v, q, z = tracer.tangent(lin, (t_prev, np.zeros(tracer.pb.n)))
-    return PathPoint(u0.copy(), p0, z, t, v, q, 0.0, 0, tracer.last_det_sign)
+    return PathPoint(u0.copy(), p0, z, t, v, q, 0.0, 0, tracer.last_det_sign, tracer.last_n_neg)
 
 
 def turn_angle(a: PathPoint, b: PathPoint, alpha: float = 0.0) -> float:

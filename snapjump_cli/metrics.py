@@ -131,6 +131,7 @@ class SnapStates:
     lower: PathPoint | None = None  # the lower state solved at V = V*
     lower_method: str = ""
     p_max: float = -math.inf
+    fold_note: str = ""  # set when K_T gains a second unstable mode within the step of the volume limit
 
 
 @dataclass
@@ -163,6 +164,14 @@ class SnapTracker:
             if prev.tangent[0] > 0 and new.tangent[0] <= 0:
                 st.k_before = len(pts) - 2
                 st.upper = self.locate_volume_limit(prev, new, pts[-3] if len(pts) > 2 else None)
+                if min(prev.n_neg, new.n_neg) >= 0 and prev.n_neg != new.n_neg and max(prev.n_neg, new.n_neg) >= 2:
+                    # a clean volume fold keeps neg(K_T), or gains the first unstable mode when it
+                    # lies just past the pressure maximum (thin caps). A further mode appearing in
+                    # the fold's step means a second pressure extremum or a bifurcation there: the
+                    # fold sits at a near-cusp whose branch a small change of the mesh can switch
+                    # (design A at nt 2 / aspect 2)
+                    st.fold_note = (f"volume limit within the step of a pressure extremum or bifurcation "
+                                    f"(unstable modes of K_T {prev.n_neg} -> {new.n_neg})")
                 log.debug("volume limit: V*=%.6g p*=%.6g", st.upper.zeta[0], st.upper.p)
         elif st.lower is None:
             Vs = st.upper.zeta[0]
@@ -215,7 +224,7 @@ class SnapTracker:
         lin, it = res
         t, v, q, z = tr.tangent(lin, (b.tangent, tr.alpha * b.du_ds))
         h = float(np.sqrt(np.sum((z - a.zeta) ** 2) + tr.alpha**2 * np.sum((lin.u - a.u) ** 2)))
-        return PathPoint(lin.u, lin.p, z, t, v, q, a.s + h, it)
+        return PathPoint(lin.u, lin.p, z, t, v, q, a.s + h, it, tr.last_det_sign, tr.last_n_neg)
 
 
 def constrained_instability(tracer: Tracer, lin) -> int:

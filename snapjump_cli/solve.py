@@ -228,7 +228,7 @@ def solve_scene(
         n_nodes=mesh.n_nodes, n_elements=mesh.n_elements, n_dofs=model.n,
         V_inner_solid_m3=vols.get("inner_solid"), V_outer_solid_m3=vols.get("outer_solid"),
         max_dilatation=float(max(model.max_dilatation(pt.u) for pt in ([st.upper, st.lower] if st.lower else pts[-1:]))),
-        stop_reason=path.stop_reason, lower_state_note=lower_note, mesh_s=t_mesh,
+        stop_reason=path.stop_reason, lower_state_note=lower_note, fold_note=st.fold_note, mesh_s=t_mesh,
         t_assembly_s=model.t_assembly, t_factor_s=model.t_factor, n_factorizations=model.n_factorizations,
         wall_s=time.perf_counter() - t0,
     )
@@ -269,13 +269,17 @@ MESH_SENSITIVE_REL = 0.05
 
 def suspicious_snap(m: dict) -> str:
     """Why a snap may be a mesh artefact ('' if it looks sound): the pole moves up, the snap is
-    tiny (dE < 1e-4 mu_i R_i^3), or its lower state had to be found by descent."""
+    tiny (dE < 1e-4 mu_i R_i^3), the volume limit coincides with a second pressure extremum or a
+    bifurcation (``fold_note``: the branch there can switch with the mesh), or its lower state had
+    to be found by descent."""
     if not m.get("snaps"):
         return ""
     if m["dy_pole_m"] is None or m["dy_pole_m"] <= 0:
         return "pole moves up"
     if m["dE_norm"] < 1e-4:
         return "tiny snap"
+    if m.get("fold_note"):
+        return "volume limit at a bifurcation or second pressure extremum"
     if m.get("lower_state_method") == "descent":
         return "lower state by descent"
     return ""

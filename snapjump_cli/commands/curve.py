@@ -79,6 +79,9 @@ def _text(scene, m: dict) -> str:
             lines.append(f"h_imp            {m['h_imp_m'] * 1e3:.5g} mm")
         if m.get("L0_m") is not None:
             lines.append(f"L_0              {m['L0_m'] * 1e3:.5g} mm")
+        if m.get("fold_note"):
+            lines.append(f"warning          {m['fold_note']}: this snap can change with the mesh; "
+                         "compare a finer one (--nt, --aspect)")
     if m.get("E_o_J") is not None:
         lines.append(f"E_o (p/mu_o=0.5) {m['E_o_J'] * 1e3:.6g} mJ")
     lines += [

@@ -158,3 +158,40 @@ def test_thin_inner_cap_on_soft_outer_cap_descends_monotonically():
     assert st.lower.zeta[0] == pytest.approx(st.upper.zeta[0], rel=1e-9)
     assert constrained_instability(r.tracer, r.model.linearize(st.lower.u, st.lower.p)) == 0
     assert m["dE_J"] == pytest.approx(0.0497, rel=0.02)
+
+
+def test_design_A_coarse_fold_is_flagged_and_clean_folds_are_not(results):
+    """At the default mesh design A's volume limit falls within the step where K_T gains a second
+    unstable mode (p and V both stationary: a near-cusp next to a bifurcation); on finer meshes the
+    path goes past it (test below). The fold must be flagged - for the sweep a reason to re-solve -
+    and the clean folds of the other scenes must not be (the thin cap's fold lies in the step of
+    its pressure maximum: K_T's first unstable mode, 0 -> 1, is not a reason)."""
+    from snapjump_cli.solve import suspicious_snap
+
+    a = results["A"]
+    k = a.states.k_before
+    pts = a.path.points
+    assert pts[k].n_neg >= 0 and pts[k + 1].n_neg > pts[k].n_neg
+    assert a.metrics["fold_note"]
+    assert suspicious_snap(a.metrics) == "volume limit at a bifurcation or second pressure extremum"
+    for name in ("cap30-clamped", "cap8.5-roller-point", "B", "C", "D"):
+        r = results[name]
+        assert r.metrics["fold_note"] == "", name
+        k = r.states.k_before
+        assert max(r.path.points[k].n_neg, r.path.points[k + 1].n_neg) == 1, name  # the p_max mode only
+    for name in ("B", "C", "D"):
+        assert suspicious_snap(results[name].metrics) == "", name
+
+
+def test_design_A_refined_along_the_arc_passes_the_coarse_fold():
+    """Design A with elements half as long along the arcs (nt 2, aspect 1): no fold near p_max; the
+    inner cap inverts stably under volume control and the first volume limit is at p* ~ 8 Pa. The
+    snap there is the mesh-converged one (nt 2 / aspect 1, nt 3 / 2 and nt 4 / 2 give dE 6.382,
+    6.396, 6.390 mJ and dy_pole 12.368, 12.367, 12.372 mm; README) - the default mesh's 2.78 mJ
+    fold near p_max is the coarse mesh's branch."""
+    m = solve_scene(SCENES["A"], MeshSettings(order=2, nt=2, aspect=1.0), SolverSettings()).metrics
+    assert m["fold_note"] == ""
+    assert m["p_star_Pa"] < 0.02 * m["p_max_Pa"]
+    assert m["lower_state_method"] == "descent"
+    assert m["dE_J"] == pytest.approx(6.390e-3, rel=0.01)
+    assert m["dy_pole_m"] == pytest.approx(12.37e-3, rel=0.01)
