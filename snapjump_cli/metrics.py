@@ -131,7 +131,8 @@ class SnapStates:
     lower: PathPoint | None = None  # the lower state solved at V = V*
     lower_method: str = ""
     p_max: float = -math.inf
-    fold_note: str = ""  # set when K_T gains a second unstable mode within the step of the volume limit
+    fold_note: str = ""  # set when the volume limit is a near-cusp (see SnapTracker.cusp_window)
+    cusp_open: bool = False  # still watching for the first change of neg(K_T) after the limit
 
 
 @dataclass
@@ -152,6 +153,7 @@ class SnapTracker:
     V_stop: float
     full: bool = False
     post_snap_steps: int = 1500
+    cusp_window: float = 1e-3
     states: SnapStates = field(default_factory=SnapStates)
 
     def __call__(self, path: Path) -> str | None:
@@ -164,17 +166,14 @@ class SnapTracker:
             if prev.tangent[0] > 0 and new.tangent[0] <= 0:
                 st.k_before = len(pts) - 2
                 st.upper = self.locate_volume_limit(prev, new, pts[-3] if len(pts) > 2 else None)
-                if min(prev.n_neg, new.n_neg) >= 0 and prev.n_neg != new.n_neg and max(prev.n_neg, new.n_neg) >= 2:
-                    # a clean volume fold keeps neg(K_T), or gains the first unstable mode when it
-                    # lies just past the pressure maximum (thin caps). A further mode appearing in
-                    # the fold's step means a second pressure extremum or a bifurcation there: the
-                    # fold sits at a near-cusp whose branch a small change of the mesh can switch
-                    # (design A at nt 2 / aspect 2)
-                    st.fold_note = (f"volume limit within the step of a pressure extremum or bifurcation "
-                                    f"(unstable modes of K_T {prev.n_neg} -> {new.n_neg})")
+                st.cusp_open = prev.n_neg >= 0
+                self._watch_cusp(prev, new, 0.0)
                 log.debug("volume limit: V*=%.6g p*=%.6g", st.upper.zeta[0], st.upper.p)
         elif st.lower is None:
             Vs = st.upper.zeta[0]
+            if st.cusp_open:
+                gap = min(self._distance(prev), self._distance(new))
+                self._watch_cusp(prev, new, gap)
             if new.tangent[0] > 0 and new.zeta[0] >= Vs and prev.zeta[0] < Vs:
                 st.k_return = len(pts) - 1
                 st.lower = self.locate_volume(prev, new, Vs, pts[-3] if len(pts) > 2 else None)
@@ -191,6 +190,34 @@ class SnapTracker:
         if new.p > self.p_stop and (st.upper is None or st.lower is not None or self.full):
             return "pressure bound"
         return None
+
+    def _distance(self, pt: PathPoint) -> float:
+        """Relative distance of a path point from the upper state in (V, p) (p relative to the
+        larger of |p*| and the path's maximum pressure so far)."""
+        st = self.states
+        up = st.upper
+        return max(abs(pt.zeta[0] / up.zeta[0] - 1.0), abs(pt.p - up.p) / max(abs(up.p), st.p_max, 1e-300))
+
+    def _watch_cusp(self, prev: PathPoint, new: PathPoint, gap: float) -> None:
+        """The first change of ``neg(K_T)`` after the volume limit decides whether it is a near-cusp.
+
+        A clean fold keeps ``neg(K_T)`` (or gains the first unstable mode when it lies just past the
+        pressure maximum, as on thin caps); the next pressure extremum or bifurcation comes well
+        after it (design B: 9 % lower in p). When K_T gains a further mode within ``cusp_window``
+        of the fold in both V and p (``gap``; 0 in the fold's own step), the path turns there
+        through a near-cusp whose branch a small change of the mesh switches (design A: 5e-6 at
+        nt 2 / aspect 3, the same step at aspect 2; on finer meshes the fold is gone).
+        """
+        st = self.states
+        if min(prev.n_neg, new.n_neg) < 0:
+            st.cusp_open = False
+            return
+        if new.n_neg == prev.n_neg:
+            return
+        st.cusp_open = False
+        if max(prev.n_neg, new.n_neg) >= 2 and gap <= self.cusp_window:
+            st.fold_note = (f"volume limit at a near-cusp: K_T's unstable modes go {prev.n_neg} -> {new.n_neg} "
+                            f"within {gap:.1e} of (V*, p*)")
 
     def locate_volume_limit(self, a: PathPoint, b: PathPoint, a_prev: PathPoint | None = None,
                             tol: float = 1e-9, max_iter: int = 30) -> PathPoint:

@@ -269,9 +269,9 @@ MESH_SENSITIVE_REL = 0.05
 
 def suspicious_snap(m: dict) -> str:
     """Why a snap may be a mesh artefact ('' if it looks sound): the pole moves up, the snap is
-    tiny (dE < 1e-4 mu_i R_i^3), the volume limit coincides with a second pressure extremum or a
-    bifurcation (``fold_note``: the branch there can switch with the mesh), or its lower state had
-    to be found by descent."""
+    tiny (dE < 1e-4 mu_i R_i^3), the volume limit is a near-cusp (``fold_note``: a bifurcation or a
+    second pressure extremum right at the fold, where the branch can switch with the mesh), or its
+    lower state had to be found by descent."""
     if not m.get("snaps"):
         return ""
     if m["dy_pole_m"] is None or m["dy_pole_m"] <= 0:
@@ -279,7 +279,7 @@ def suspicious_snap(m: dict) -> str:
     if m["dE_norm"] < 1e-4:
         return "tiny snap"
     if m.get("fold_note"):
-        return "volume limit at a bifurcation or second pressure extremum"
+        return "volume limit at a near-cusp"
     if m.get("lower_state_method") == "descent":
         return "lower state by descent"
     return ""
@@ -292,20 +292,26 @@ def solve_design(
     """Sweep entry point: the metrics dict of one design (see :func:`solve_scene`).
 
     With ``check_mesh``, a suspicious snap (:func:`suspicious_snap`) is re-solved with one more
-    element through the thickness; the refined metrics are reported, the first ones kept as
-    ``dE_J_coarse`` / ``dy_pole_m_coarse``, and ``mesh_sensitive`` is set when dE or dy_pole moved
-    by more than ``MESH_SENSITIVE_REL`` (or the refined run no longer snaps or fails).
+    element through the thickness (and, for a near-cusp fold, elements half as long along the arcs
+    as well: the fold is an under-resolution of the arc, design A); the refined metrics are
+    reported, the first ones kept as ``dE_J_coarse`` / ``dy_pole_m_coarse``, and ``mesh_sensitive``
+    is set when dE or dy_pole moved by more than ``MESH_SENSITIVE_REL``, the refined run no longer
+    snaps or fails, or its fold is still a near-cusp.
     """
     m = solve_scene(design, mesh, solver).metrics
     m.update(mesh_sensitive=False, dE_J_coarse=None, dy_pole_m_coarse=None, mesh_check="")
     why = suspicious_snap(m) if check_mesh else ""
     if not why:
         return m
-    finer = MeshSettings(order=mesh.order, nt=mesh.nt + 1, aspect=mesh.aspect)
+    nt = mesh.nt + 1
+    # element length along the arc ~ aspect * t / nt: halve it for a near-cusp, keep it otherwise
+    aspect = mesh.aspect * nt / (2 * mesh.nt) if m.get("fold_note") else mesh.aspect
+    finer = MeshSettings(order=mesh.order, nt=nt, aspect=aspect)
     coarse = m
     try:
         m = solve_scene(design, finer, solver).metrics
-        m.update(mesh_sensitive=False, mesh_check=f"{why}; re-solved at nt={finer.nt}")
+        m.update(mesh_sensitive=False, mesh_check=f"{why}; re-solved at nt={finer.nt}"
+                 + (f", aspect={finer.aspect:.3g}" if finer.aspect != mesh.aspect else ""))
     except SolveFailed as exc:
         coarse["mesh_sensitive"] = True
         coarse["mesh_check"] = f"{why}; refined run failed: {exc}"
@@ -314,6 +320,9 @@ def solve_design(
     if not m["snaps"]:
         m["mesh_sensitive"] = True
         return m
+    if m.get("fold_note"):
+        m["mesh_sensitive"] = True
+        m["mesh_check"] += "; still a near-cusp"
     for k in ("dE_J", "dy_pole_m"):
         if abs(m[k] - coarse[k]) > MESH_SENSITIVE_REL * max(abs(m[k]), abs(coarse[k])):
             m["mesh_sensitive"] = True

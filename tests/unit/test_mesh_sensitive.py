@@ -44,3 +44,28 @@ def test_refined_failure_keeps_coarse_and_flags(monkeypatch):
     monkeypatch.setattr(solve, "solve_scene", _fake({2: _m(1e-5, -0.001), 3: solve.SolveFailed("boom")}))
     m = solve.solve_design(get_design("C"), MeshSettings(nt=2), SolverSettings())
     assert m["mesh_sensitive"] is True and m["dE_J"] == 1e-5 and "boom" in m["mesh_check"]
+
+
+def _cusp(m):
+    return {**m, "fold_note": "volume limit at a near-cusp: ..."}
+
+
+@pytest.mark.parametrize("fine,sensitive,extra", [
+    (_m(6.4e-3, 0.0124, "descent"), True, ""),          # the fold is gone: dE moves 2.3x (design A)
+    (_cusp(_m(2.6e-3, 0.0101)), True, "still a near-cusp"),  # same values, still a near-cusp
+])
+def test_near_cusp_is_resolved_finer_along_the_arc(monkeypatch, fine, sensitive, extra):
+    seen = []
+
+    def fake(scene, mesh, solver):
+        seen.append(mesh)
+        return solve.SceneResult(metrics=dict(_cusp(_m(2.5e-3, 0.0100)) if mesh.nt == 2 else fine))
+
+    monkeypatch.setattr(solve, "solve_scene", fake)
+    m = solve.solve_design(get_design("A"), MeshSettings(nt=2, aspect=3.0), SolverSettings())
+    # one more element through the thickness and elements half as long along the arc:
+    # length ~ aspect t / nt goes 1.5 t -> 0.75 t
+    assert [(s.nt, s.aspect) for s in seen] == [(2, 3.0), (3, 2.25)]
+    assert m["mesh_sensitive"] is sensitive and m["dE_J"] == fine["dE_J"] and m["dE_J_coarse"] == 2.5e-3
+    assert m["mesh_check"].startswith("volume limit at a near-cusp; re-solved at nt=3, aspect=2.25")
+    assert extra in m["mesh_check"]
