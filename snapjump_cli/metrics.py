@@ -203,9 +203,9 @@ class SnapTracker:
 
         A clean fold keeps ``neg(K_T)`` (or gains the first unstable mode when it lies just past the
         pressure maximum, as on thin caps); the next pressure extremum or bifurcation comes well
-        after it (design B: 9 % lower in p). When K_T gains a further mode within ``cusp_window``
+        after it (design B: 6-9 % lower in p). When K_T gains a further mode within ``cusp_window``
         of the fold in both V and p (``gap``; 0 in the fold's own step), the path turns there
-        through a near-cusp whose branch a small change of the mesh switches (design A: 5e-6 at
+        through a near-cusp whose branch a small change of the mesh switches (design A: 6e-7 at
         nt 2 / aspect 3, the same step at aspect 2; on finer meshes the fold is gone).
         """
         st = self.states

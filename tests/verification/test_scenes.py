@@ -163,7 +163,7 @@ def test_thin_inner_cap_on_soft_outer_cap_descends_monotonically():
 def test_design_A_coarse_fold_is_flagged_and_clean_folds_are_not(results):
     """On meshes coarse along the arc (elements >= t long) design A's volume limit is a near-cusp:
     K_T gains a second unstable mode within 1e-3 of (V*, p*) - in the fold's own step at the
-    default aspect 2, 5e-6 after it at the sweep's aspect 3. On finer meshes the path goes past it
+    default aspect 2, 6e-7 after it at the sweep's aspect 3. On finer meshes the path goes past it
     (test below). Such a fold must be flagged - for the sweep a reason to re-solve - and the clean
     folds of the other scenes must not be (the thin cap's fold follows its pressure maximum within
     a step: K_T's first unstable mode is not a reason; B's next pressure extremum is 9 % lower)."""
