@@ -27,23 +27,6 @@ from snapjump_cli.settings import MeshSettings, SolverSettings  # noqa: E402
 from snapjump_cli.solve import SolveFailed, solve_scene  # noqa: E402
 
 
-def first_mode_change(res) -> tuple[float | None, tuple[int, int] | None]:
-    """(gap, (n_before, n_after)) of the first change of neg(K_T) from the fold to the lower state."""
-    st, pts = res.states, res.path.points
-    up, k = st.upper, st.k_before
-    pmax = max(pt.p for pt in pts[: k + 1])
-
-    def dist(pt):
-        return max(abs(pt.zeta[0] / up.zeta[0] - 1.0), abs(pt.p - up.p) / max(abs(up.p), pmax))
-
-    end = st.k_return if st.k_return is not None else len(pts) - 1
-    for i in range(k, end):
-        a, b = pts[i], pts[i + 1]
-        if a.n_neg != b.n_neg:
-            return (0.0 if i == k else min(dist(a), dist(b))), (a.n_neg, b.n_neg)
-    return None, None
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("which", choices=["named", "grid", "extended"])
@@ -68,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
             print(json.dumps({"design": name, "snaps": False}), flush=True)
             continue
         snapping += 1
-        gap, change = first_mode_change(r)
+        gap, change = r.states.cusp_gap, r.states.cusp_change  # recorded by the SnapTracker
         flagged += bool(r.metrics["fold_note"])
         if change is not None and max(change) >= 2:
             gaps.append(gap)

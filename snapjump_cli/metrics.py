@@ -133,6 +133,8 @@ class SnapStates:
     p_max: float = -math.inf
     fold_note: str = ""  # set when the volume limit is a near-cusp (see SnapTracker.cusp_window)
     cusp_open: bool = False  # still watching for the first change of neg(K_T) after the limit
+    cusp_change: tuple[int, int] | None = None  # that first change (before, after) ...
+    cusp_gap: float | None = None  # ... and its relative distance from (V*, p*) (0: the fold's step)
 
 
 @dataclass
@@ -215,6 +217,7 @@ class SnapTracker:
         if new.n_neg == prev.n_neg:
             return
         st.cusp_open = False
+        st.cusp_change, st.cusp_gap = (prev.n_neg, new.n_neg), gap
         if max(prev.n_neg, new.n_neg) >= 2 and gap <= self.cusp_window:
             st.fold_note = (f"volume limit at a near-cusp: K_T's unstable modes go {prev.n_neg} -> {new.n_neg} "
                             f"within {gap:.1e} of (V*, p*)")
