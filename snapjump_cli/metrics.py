@@ -132,8 +132,7 @@ class SnapStates:
     lower_method: str = ""
     p_max: float = -math.inf
     fold_note: str = ""  # set when the volume limit is a near-cusp (see SnapTracker.cusp_window)
-    cusp_open: bool = False  # still watching for the first change of neg(K_T) after the limit
-    cusp_change: tuple[int, int] | None = None  # that first change (before, after) ...
+    cusp_change: tuple[int, int] | None = None  # first change of neg(K_T) after the limit ...
     cusp_gap: float | None = None  # ... and its relative distance from (V*, p*) (0: the fold's step)
 
 
@@ -168,14 +167,12 @@ class SnapTracker:
             if prev.tangent[0] > 0 and new.tangent[0] <= 0:
                 st.k_before = len(pts) - 2
                 st.upper = self.locate_volume_limit(prev, new, pts[-3] if len(pts) > 2 else None)
-                st.cusp_open = prev.n_neg >= 0
                 self._watch_cusp(prev, new, 0.0)
                 log.debug("volume limit: V*=%.6g p*=%.6g", st.upper.zeta[0], st.upper.p)
         elif st.lower is None:
             Vs = st.upper.zeta[0]
-            if st.cusp_open:
-                gap = min(self._distance(prev), self._distance(new))
-                self._watch_cusp(prev, new, gap)
+            if st.cusp_change is None:
+                self._watch_cusp(prev, new, min(self._distance(prev), self._distance(new)))
             if new.tangent[0] > 0 and new.zeta[0] >= Vs and prev.zeta[0] < Vs:
                 st.k_return = len(pts) - 1
                 st.lower = self.locate_volume(prev, new, Vs, pts[-3] if len(pts) > 2 else None)
@@ -211,12 +208,8 @@ class SnapTracker:
         nt 2 / aspect 3, the same step at aspect 2; on finer meshes the fold is gone).
         """
         st = self.states
-        if min(prev.n_neg, new.n_neg) < 0:
-            st.cusp_open = False
+        if min(prev.n_neg, new.n_neg) < 0 or new.n_neg == prev.n_neg:  # unknown (SuperLU) or no change
             return
-        if new.n_neg == prev.n_neg:
-            return
-        st.cusp_open = False
         st.cusp_change, st.cusp_gap = (prev.n_neg, new.n_neg), gap
         if max(prev.n_neg, new.n_neg) >= 2 and gap <= self.cusp_window:
             st.fold_note = (f"volume limit at a near-cusp: K_T's unstable modes go {prev.n_neg} -> {new.n_neg} "
