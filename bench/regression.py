@@ -1,0 +1,229 @@
+"""Answer regression: the same designs solved by an earlier commit and by the current code.
+
+``record`` solves a fixed set of scenes and writes ``bench/regression/baseline.json`` with the
+commit that produced it; ``compare`` solves the same scenes with the working tree and checks that
+every row keeps its status and flags and that dE, dy_pole and h_imp stay within a relative
+tolerance (0.5 % by default). Speed changes are checked against it: comparing with our own
+earlier output is right here, because accuracy against converged solutions is verified elsewhere
+(``tests/verification``, ``bench/run_bench.py``).
+
+The scenes:
+
+* ``grid``: a seeded sample of paper-grid points (``configs/paper_grid.yaml``), solved as the
+  sweep solves them (``solve_design`` at the grid's mesh, the row built by the sweep's own
+  ``_result_to_row``), invalid points included;
+* ``named``: the named designs, the same way (grid mesh, with the sweep's mesh check);
+* ``curve``: the named designs and the Fig. 1 caps as ``snapjump curve`` solves them
+  (``solve_scene`` at the default mesh).
+
+    python -m bench.regression record [--n-grid 240] [--seed 10] [-j 2]
+    python -m bench.regression compare [--only grid] [--limit N] [-j 2] [--tol 0.005]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from bench.cases import PAPER_GRID, REPO, cap_cases
+
+BASELINE = Path(__file__).resolve().parent / "regression" / "baseline.json"
+#: Flags every row must keep.
+FLAGS = ("status", "snaps", "self_crossing", "mesh_sensitive")
+#: Metrics compared with a relative tolerance.
+METRICS = ("dE_J", "dy_pole_m", "h_imp_m")
+#: Also stored (reported, not checked).
+EXTRA = ("lower_state_method", "p_star_Pa", "V_star_m3", "dE_path_J", "dy_pole_upper_m", "L0_m", "p_max_Pa",
+         "n_steps", "n_newton", "n_factorizations", "mesh_check", "fold_note", "error",
+         "dE_J_coarse", "dy_pole_m_coarse", "stop_reason", "lower_state_note", "t_assembly_s", "t_factor_s")
+NAMED = ("A", "B", "C", "D", "S20b", "S20c")
+
+
+def _git_commit() -> str:
+    import subprocess
+
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True, timeout=20)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPO,
+                               capture_output=True, text=True, timeout=20).stdout.strip()
+        return out.stdout.strip() + ("-dirty" if dirty else "")
+    except (OSError, Exception):  # noqa: BLE001 - provenance is best effort
+        return "unknown"
+
+
+def scenes(n_grid: int, seed: int) -> list[dict]:
+    """The regression scenes as plain dicts (``id``, ``kind`` and the scene's parameters)."""
+    from snapjump_cli.config import load_config
+
+    cfg = load_config(PAPER_GRID)
+    points = list(cfg.designs())
+    rng = np.random.default_rng(seed)
+    pick = sorted(int(i) for i in rng.choice(len(points), size=n_grid, replace=False))
+    out = []
+    for i in pick:
+        p = points[i]
+        out.append({"id": f"grid-{p.index:04d}", "kind": "grid", "params": p.design_kwargs()})
+    for n in NAMED:
+        out.append({"id": f"named-{n}", "kind": "named", "name": n})
+    for n in NAMED:
+        out.append({"id": f"curve-{n}", "kind": "curve", "name": n})
+    for c in cap_cases():
+        sc = c.scene
+        out.append({"id": f"curve-{c.name}", "kind": "cap",
+                    "cap": {"theta_deg": sc.theta_deg, "eta": sc.eta, "bc": sc.bc}})
+    return out
+
+
+def _clean(v):
+    if isinstance(v, (np.floating, np.integer, np.bool_)):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def solve_one(sc: dict) -> dict:
+    """Solve one regression scene; returns its row (flags, metrics, counts, wall time)."""
+    from snapjump_cli import sweep
+    from snapjump_cli.config import load_config
+    from snapjump_cli.designs import get_design
+    from snapjump_cli.geometry import CapScene, Design, InvalidDesign
+    from snapjump_cli.settings import MeshSettings, SolverSettings
+    from snapjump_cli.solve import SolveFailed, solve_design, solve_scene
+
+    cfg = load_config(PAPER_GRID)
+    t0 = time.perf_counter()
+    row: dict = {"id": sc["id"], "kind": sc["kind"]}
+    if sc["kind"] in ("grid", "named"):
+        try:
+            d = Design(**sc["params"]) if sc["kind"] == "grid" else get_design(sc["name"])
+        except InvalidDesign as e:
+            row.update(status="invalid_geometry", error=str(e))
+            d = None
+        if d is not None:
+            try:
+                m = solve_design(d, cfg.mesh, cfg.solver)
+                sweep._result_to_row(row, m)
+                for k in ("n_factorizations", "fold_note", "stop_reason", "lower_state_note", "t_assembly_s",
+                          "t_factor_s"):
+                    row[k] = m.get(k)
+            except Exception as e:  # noqa: BLE001 - recorded, as the sweep does
+                row.update(status="failed", error=f"{type(e).__name__}: {e}"[:500])
+    else:
+        scene = get_design(sc["name"]) if sc["kind"] == "curve" else CapScene(**sc["cap"])
+        try:
+            m = solve_scene(scene, MeshSettings(), SolverSettings()).metrics
+            row.update(status="ok" if m["snaps"] else "no_snap", mesh_sensitive=None)
+            row.update({k: m.get(k) for k in ("snaps", "self_crossing") + METRICS + EXTRA if k in m})
+        except SolveFailed as e:
+            row.update(status="failed", error=str(e)[:500])
+    row["wall_s"] = time.perf_counter() - t0
+    keep = ("id", "kind", "wall_s") + FLAGS + METRICS + EXTRA
+    return {k: _clean(row.get(k)) for k in keep}
+
+
+def solve_all(items: list[dict], n_jobs: int) -> list[dict]:
+    from snapjump_cli.solve import warm_up
+
+    warm_up()
+    if n_jobs == 1:
+        return [solve_one(s) for s in items]
+    from joblib import Parallel, delayed
+
+    return Parallel(n_jobs=n_jobs, batch_size=1)(delayed(solve_one)(s) for s in items)
+
+
+def record(args) -> int:
+    items = scenes(args.n_grid, args.seed)
+    t0 = time.perf_counter()
+    rows = solve_all(items, args.jobs)
+    doc = {
+        "commit": _git_commit(),
+        "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "machine": f"{os.cpu_count()} cores",
+        "n_grid": args.n_grid, "seed": args.seed, "jobs": args.jobs,
+        "wall_s": time.perf_counter() - t0,
+        "flags": list(FLAGS), "metrics": list(METRICS),
+        "rows": rows,
+    }
+    BASELINE.parent.mkdir(parents=True, exist_ok=True)
+    tmp = BASELINE.with_suffix(".tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n")
+    os.replace(tmp, BASELINE)
+    print(f"wrote {BASELINE} ({len(rows)} rows, {doc['wall_s']:.0f} s, commit {doc['commit']})")
+    return 0
+
+
+def compare_rows(base: dict, new: dict, tol: float) -> list[str]:
+    """What differs between a baseline row and a new one (empty: the same answer)."""
+    out = []
+    for k in FLAGS:
+        if base.get(k) != new.get(k):
+            out.append(f"{k}: {base.get(k)!r} -> {new.get(k)!r}")
+    if base.get("status") == "ok" or base.get("snaps"):
+        for k in METRICS:
+            a, b = base.get(k), new.get(k)
+            if a is None and b is None:
+                continue
+            if a is None or b is None or abs(b - a) > tol * max(abs(a), 1e-300):
+                out.append(f"{k}: {a!r} -> {b!r}" + (f" ({(b - a) / a:+.3%})" if a and b is not None else ""))
+    return out
+
+
+def compare(args) -> int:
+    doc = json.loads(BASELINE.read_text())
+    base = {r["id"]: r for r in doc["rows"]}
+    items = [s for s in scenes(doc["n_grid"], doc["seed"]) if not args.only or s["kind"] in args.only]
+    if args.limit:
+        items = items[: args.limit]
+    t0 = time.perf_counter()
+    rows = solve_all(items, args.jobs)
+    wall = time.perf_counter() - t0
+    bad = 0
+    worst = {k: 0.0 for k in METRICS}
+    for r in rows:
+        b = base[r["id"]]
+        diff = compare_rows(b, r, args.tol)
+        for k in METRICS:
+            if b.get(k) and r.get(k) is not None:
+                worst[k] = max(worst[k], abs(r[k] - b[k]) / abs(b[k]))
+        if diff:
+            bad += 1
+            print(f"{r['id']}: " + "; ".join(diff))
+    tb = sum(base[r["id"]]["wall_s"] for r in rows)
+    tn = sum(r["wall_s"] for r in rows)
+    print(f"{len(rows)} rows against baseline {doc['commit'][:12]}: {bad} differ "
+          f"(tol {args.tol:.2%}); worst " + ", ".join(f"{k} {v:.3%}" for k, v in worst.items()))
+    print(f"solve time (sum over rows): baseline {tb:.1f} s, now {tn:.1f} s ({tb / max(tn, 1e-9):.2f}x); "
+          f"wall {wall:.1f} s with -j {args.jobs}")
+    if args.out:
+        Path(args.out).write_text(json.dumps({"baseline": doc["commit"], "commit": _git_commit(), "rows": rows}, indent=1))
+    return 1 if bad else 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.regression", description=__doc__.split("\n\n")[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("record", help="solve the scenes with this commit and write the baseline")
+    r.add_argument("--n-grid", type=int, default=240)
+    r.add_argument("--seed", type=int, default=10)
+    r.add_argument("-j", "--jobs", type=int, default=2)
+    c = sub.add_parser("compare", help="solve the scenes again and compare with the baseline")
+    c.add_argument("--only", nargs="*", choices=("grid", "named", "curve", "cap"))
+    c.add_argument("--limit", type=int, default=0)
+    c.add_argument("-j", "--jobs", type=int, default=2)
+    c.add_argument("--tol", type=float, default=0.005)
+    c.add_argument("--out", default="")
+    a = ap.parse_args(argv)
+    return record(a) if a.cmd == "record" else compare(a)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
