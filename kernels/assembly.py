@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from snapjump_kernels.cavity import cavity_assemble
 from snapjump_kernels.gent import gent_iso
 
 
@@ -269,3 +270,34 @@ def quadrature_jacobians(u, conn, dNdX, N_ref, Rq):
             _deformation(u, conn[e], dNdX[e, q], N_ref[q], Rq[e, q], f)
             out[e, q] = (f[0] * f[3] - f[1] * f[2]) * f[4]
     return out
+
+
+@njit(cache=True)
+def evaluate(u, dofmap, X, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, epos,
+             edges, edge_dofs, edge_pos, p, want, R_out, g_out, data_out):
+    """One evaluation of the pressurised solid at the free-dof displacement ``u`` (one call).
+
+    Scatters ``u`` to the nodes (``dofmap[node, component]``: free dof or -1), assembles the
+    element energy, force and (``want >= 2``) stiffness (:func:`assemble`), then the cavity volume,
+    its gradient ``g = dV/du`` and (``want >= 2``) the load stiffness ``-p d2V/du2``
+    (:func:`snapjump_kernels.cavity.cavity_assemble`). Fills ``R_out = f_int - p g``, ``g_out``
+    and ``data_out`` (zeroed by the caller).
+
+    Returns
+    -------
+    (energy, ok, V) : the strain energy, False outside the material domain, the cavity volume
+        (without any offset)
+    """
+    nn = dofmap.shape[0]
+    U = np.zeros((nn, 2))
+    for a in range(nn):
+        for c in range(2):
+            k = dofmap[a, c]
+            if k >= 0:
+                U[a, c] = u[k]
+    E, ok, _ = assemble(U, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, epos, want, R_out,
+                        data_out)
+    V = cavity_assemble(X + U, edges, edge_dofs, edge_pos, -p, max(want, 1), g_out, data_out)
+    for i in range(R_out.shape[0]):
+        R_out[i] -= p * g_out[i]
+    return E, ok, V

@@ -121,3 +121,47 @@ def sym_band_matvec(ab: np.ndarray, x: np.ndarray, ext: np.ndarray) -> np.ndarra
             y[j + i] += a * x[j]
             y[j] += a * x[j + i]
     return y
+
+
+@njit(cache=True)
+def bordered_factor(K: np.ndarray, ext: np.ndarray, b: np.ndarray, c: np.ndarray, d: float):
+    """Factorise the bordered matrix ``[[K, b], [c^T, d]]`` by block elimination (one call).
+
+    Returns
+    -------
+    (ok, n_negative, fac, Kib, schur)
+        ``fac`` the band LDL^T of ``K`` (a copy; ``K`` is kept for the refinement step),
+        ``Kib = K^-1 b``, ``schur = d - c^T K^-1 b``; ``ok`` False if ``K`` is singular to round-off.
+    """
+    fac = K.copy()
+    ok, nneg = band_ldlt(fac, ext)
+    if not ok:
+        return False, nneg, fac, np.zeros(0), 0.0
+    Kib = band_ldlt_solve(fac, b, ext)
+    schur = d - np.dot(c, Kib)
+    return True, nneg, fac, Kib, schur
+
+
+@njit(cache=True)
+def bordered_solve(fac: np.ndarray, K: np.ndarray, ext: np.ndarray, b: np.ndarray, c: np.ndarray, d: float,
+                   Kib: np.ndarray, schur: float, rhs: np.ndarray, refine: bool) -> np.ndarray:
+    """Solve ``[[K, b], [c^T, d]] [x; y] = rhs`` with the factors of :func:`bordered_factor`,
+    with one step of iterative refinement on the full bordered system if ``refine``."""
+    n = fac.shape[0]
+    r = rhs[:n]
+    s = rhs[n]
+    z = band_ldlt_solve(fac, r, ext)
+    y = (s - np.dot(c, z)) / schur
+    x = z - y * Kib
+    out = np.empty(n + 1)
+    if not refine:
+        out[:n] = x
+        out[n] = y
+        return out
+    top = sym_band_matvec(K, x, ext) + b * y
+    bot = np.dot(c, x) + d * y
+    z2 = band_ldlt_solve(fac, r - top, ext)
+    y2 = ((s - bot) - np.dot(c, z2)) / schur
+    out[:n] = x + (z2 - y2 * Kib)
+    out[n] = y + y2
+    return out

@@ -41,13 +41,15 @@ class Problem(Protocol):
 
     n: int
 
-    def linearize(self, u: np.ndarray, p: float):
+    def linearize(self, u: np.ndarray, p: float, stiffness: bool = True):
         """Object with ``.R`` (residual) and ``.factor(c_u, c_p)`` -> solver with ``.solve(rhs)``
-        for the bordered matrix ``[[dR/du, dR/dp], [c_u^T, c_p]]``; ``None`` for a failed iterate."""
+        for the bordered matrix ``[[dR/du, dR/dp], [c_u^T, c_p]]``; ``None`` for a failed iterate.
+        With ``stiffness=False`` only ``.R`` is needed (no ``factor``)."""
         ...
 
-    def measures(self, u: np.ndarray, p: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Path measures ``zeta`` (k,), ``d zeta / du`` (k, n), ``d zeta / dp`` (k,)."""
+    def measures(self, u: np.ndarray, p: float, lin=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Path measures ``zeta`` (k,), ``d zeta / du`` (k, n), ``d zeta / dp`` (k,); ``lin``, an
+        evaluation of ``linearize`` at the same state, may be used to avoid recomputing them."""
         ...
 
 
@@ -119,8 +121,8 @@ class Tracer:
         self.alpha = 1.0 / (math.sqrt(problem.n) * settings.u_scale) if settings.u_scale > 0 else 0.0
 
     # ---- measures -----------------------------------------------------------------------------
-    def zeta(self, u, p):
-        z, dz_du, dz_dp = self.pb.measures(u, p)
+    def zeta(self, u, p, lin=None):
+        z, dz_du, dz_dp = self.pb.measures(u, p, lin) if lin is not None else self.pb.measures(u, p)
         return z / self.sc, dz_du / self.sc[:, None], dz_dp / self.sc
 
     def tangent(self, lin, t_prev: np.ndarray):
@@ -130,7 +132,7 @@ class Tracer:
         ``t_prev . dzeta = 1 > 0``: the orientation follows the previous tangent.
         """
         u, p = lin.u, lin.p
-        z, dz_du, dz_dp = self.zeta(u, p)
+        z, dz_du, dz_dp = self.zeta(u, p, lin)
         t_z, t_u = t_prev
         a = self.alpha
         solver = lin.factor(t_z @ dz_du + a * t_u, float(t_z @ dz_dp))
@@ -167,7 +169,7 @@ class Tracer:
             if lin is None:
                 return None
             R = lin.R
-            z, dz_du, dz_dp = self.zeta(u, p)
+            z, dz_du, dz_dp = self.zeta(u, p, lin)
             if target is None:
                 t_z, t_u, u_0 = t
                 h = float(t_z @ (z - z0) + self.alpha**2 * (t_u @ (u - u_0)) - ds)

@@ -33,8 +33,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from snapjump_cli.meshdata import Mesh
-from snapjump_kernels.assembly import assemble, pressure_mass_inverse, quadrature_jacobians, reference_geometry
-from snapjump_kernels.banded import band_ldlt, band_ldlt_solve, envelope_extents, sym_band_matvec
+from snapjump_kernels.assembly import assemble, evaluate, pressure_mass_inverse, quadrature_jacobians, reference_geometry
+from snapjump_kernels.banded import band_ldlt_solve, bordered_factor, bordered_solve, envelope_extents, sym_band_matvec
 from snapjump_kernels.cavity import cavity_assemble
 from snapjump_kernels.elements import element_tables
 
@@ -69,10 +69,14 @@ def _cuthill_mckee(n_nodes: int, conn: np.ndarray, start: int) -> np.ndarray:
 
 
 class Linearization:
-    """Residual at ``(u, p)`` with the (lazily factorised) tangent of one assembly."""
+    """Residual at ``(u, p)`` with the (lazily factorised) tangent of one assembly.
 
-    def __init__(self, model: "Model", u, p, R, g, data):
-        self.model, self.u, self.p, self.R, self.g, self.data = model, u, p, R, g, data
+    ``V`` is the cavity volume (scaled, with the offset); ``data`` is ``None`` when the state was
+    evaluated without its stiffness (``Model.linearize(..., stiffness=False)``).
+    """
+
+    def __init__(self, model: "Model", u, p, R, g, data, V=float("nan")):
+        self.model, self.u, self.p, self.R, self.g, self.data, self.V = model, u, p, R, g, data, V
 
     def factor(self, c_u: np.ndarray, c_p: float, shift: "float | np.ndarray" = 0.0) -> "BorderedSolver | None":
         """Factorise ``[[K_T + diag(shift), -dV/du], [c_u^T, c_p]]``; ``None`` if it is singular.
@@ -109,31 +113,21 @@ class BorderedSolver:
     ``kind="superlu"``: ``fac`` is the SuperLU factorisation of the whole bordered matrix.
     """
 
-    def __init__(self, kind, fac, K, b, c, d, n, n_negative=-1, ext=None):
+    def __init__(self, kind, fac, K, b, c, d, n, n_negative=-1, ext=None, Kib=None, schur=None):
         self.kind, self.fac, self.K, self.b, self.c, self.d, self.n = kind, fac, K, b, c, d, n
         self.n_negative = n_negative  # negative eigenvalues of K (banded only)
         self.ext = ext  # envelope column extents of the band (banded only)
         if kind == "banded":
-            self.Kib = band_ldlt_solve(fac, b, ext)
-            self.schur = d - float(c @ self.Kib)
-
-    def _solve_once(self, r, s):
-        z = band_ldlt_solve(self.fac, r, self.ext)
-        y = (s - float(self.c @ z)) / self.schur
-        return z - y * self.Kib, y
+            self.Kib = band_ldlt_solve(fac, b, ext) if Kib is None else Kib
+            self.schur = d - float(c @ self.Kib) if schur is None else schur
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        """Solution of the bordered system for one right-hand side ``[r; s]`` (length n + 1)."""
+        """Solution of the bordered system for one right-hand side ``[r; s]`` (length n + 1),
+        with one step of iterative refinement on the full bordered system (banded)."""
         rhs = np.asarray(rhs, dtype=float)
         if self.kind == "superlu":
             return self.fac.solve(rhs)
-        r, s = rhs[:-1], float(rhs[-1])
-        x, y = self._solve_once(r, s)
-        # one step of iterative refinement on the full bordered system
-        top = sym_band_matvec(self.K, x, self.ext) + self.b * y
-        bot = float(self.c @ x) + self.d * y
-        dx, dy = self._solve_once(r - top, s - bot)
-        return np.concatenate([x + dx, [y + dy]])
+        return bordered_solve(self.fac, self.K, self.ext, self.b, self.c, self.d, self.Kib, self.schur, rhs, True)
 
 
 class Model:
@@ -256,9 +250,11 @@ class Model:
             self.col_pos = csr_pos(bd, np.full(len(bd), n))
             self.row_pos = csr_pos(np.full(len(bd), n), bd)
             self.corner_pos = int(csr_pos(np.array([n]), np.array([n]))[0])
-        self.n_assemblies = 0
+        self.n_assemblies = 0  # evaluations with the stiffness
+        self.n_residuals = 0  # evaluations of the energy / residual only
         self.n_factorizations = 0
         self.t_assembly = 0.0
+        self.t_residual = 0.0
         self.t_factor = 0.0
 
     # ---- displacement bookkeeping --------------------------------------------------------------
@@ -291,8 +287,12 @@ class Model:
         )
         g = np.zeros(self.n)
         V = cavity_assemble(self.X + U, self.edges, self.edge_dofs, self.edge_pos, -p, max(want, 1), g, data)
-        self.n_assemblies += 1
-        self.t_assembly += time.perf_counter() - t0
+        if want >= 2:
+            self.n_assemblies += 1
+            self.t_assembly += time.perf_counter() - t0
+        else:
+            self.n_residuals += 1
+            self.t_residual += time.perf_counter() - t0
         return E, ok, f, g, V + self.V_offset
 
     def energy(self, u: np.ndarray) -> float:
@@ -314,27 +314,45 @@ class Model:
         E, ok, f, g, V = self._eval(u, 0.0, 1)
         return (f, g) if ok else None
 
-    def linearize(self, u: np.ndarray, p: float) -> Linearization | None:
-        """Residual and tangent from one assembly; ``None`` outside the material domain."""
-        data = np.zeros(self.ndata)
-        E, ok, f, g, V = self._eval(u, p, 2, data)
+    def linearize(self, u: np.ndarray, p: float, stiffness: bool = True) -> Linearization | None:
+        """Residual and tangent from one assembly; ``None`` outside the material domain.
+
+        ``stiffness=False`` evaluates the residual, ``dV/du`` and ``V`` only (about a fifth of the
+        cost; no ``factor``)."""
+        t0 = time.perf_counter()
+        data = np.zeros(self.ndata if stiffness else 1)
+        R = np.zeros(self.n)
+        g = np.zeros(self.n)
+        E, ok, V = evaluate(u, self.dofmap, self.X, self.conn, self.mat, self.mu, self.jm, self.kappa, self.dNdX,
+                            self.N_ref, self.Rq, self.Wq, self.Np, self.Minv, self.edofs, self.epos, self.edges,
+                            self.edge_dofs, self.edge_pos, p, 2 if stiffness else 1, R, g, data)
+        if stiffness:
+            self.n_assemblies += 1
+            self.t_assembly += time.perf_counter() - t0
+        else:
+            self.n_residuals += 1
+            self.t_residual += time.perf_counter() - t0
         if not ok:
             return None
-        return Linearization(self, u, p, f - p * g, g, data)
+        return Linearization(self, u, p, R, g, data if stiffness else None, V + self.V_offset)
 
-    def measures(self, u: np.ndarray, p: float):
-        """Path measures ``zeta = (V, p, w)`` and their derivatives (cavity only: cheap).
+    def measures(self, u: np.ndarray, p: float, lin: Linearization | None = None):
+        """Path measures ``zeta = (V, p, w)`` and their derivatives (cavity only: cheap; free
+        when ``lin``, an evaluation at the same ``u``, is given).
 
         Returns
         -------
         zeta : (3,) ; dzeta_du : (3, n) ; dzeta_dp : (3,)
         """
-        g = np.zeros(self.n)
-        V = cavity_assemble(self.positions(u), self.edges, self.edge_dofs, self.edge_pos, 0.0, 1, g, np.zeros(1))
         dz = np.zeros((3, self.n))
-        dz[0] = g
+        if lin is not None:
+            V = lin.V
+            dz[0] = lin.g
+        else:
+            V = cavity_assemble(self.positions(u), self.edges, self.edge_dofs, self.edge_pos, 0.0, 1, dz[0],
+                                np.zeros(1)) + self.V_offset
         dz[2, self.pole_dof] = 1.0
-        return np.array([V + self.V_offset, p, u[self.pole_dof]]), dz, np.array([0.0, 1.0, 0.0])
+        return np.array([V, p, u[self.pole_dof]]), dz, np.array([0.0, 1.0, 0.0])
 
     def _factor(self, data, b, c_u, c_p) -> BorderedSolver | None:
         t0 = time.perf_counter()
@@ -342,13 +360,10 @@ class Model:
         try:
             if self.solver == "banded":
                 K = data.reshape(n, self.kl + 1)
-                fac = K.copy()
-                ok, nneg = band_ldlt(fac, self.band_ext)
-                if not ok:
+                ok, nneg, fac, Kib, schur = bordered_factor(K, self.band_ext, b, c_u, float(c_p))
+                if not ok or not np.isfinite(schur) or schur == 0.0:
                     return None
-                s = BorderedSolver("banded", fac, K, b, c_u, float(c_p), n, nneg, self.band_ext)
-                if not np.isfinite(s.schur) or s.schur == 0.0:
-                    return None
+                s = BorderedSolver("banded", fac, K, b, c_u, float(c_p), n, nneg, self.band_ext, Kib, schur)
             else:
                 bd = self.border_dofs
                 data = data.copy()
