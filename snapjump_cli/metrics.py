@@ -309,16 +309,27 @@ def descend_at_volume(
     step_small = False
     E_hist: list[float] = []  # energy of the accepted iterates
     n_stall = 20
-    accepted = None  # (u, p, lin, merit-function pieces)
+    accepted = None  # (u, p, lin, merit-function pieces, unshifted factorisation, its instability)
     for it in range(max_iter):
-        lin = pb.linearize(u, p)
-        z, dz_du, dz_dp = tracer.zeta(u, p)
-        ok = lin is not None
-        if ok:
-            E_new = pb.energy(u)
+        if accepted is None:
+            lin = pb.linearize(u, p)
+            if lin is None:
+                kick *= 0.25
+                u = upper.u + kick * upper.du_ds
+                p = upper.p + kick * upper.dp_ds
+                continue
+            E_new = lin.E
+            z, dz_du, dz_dp = tracer.zeta(u, p, lin)
             h = float(z[0] - V_star)
-        if accepted is not None:
-            u0, p0, lin0, E0, h0 = accepted
+            base = None
+        else:
+            # a trial step: energy and volume decide; the stiffness is assembled only if it is taken
+            u0, p0, lin0, E0, h0, base0, nu0 = accepted
+            ev = pb.energy_volume(u)
+            ok = ev is not None
+            if ok:
+                E_new = ev[0]
+                h = float(ev[1] / tracer.sc[0] - V_star)
             # compare with the new multiplier: merit W - p (V - V*); while the volume is still
             # being restored from a start far from V* any step inside the material domain is
             # taken. (With a tight threshold here, steps that overshot to |V - V*| ~ 1e-5 were
@@ -326,24 +337,22 @@ def descend_at_volume(
             feasible = abs(h0) < 1e-3 * max(1.0, abs(V_star))
             if not ok and not feasible:
                 dh_max *= 0.5
-            if not ok or (feasible and E_new - p * h * tracer.sc[0] > E0 - p * h0 * tracer.sc[0] + 1e-13 * max(1.0, abs(E0))):
+            lin = None
+            if ok and not (feasible and E_new - p * h * tracer.sc[0] > E0 - p * h0 * tracer.sc[0] + 1e-13 * max(1.0, abs(E0))):
+                lin = pb.linearize(u, p)
+            if lin is None:
                 sigma_rel = min(sigma_rel * 8.0, 1e6)
-                u, p, lin = u0, p0, lin0
-                z, dz_du, dz_dp = tracer.zeta(u, p)
-                ok = True
-                E_new, h = E0, h0
+                u, p, lin, E_new, h, base, n_unstable = u0, p0, lin0, E0, h0, base0, nu0
             else:
                 sigma_rel *= 0.25
-        elif not ok:
-            kick *= 0.25
-            u = upper.u + kick * upper.du_ds
-            p = upper.p + kick * upper.dp_ds
-            continue
-        accepted = (u, p, lin, E_new, h)
+                base = None
+            z, dz_du, dz_dp = tracer.zeta(u, p, lin)
+        if base is None:
+            base = lin.factor(dz_du[0], 0.0)  # unshifted: the inertia, and Newton's step once sigma -> 0
+            n_unstable = _constrained_negatives(base, lin.g)
+        accepted = (u, p, lin, E_new, h, base, n_unstable)
         ref = float(np.linalg.norm(dz_du[0])) * tracer.sc[0] * max(abs(p), 1e-3 * tracer.sc[1])
         rn = float(np.linalg.norm(lin.R)) / ref
-        base = lin.factor(dz_du[0], 0.0)  # unshifted: the inertia, and Newton's step once sigma -> 0
-        n_unstable = _constrained_negatives(base, lin.g)
         log.debug("descent %d: E=%.12g rn=%.2e h=%.2e sigma_rel=%.1e unstable=%d", it, E_new, rn, h, sigma_rel, n_unstable)
         E_hist.append(E_new)
         # Newton at round-off: a snap at p ~ 0 has a tiny residual scale (the pressure load), and

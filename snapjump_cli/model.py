@@ -75,8 +75,9 @@ class Linearization:
     evaluated without its stiffness (``Model.linearize(..., stiffness=False)``).
     """
 
-    def __init__(self, model: "Model", u, p, R, g, data, V=float("nan")):
+    def __init__(self, model: "Model", u, p, R, g, data, V=float("nan"), E=float("nan")):
         self.model, self.u, self.p, self.R, self.g, self.data, self.V = model, u, p, R, g, data, V
+        self.E = E  # strain energy
 
     def factor(self, c_u: np.ndarray, c_p: float, shift: "float | np.ndarray" = 0.0) -> "BorderedSolver | None":
         """Factorise ``[[K_T + diag(shift), -dV/du], [c_u^T, c_p]]``; ``None`` if it is singular.
@@ -334,7 +335,20 @@ class Model:
             self.t_residual += time.perf_counter() - t0
         if not ok:
             return None
-        return Linearization(self, u, p, R, g, data if stiffness else None, V + self.V_offset)
+        return Linearization(self, u, p, R, g, data if stiffness else None, V + self.V_offset, E)
+
+    def energy_volume(self, u: np.ndarray) -> tuple[float, float] | None:
+        """Strain energy and cavity volume (scaled, with the offset) from one energy-only pass;
+        ``None`` outside the material domain (exactly where :meth:`linearize` gives ``None``)."""
+        t0 = time.perf_counter()
+        R = np.zeros(self.n)
+        g = np.zeros(self.n)
+        E, ok, V = evaluate(u, self.dofmap, self.X, self.conn, self.mat, self.mu, self.jm, self.kappa, self.dNdX,
+                            self.N_ref, self.Rq, self.Wq, self.Np, self.Minv, self.edofs, self.epos, self.edges,
+                            self.edge_dofs, self.edge_pos, 0.0, 0, R, g, np.zeros(1))
+        self.n_residuals += 1
+        self.t_residual += time.perf_counter() - t0
+        return (E, V + self.V_offset) if ok else None
 
     def measures(self, u: np.ndarray, p: float, lin: Linearization | None = None):
         """Path measures ``zeta = (V, p, w)`` and their derivatives (cavity only: cheap; free
