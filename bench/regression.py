@@ -42,7 +42,8 @@ METRICS = ("dE_J", "dy_pole_m", "h_imp_m")
 #: Also stored (reported, not checked).
 EXTRA = ("lower_state_method", "p_star_Pa", "V_star_m3", "dE_path_J", "dy_pole_upper_m", "L0_m", "p_max_Pa",
          "n_steps", "n_newton", "n_factorizations", "mesh_check", "fold_note", "error",
-         "dE_J_coarse", "dy_pole_m_coarse", "stop_reason", "lower_state_note", "t_assembly_s", "t_factor_s")
+         "dE_J_coarse", "dy_pole_m_coarse", "stop_reason", "lower_state_note", "t_assembly_s", "t_factor_s",
+         "mesh_s", "t_residual_s", "n_assemblies")
 NAMED = ("A", "B", "C", "D", "S20b", "S20c")
 
 
@@ -112,7 +113,7 @@ def solve_one(sc: dict) -> dict:
                 m = solve_design(d, cfg.mesh, cfg.solver)
                 sweep._result_to_row(row, m)
                 for k in ("n_factorizations", "fold_note", "stop_reason", "lower_state_note", "t_assembly_s",
-                          "t_factor_s"):
+                          "t_factor_s", "mesh_s", "t_residual_s", "n_assemblies"):
                     row[k] = m.get(k)
             except Exception as e:  # noqa: BLE001 - recorded, as the sweep does
                 row.update(status="failed", error=f"{type(e).__name__}: {e}"[:500])
@@ -177,6 +178,33 @@ def compare_rows(base: dict, new: dict, tol: float) -> list[str]:
     return out
 
 
+def _pct(x, q):
+    return float(np.percentile(x, q)) if len(x) else float("nan")
+
+
+def throughput_table(rows: list[dict], wall: float, jobs: int) -> list[str]:
+    """Markdown lines: designs/s, per-design time percentiles, the split by phase and by the way
+    the lower state was found (``rows``: solved grid rows with their ``wall_s``)."""
+    valid = [r for r in rows if r.get("status") != "invalid_geometry"]
+    w = np.array([r["wall_s"] for r in valid])
+    out = [f"- {len(rows)} designs ({len(valid)} valid) in {wall:.1f} s wall with -j {jobs}: "
+           f"**{len(rows) / wall:.2f} designs/s**, {w.sum() / max(len(valid), 1):.3f} CPU-s per valid design",
+           f"- per valid design: p50 {_pct(w, 50):.3f} s, p90 {_pct(w, 90):.3f} s, max {w.max() if len(w) else 0:.2f} s",
+           "", "| phase | share of solve time |", "|---|---|"]
+    tot = w.sum()
+    ph = {k: sum((r.get(k) or 0.0) for r in valid) for k in ("mesh_s", "t_assembly_s", "t_residual_s", "t_factor_s")}
+    names = {"mesh_s": "mesh (gmsh)", "t_assembly_s": "assembly with stiffness", "t_residual_s": "energy/residual passes",
+             "t_factor_s": "factorisation (band LDL^T + border)"}
+    for k, v in ph.items():
+        out.append(f"| {names[k]} | {v / tot:.1%} |")
+    out.append(f"| other (solves, Python, metrics) | {1 - sum(ph.values()) / tot:.1%} |")
+    out += ["", "| lower state | designs | mean [s] | p50 [s] | max [s] | share of time |", "|---|---|---|---|---|---|"]
+    for meth in sorted({str(r.get("lower_state_method")) for r in valid}):
+        x = np.array([r["wall_s"] for r in valid if str(r.get("lower_state_method")) == meth])
+        out.append(f"| {meth} | {len(x)} | {x.mean():.3f} | {_pct(x, 50):.3f} | {x.max():.2f} | {x.sum() / tot:.1%} |")
+    return out
+
+
 def compare(args) -> int:
     doc = json.loads(BASELINE.read_text())
     base = {r["id"]: r for r in doc["rows"]}
@@ -203,6 +231,29 @@ def compare(args) -> int:
           f"(tol {args.tol:.2%}); worst " + ", ".join(f"{k} {v:.3%}" for k, v in worst.items()))
     print(f"solve time (sum over rows): baseline {tb:.1f} s, now {tn:.1f} s ({tb / max(tn, 1e-9):.2f}x); "
           f"wall {wall:.1f} s with -j {args.jobs}")
+    if args.report:
+        import platform
+
+        grid_rows = [r for r in rows if r["kind"] == "grid"]
+        base_rows = [base[r["id"]] for r in grid_rows]
+        bw = doc.get("wall_grid_s")
+        lines = [f"# Throughput on the seeded paper-grid sample", "",
+                 f"Machine: {os.cpu_count()} cores ({platform.processor() or platform.machine()}), load average "
+                 f"{os.getloadavg()[0]:.2f} after the run; commit {_git_commit()[:12]}; baseline {doc['commit'][:12]}.",
+                 "", "## Now", ""] + throughput_table(grid_rows, wall, args.jobs)
+        if all("wall_s" in r for r in base_rows):
+            tb_g = sum(r["wall_s"] for r in base_rows)
+            tn_g = sum(r["wall_s"] for r in grid_rows)
+            lines += ["", f"## Baseline ({doc['commit'][:12]}, recorded with -j {doc.get('jobs')})", "",
+                      f"- CPU-s per design summed over the sample: baseline {tb_g:.1f} s, now {tn_g:.1f} s "
+                      f"(**{tb_g / max(tn_g, 1e-9):.2f}x**)"]
+            lines += ["- (its wall time per design set: CPU-s / jobs)"] + throughput_table(
+                base_rows, bw or tb_g / max(doc.get("jobs", 1), 1), doc.get("jobs", 1))[1:]
+        lines += ["", "## Answers", "", f"{len(rows)} rows against the baseline: {bad} differ beyond {args.tol:.2%}; "
+                  "largest relative changes " + ", ".join(f"{k} {v:.2e}" for k, v in worst.items())]
+        Path(args.report).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.report).write_text("\n".join(lines) + "\n")
+        print("\n".join(lines))
     if args.out:
         Path(args.out).write_text(json.dumps({"baseline": doc["commit"], "commit": _git_commit(), "rows": rows}, indent=1))
     return 1 if bad else 0
@@ -220,7 +271,8 @@ def main(argv: list[str] | None = None) -> int:
     c.add_argument("--limit", type=int, default=0)
     c.add_argument("-j", "--jobs", type=int, default=2)
     c.add_argument("--tol", type=float, default=0.005)
-    c.add_argument("--out", default="")
+    c.add_argument("--out", default="", help="write the new rows (JSON) here")
+    c.add_argument("--report", default="", help="write the throughput report (markdown) here")
     a = ap.parse_args(argv)
     return record(a) if a.cmd == "record" else compare(a)
 
