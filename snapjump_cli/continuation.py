@@ -125,6 +125,14 @@ class Tracer:
         z, dz_du, dz_dp = self.pb.measures(u, p, lin) if lin is not None else self.pb.measures(u, p)
         return z / self.sc, dz_du / self.sc[:, None], dz_dp / self.sc
 
+    def _ref(self, lin, dz_du, p) -> float:
+        """Residual scale: the problem's ``residual_ref(lin)`` if it has one, else the pressure
+        load ``|dV/du| max(|p|, 1e-3 s_p)`` (``zeta_0 = V``, ``zeta_1 = p``)."""
+        ref_fn = getattr(self.pb, "residual_ref", None)
+        if ref_fn is not None:
+            return ref_fn(lin)
+        return float(np.linalg.norm(dz_du[0])) * self.sc[0] * max(abs(p), 1e-3 * self.sc[1])
+
     def tangent(self, lin, t_prev: np.ndarray):
         """Unit tangent at a converged state (its linearisation ``lin``), oriented along ``t_prev``.
 
@@ -180,7 +188,7 @@ class Tracer:
                 h = float(z[k] - val)
                 c_u = dz_du[k]
                 c_p = float(dz_dp[k])
-            ref = float(np.linalg.norm(dz_du[0])) * self.sc[0] * max(abs(p), 1e-3 * self.sc[1])
+            ref = self._ref(lin, dz_du, p)
             rn = float(np.linalg.norm(R)) / ref
             if it > 0 and abs(h) < tol * max(1.0, abs(ds)):
                 if rn < tol or (step_small and rn < 100.0 * tol):
@@ -235,10 +243,12 @@ def _det_sign(solver) -> int:
     return (-1) ** nneg * (1 if schur > 0 else -1)
 
 
-def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0) -> PathPoint:
-    """The first path point (a converged state, e.g. the stress-free reference), oriented so
-    that the cavity volume increases."""
-    t_prev = np.array([1.0, 0.0, 0.0])
+def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0, t_prev: np.ndarray | None = None) -> PathPoint:
+    """The first path point (a converged state, e.g. the stress-free reference), oriented along
+    ``t_prev`` in measure space (default: the first measure, the cavity volume, increases)."""
+    if t_prev is None:
+        t_prev = np.zeros(len(tracer.sc))
+        t_prev[0] = 1.0
     lin = tracer.pb.linearize(u0, p0)
     if lin is None:
         raise ContinuationFailed("the initial state lies outside the material domain")
@@ -275,6 +285,7 @@ def trace(
     stop: Callable[[Path], str | None],
     u0: np.ndarray | None = None,
     tracer: Tracer | None = None,
+    start: PathPoint | None = None,
 ) -> Path:
     """Trace the equilibrium path from the stress-free state until ``stop(path)`` returns a reason.
 
@@ -284,6 +295,7 @@ def trace(
     settings : continuation settings (scaled units)
     stop : called after every accepted step; a non-empty string ends the trace (the reason)
     u0 : initial displacement (default zeros)
+    start : the first path point (default :func:`start_point` at ``u0``, ``p = 0``)
 
     Raises
     ------
@@ -295,7 +307,7 @@ def trace(
     if u0 is None:
         u0 = np.zeros(problem.n)
     path = Path()
-    path.points.append(start_point(tr, u0))
+    path.points.append(start if start is not None else start_point(tr, u0))
     ds = cfg.ds0
     while True:
         if len(path.points) > cfg.max_steps:

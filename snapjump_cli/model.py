@@ -29,8 +29,6 @@ import time
 from collections import deque
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from snapjump_cli.meshdata import Mesh
 from snapjump_kernels.assembly import assemble, evaluate, pressure_mass_inverse, quadrature_jacobians, reference_geometry
@@ -46,10 +44,12 @@ __all__ = ["Model", "Linearization"]
 def _cuthill_mckee(n_nodes: int, conn: np.ndarray, start: int) -> np.ndarray:
     """Breadth-first (Cuthill-McKee) node order from ``start``; neighbours by increasing degree."""
     nen = conn.shape[1]
-    r = np.repeat(conn, nen, axis=1).ravel()
-    c = np.tile(conn, (1, nen)).ravel()
-    A = sp.csr_matrix((np.ones(len(r), np.int8), (r, c)), shape=(n_nodes, n_nodes))
-    deg = np.diff(A.indptr)
+    r = np.repeat(conn, nen, axis=1).ravel().astype(np.int64)
+    c = np.tile(conn, (1, nen)).ravel().astype(np.int64)
+    pairs = np.unique(r * n_nodes + c)  # the node graph (with self-loops), rows sorted, columns sorted
+    indices = pairs % n_nodes
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(pairs // n_nodes, minlength=n_nodes))])
+    deg = np.diff(indptr)
     seen = np.zeros(n_nodes, bool)
     order = []
     for s in [start] + list(np.argsort(deg)):
@@ -60,7 +60,7 @@ def _cuthill_mckee(n_nodes: int, conn: np.ndarray, start: int) -> np.ndarray:
         while q:
             v = q.popleft()
             order.append(v)
-            nb = A.indices[A.indptr[v] : A.indptr[v + 1]]
+            nb = indices[indptr[v] : indptr[v + 1]]
             nb = nb[~seen[nb]]
             nb = nb[np.argsort(deg[nb], kind="stable")]
             seen[nb] = True
@@ -91,8 +91,10 @@ class Linearization:
             data[self.model.diag_pos] += shift
         return self.model._factor(data, -self.g, c_u, c_p)
 
-    def stiffness(self) -> sp.csr_matrix:
+    def stiffness(self) -> "scipy.sparse.csr_matrix":
         """``K_T`` alone (n x n, CSR)."""
+        import scipy.sparse as sp
+
         m, n = self.model, self.model.n
         if m.solver == "banded":
             ab = self.data.reshape(n, m.kl + 1)
@@ -379,6 +381,9 @@ class Model:
                     return None
                 s = BorderedSolver("banded", fac, K, b, c_u, float(c_p), n, nneg, self.band_ext, Kib, schur)
             else:
+                import scipy.sparse as sp
+                import scipy.sparse.linalg as spla
+
                 bd = self.border_dofs
                 data = data.copy()
                 data[self.col_pos] = b[bd]
@@ -393,7 +398,7 @@ class Model:
         self.n_factorizations += 1
         return s
 
-    def stiffness_matrix(self, u: np.ndarray, p: float) -> sp.csr_matrix:
+    def stiffness_matrix(self, u: np.ndarray, p: float) -> "scipy.sparse.csr_matrix":
         """``K_T`` alone (n x n, CSR), for stability checks and tests."""
         return self.linearize(u, p).stiffness()
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import time
 from dataclasses import dataclass, field
 
@@ -23,12 +24,18 @@ from snapjump_cli.metrics import (
     hermite_p_dV,
     path_self_crosses,
 )
+from snapjump_cli.lower_state import snap_at_fixed_volume
 from snapjump_cli.model import Model
 from snapjump_cli.settings import MeshSettings, SolverSettings
 
 log = logging.getLogger(__name__)
 
 __all__ = ["SolveFailed", "SceneResult", "solve_scene", "solve_design", "build_model", "warm_up"]
+
+
+#: How the lower state off the traced path is found: "volume-path" (continuation at fixed volume,
+#: the energy descent as its fallback) or "descent" (the energy descent only; for comparisons).
+_LOWER_STATE_SOLVER = os.environ.get("SNAPJUMP_LOWER_STATE", "volume-path")
 
 
 class SolveFailed(RuntimeError):
@@ -166,17 +173,22 @@ def solve_scene(
             st.lower, st.lower_method = None, ""
     if st.upper is not None and st.lower is None:
         why = lower_note or failure or path.stop_reason
-        low, msg = None, "no post-snap path to start from"
-        # SPEC: from the upper state along its unstable mode first; post-snap path points as fallbacks
-        for start in [None] + descent_starts(pts, st.upper, st.k_before):
-            low, msg = descend_at_volume(tracer, st.upper, start=start)
-            if low is not None:
-                break
+        low, msg = (None, "") if _LOWER_STATE_SOLVER == "descent" else snap_at_fixed_volume(tracer, st.upper)
+        lower_solver = "volume-path"
+        if low is None:
+            log.debug("%s; falling back on the energy descent", msg)
+            lower_solver = "energy-descent"
+            # from the upper state along its unstable mode first; post-snap path points as fallbacks
+            for start in [None] + descent_starts(pts, st.upper, st.k_before):
+                low, msg = descend_at_volume(tracer, st.upper, start=start)
+                if low is not None:
+                    break
         if low is None:
             raise SolveFailed(f"volume limit found (V*={st.upper.zeta[0] * sV * L**3:.4g} m^3) but no lower state "
                               f"({why}; {msg})")
         st.lower, st.lower_method = low, "descent"
-        log.info("lower state by descent (%s)", why)
+        metrics["lower_state_solver"] = lower_solver
+        log.info("lower state at fixed volume (%s): %s", why, msg)
     metrics["lower_state_method"] = st.lower_method or None
     if st.upper is None and failure:
         exc = SolveFailed(f"no volume limit reached before the continuation failed: {failure}")

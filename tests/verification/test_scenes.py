@@ -12,6 +12,7 @@ import pytest
 
 from snapjump_cli.designs import get_design
 from snapjump_cli.geometry import CapScene
+from snapjump_cli.lower_state import snap_at_fixed_volume
 from snapjump_cli.metrics import constrained_instability, descend_at_volume, descent_starts
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.solve import solve_scene
@@ -101,6 +102,20 @@ def test_descent_lands_on_the_path_lower_state(results, name, start):
     assert np.abs(low.u - st.lower.u).max() < 1e-6
 
 
+@pytest.mark.parametrize("name", ["C", "D"])
+def test_fixed_volume_path_lands_on_the_path_lower_state(results, name):
+    """The continuation at fixed volume in the pole displacement (the lower state when the path
+    does not return to V*) reaches the state the path defines, in tens of steps."""
+    r = results[name]
+    st = r.states
+    low, msg = snap_at_fixed_volume(r.tracer, st.upper)
+    assert low is not None, msg
+    E = r.model.energy
+    assert E(low.u) == pytest.approx(E(st.lower.u), rel=1e-8)
+    assert np.abs(low.u - st.lower.u).max() < 1e-6
+    assert int(msg.split(" in ")[1].split()[0]) < 100, msg  # steps
+
+
 def test_thin_cap_mesh_convergence():
     vals = [solve_scene(SCENES["cap30-clamped"], MeshSettings(order=2, nt=nt, aspect=a), SolverSettings()).metrics["dE_J"]
             for nt, a in ((1, 4.0), (2, 2.0), (4, 1.0))]
@@ -139,6 +154,12 @@ def test_ballooning_outer_cap_snap_found_by_descent():
     assert constrained_instability(r.tracer, lin) == 0
     assert constrained_instability(r.tracer, r.model.linearize(st.upper.u, st.upper.p)) <= 1
     assert m["dE_J"] > 0.05 and m["dy_pole_m"] > 0.01
+    # found by the fixed-volume path; the energy descent reaches the same state
+    assert m["lower_state_solver"] == "volume-path"
+    low, msg = descend_at_volume(r.tracer, st.upper)
+    assert low is not None, msg
+    assert r.model.energy(low.u) == pytest.approx(r.model.energy(st.lower.u), rel=1e-9)
+    assert np.abs(low.u - st.lower.u).max() < 1e-6
     # the outer cap is past its ballooning pressure maximum: when the inner cap inverts it gives up
     # volume and its pressure rises, so p_lower may exceed p* here (it does: 6102 vs 6079 Pa)
     assert np.isfinite(m["p_lower_Pa"]) and m["p_lower_Pa"] > 0
