@@ -55,7 +55,7 @@ def named_cases(names: tuple[str, ...] = ("A", "B", "C", "D")) -> list[Case]:
 
 def grid_cases(n: int = 10, seed: int = 20240605, config: Path = PAPER_GRID) -> list[Case]:
     """``n`` valid designs drawn uniformly (without replacement, fixed ``seed``) from the points of
-    the paper grid (``configs/paper_grid.yaml``, SPEC section 8); invalid ones are skipped."""
+    the paper grid (``configs/paper_grid.yaml``, docs/physics.md section 8); invalid ones are skipped."""
     from snapjump_cli.config import load_config
 
     cfg = load_config(config)

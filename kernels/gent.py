@@ -9,7 +9,8 @@ Energy density (per unit reference volume), isochoric/volumetric split::
 
 The volumetric part (the incompressibility constraint) is handled by the mixed element in
 :mod:`snapjump_kernels.assembly`. Outside the Gent domain (``Ibar_1 - 3 >= J_m`` or ``J <= 0``)
-the functions return ``False``: the caller treats that iterate as failed (SPEC pitfall c).
+the functions return ``False``: the caller treats that iterate as failed (docs/physics.md,
+pitfall c).
 """
 from __future__ import annotations
 

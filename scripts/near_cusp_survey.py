@@ -6,7 +6,7 @@ For each design: the first change of neg(K_T) after the volume limit, its relati
 
     .venv/bin/python scripts/near_cusp_survey.py named
     .venv/bin/python scripts/near_cusp_survey.py grid --n 40 --aspect 3     # paper-grid designs
-    .venv/bin/python scripts/near_cusp_survey.py extended --n 40 --aspect 2 # SPEC-extended domain
+    .venv/bin/python scripts/near_cusp_survey.py extended --n 40 --aspect 2 # extended domain (docs/physics.md section 8 widened)
 
 Prints one JSON line per design, then a summary line.
 """

@@ -1,5 +1,5 @@
 """Reproduce the README's table of the paper's scenes: dE and dy_pole of the Fig. 1 caps (every
-base reading of SPEC section 1), the outer cap's E_o, and designs A-D, at several mesh levels,
+base reading of docs/physics.md section 1), the outer cap's E_o, and designs A-D, at several mesh levels,
 beside the paper's values.
 
     .venv/bin/python scripts/scenes_table.py [--levels 2:2:2,2:3:2,2:4:2] [--scenes ...] [--jsonl out.jsonl]

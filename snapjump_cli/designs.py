@@ -1,4 +1,5 @@
-"""The named designs of the paper (S2 and S20; SPEC section 7), read from ``configs/designs.yaml``.
+"""The named designs of the paper (S2 and S20; docs/physics.md section 7), read from
+``configs/designs.yaml``.
 
 Each YAML entry holds the design parameters ``eta_i, theta_i, eta_o, theta_o, mu_ratio``
 (angles in degrees) and the paper's reported values ``paper_*`` (SI units).

@@ -1,4 +1,4 @@
-"""Actuator and single-cap geometry (paper S1, eqs 1-6; SPEC section 1).
+"""Actuator and single-cap geometry (paper S1, eqs 1-6; docs/physics.md section 1).
 
 All lengths in metres, angles in degrees at the interface (``*_deg`` fields) and
 radians inside. Coordinates are axisymmetric ``(x, y) = (r, z)``: ``x`` is the
@@ -26,7 +26,8 @@ __all__ = [
 ]
 
 BaseCondition = Literal["clamped", "roller", "roller-point", "ring-roller"]
-#: Base conditions of a single inner cap (SPEC section 1). ``outer`` caps always have a fixed base.
+#: Base conditions of a single inner cap (docs/physics.md section 1). ``outer`` caps always have
+#: a fixed base.
 BASE_CONDITIONS: tuple[str, ...] = ("clamped", "roller", "roller-point", "ring-roller")
 
 MU_ELITE_DOUBLE_32 = 0.35e6  # Pa

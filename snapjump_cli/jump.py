@@ -1,7 +1,7 @@
-"""Two-mass spring-dashpot jump model (paper Fig. 4B, S5 eqs 15-25; SPEC section 6).
+"""Two-mass spring-dashpot jump model (paper Fig. 4B, S5 eqs 15-25; docs/physics.md section 6).
 
-Conventions (``reference/jump.md``)
------------------------------------
+Conventions (``docs/physics.md`` section 6)
+-------------------------------------------
 Two point masses move on the vertical line: ``m_i`` (inner cap with its ring, at the inner cap's
 lower pole) and ``m_o`` (outer cap, at its pole), heights ``y_i`` and ``y_o`` above the ground.
 They are joined by a linear spring of stiffness ``k_s = 2 dE / dy_pole**2`` and a dashpot ``c_d``.
@@ -29,19 +29,19 @@ contacts are not missed; the apexes are the roots of ``v_i`` (sign ``+ -> -``).
 
 Jump height
 -----------
-``y_jump = max_{t >= 0} y_i(t)`` (SPEC section 6), *including* ``t = 0``, so ``y_jump >= h_imp``.
-A design that does not jump therefore reports ``y_jump = h_imp`` with ``t_peak = 0`` (the inner
-pole never rises above where it started; the paper's "no jump" for designs A and B), and
-``jumped = y_jump > h_imp``. A design that cannot jump at all (``dE <= 0``: no snap, or
-``dy_pole <= 0``) is not simulated and reports the same ``y_jump = h_imp``, ``jumped = False``
-with a reason. The simulation stops once the maximum is certified: the energy
-``E(t)`` (kinetic + gravitational + spring) never increases (dashpot, impacts with
-``alpha <= 1``, a workless resting contact), and ``M g y_i <= E + (m_o g)^2 / (2 k_s)`` (up to a
-constant), so once that bound falls below the running maximum no later height can exceed it.
-A resting phase also ends the simulation once a lift-off is provably impossible (modal envelope
-of the upward pull, :meth:`_Model.lift_margin`). ``JumpResult.complete`` is ``False`` only when
-``t_max`` / ``max_contacts`` stop it first (e.g. no dissipation at all: ``c_d = 0``,
-``alpha = 1``).
+``y_jump = max_{t >= 0} y_i(t)`` (docs/physics.md section 6), *including* ``t = 0``, so
+``y_jump >= h_imp``. A design that does not jump therefore reports ``y_jump = h_imp`` with
+``t_peak = 0`` (the inner pole never rises above where it started; the paper's "no jump" for
+designs A and B), and ``jumped = y_jump > h_imp``. A design that cannot jump at all
+(``dE <= 0``: no snap, or ``dy_pole <= 0``) is not simulated and reports the same
+``y_jump = h_imp``, ``jumped = False`` with a reason. The simulation stops once the maximum is
+certified: the energy ``E(t)`` (kinetic + gravitational + spring) never increases (dashpot,
+impacts with ``alpha <= 1``, a workless resting contact), and
+``M g y_i <= E + (m_o g)^2 / (2 k_s)`` (up to a constant), so once that bound falls below the
+running maximum no later height can exceed it. A resting phase also ends the simulation once a
+lift-off is provably impossible (modal envelope of the upward pull, :meth:`_Model.lift_margin`).
+``JumpResult.complete`` is ``False`` only when ``t_max`` / ``max_contacts`` stop it first (e.g.
+no dissipation at all: ``c_d = 0``, ``alpha = 1``).
 
 Micro-bounces: a rebound slower than ``1e-7`` times the relative-speed scale
 ``sqrt(2 dE / mu)`` while the spring presses ``m_i`` down is treated as the end of the bounce
@@ -104,7 +104,7 @@ class JumpParams:
     Parameters
     ----------
     rho : float
-        Rubber density [kg/m^3] used by :func:`masses` (reference/jump.md: 1000).
+        Rubber density [kg/m^3] used by :func:`masses` (docs/physics.md section 6: 1000).
     c_d : float
         Dashpot coefficient between the masses [kg/s].
     g : float

@@ -1,20 +1,26 @@
-"""The post-snap (lower) state at fixed cavity volume, by continuation in the pole displacement.
+"""The post-snap (lower) state at fixed cavity volume, by displacement control of the snap.
 
 When the traced pressure-volume path does not come back to ``V*`` (or comes back on an unstable
 branch), the lower state is the stable equilibrium that the isochoric snap reaches from the upper
 state. :func:`snap_at_fixed_volume` finds it by following the equilibria at ``V = V*`` under a
-point force ``F`` on the pole, parameterised by arc length in (pole displacement ``w``, ``F``):
+generalised force ``F`` along a control direction ``e``, parameterised by arc length in
+(``w = e . u``, ``F``). The control is first the pole (``e`` a unit vector on the pole's vertical
+dof: a point force; the inner cap's inversion moves the pole one way all along), then, if that
+path turns back, the fold's mode itself (``e`` the unit path tangent ``du/ds`` at the volume
+limit: design A on meshes fine along the arc needs it):
 
 * unknowns ``x = (u, p)`` (displacements and the cavity pressure, now the Lagrange multiplier of
   the volume constraint) and the load ``F``;
-* equations ``f_int(u) - p dV/du - F e_w = 0`` and ``c_V (V(u) - V*) = 0`` (``c_V`` a constant that
+* equations ``f_int(u) - p dV/du - F e = 0`` and ``c_V (V(u) - V*) = 0`` (``c_V`` a constant that
   puts the volume equation in force units);
 * the path starts at the upper state (``F = 0``: the fold in volume is an equilibrium with a zero
-  eigenvalue of the volume-constrained stiffness, so ``dF/dw = 0`` there) and leaves it in the
-  direction of the fold's unstable mode (the direction the pressure-volume path continues in);
+  eigenvalue of the volume-constrained stiffness along the fold's mode, so ``dF/dw = 0`` there)
+  and leaves it the way the pressure-volume path continues (the energy falls that way);
 * every zero of ``F`` along it is an equilibrium at ``V*``: the first one that is stable under
   volume control (inertia of the bordered ``LDL^T``) and lies below the upper state's energy is
   the lower state. It is polished by the same volume-control Newton as a lower state on the path.
+  A path that climbs above the upper state's energy (it went the way the snap does not) is given
+  up at once: the caller falls back on the energy descent.
 
 This is the classical displacement control of a snap-through, at fixed volume: the path of
 constrained equilibria is smooth where the energy landscape is a long curved valley, so it is
@@ -80,8 +86,7 @@ class _FixedVolumeLinearization:
         """Factorise ``[[K, -g, -e_w], [c_V g^T, 0, 0], [c_u^T, c_p, c_F]]``; ``None`` if singular."""
         pb, lin = self.problem, self.lin
         n = pb.model.n
-        e = np.zeros(n)
-        e[pb.pole_dof] = 1.0
+        e = pb.e
         base = lin.factor(pb.c_V * lin.g, 0.0)
         if base is None or getattr(base, "kind", "") != "banded":
             return None
@@ -95,20 +100,22 @@ class _FixedVolumeLinearization:
 
 
 class FixedVolumeProblem:
-    """Equilibria at the fixed cavity volume ``V_star`` under a pole force: the problem interface
-    of :mod:`snapjump_cli.continuation` with state ``x = (u, p)`` and load ``F``.
+    """Equilibria at the fixed cavity volume ``V_star`` under a generalised force ``F`` along
+    ``e``: the problem interface of :mod:`snapjump_cli.continuation` with state ``x = (u, p)`` and
+    load ``F``; the measures are ``(e . u, F)``.
 
     Parameters
     ----------
     model : the FE model (:class:`snapjump_cli.model.Model`)
     V_star : the volume (scaled, as ``Linearization.V``)
-    pole_dof : the free dof whose displacement ``w`` is controlled
+    e : the controlled direction (length ``model.n``; a unit vector on one dof is a point force)
     c_V : weight of the volume equation (force / volume)
     p_floor : floor of the pressure in the residual reference (as in the pressure-volume trace)
     """
 
-    def __init__(self, model, V_star: float, pole_dof: int, c_V: float, p_floor: float) -> None:
-        self.model, self.V_star, self.pole_dof, self.c_V, self.p_floor = model, V_star, pole_dof, c_V, p_floor
+    def __init__(self, model, V_star: float, e: np.ndarray, c_V: float, p_floor: float) -> None:
+        self.model, self.V_star, self.c_V, self.p_floor = model, V_star, c_V, p_floor
+        self.e = np.ascontiguousarray(e, dtype=float)
         self.n = model.n + 1
 
     def linearize(self, x: np.ndarray, F: float, stiffness: bool = True):
@@ -116,16 +123,15 @@ class FixedVolumeProblem:
         if lin is None:
             return None
         R = np.empty(self.n)
-        R[:-1] = lin.R
-        R[self.pole_dof] -= F
+        R[:-1] = lin.R - F * self.e
         R[-1] = self.c_V * (lin.V - self.V_star)
         return _FixedVolumeLinearization(self, x, F, R, lin)
 
     def measures(self, x: np.ndarray, F: float, lin=None):
-        """``zeta = (w, F)`` and their derivatives."""
+        """``zeta = (e . u, F)`` and their derivatives."""
         dz = np.zeros((2, self.n))
-        dz[0, self.pole_dof] = 1.0
-        return np.array([x[self.pole_dof], F]), dz, np.array([0.0, 1.0])
+        dz[0, :-1] = self.e
+        return np.array([float(self.e @ x[:-1]), F]), dz, np.array([0.0, 1.0])
 
     def residual_ref(self, lin) -> float:
         """The residual scale of the pressure-volume trace: ``|dV/du| max(|p|, p_floor)``."""
@@ -140,8 +146,8 @@ def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400,
     ----------
     tracer : the tracer of the pressure-volume path (its problem is the FE model)
     upper : the upper state (the first volume limit point)
-    max_steps : continuation steps of the fixed-volume path
-    max_zeros : zeros of ``F`` examined before giving up
+    max_steps : continuation steps of one fixed-volume path
+    max_zeros : zeros of ``F`` examined on one path before giving up
 
     Returns
     -------
@@ -149,15 +155,9 @@ def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400,
         The lower state as a point of the pressure-volume problem (its tangent in that problem),
         or ``None`` with the reason (the caller falls back on the energy descent).
     """
-    from snapjump_cli.metrics import _root_on_step, constrained_instability
-
     model = tracer.pb
     cfg = tracer.cfg
     sV, sp, sw = (float(s) for s in tracer.sc)
-    pole = model.pole_dof
-    direction = float(np.sign(upper.du_ds[pole]))
-    if direction == 0.0:
-        return None, "the unstable mode does not move the pole"
     lin_up = model.linearize(upper.u, upper.p)
     if lin_up is None:
         return None, "upper state outside the material domain"
@@ -165,45 +165,69 @@ def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400,
     W_up = lin_up.E
     p_floor = 1e-3 * sp
     ref_up = float(np.linalg.norm(lin_up.g)) * max(abs(upper.p), p_floor)
-    pb = FixedVolumeProblem(model, V_star, pole, c_V=ref_up / sV, p_floor=p_floor)
-    sF = sp * sV / sw  # a force: pressure x volume / length
-    fcfg = replace(cfg, scales=(sw, sF), max_steps=max_steps, tol_path=cfg.tol_path)
-    ftr = Tracer(pb, fcfg)
     x0 = np.concatenate([upper.u, [upper.p]])
-    state = {"zeros": 0, "found": None, "msg": ""}
+    # controls, in turn: the pole (the inner cap's inversion moves it one way all along), then the
+    # fold's mode itself, both ways (where the pole's path turns back)
+    pole = model.pole_dof
+    e_pole = np.zeros(model.n)
+    e_pole[pole] = 1.0
+    nrm = float(np.linalg.norm(upper.du_ds))
+    attempts = []
+    if upper.du_ds[pole] != 0.0:
+        attempts.append(("pole", e_pole, float(np.sign(upper.du_ds[pole])), sw))
+    if nrm > 0.0:
+        attempts += [("mode", upper.du_ds / nrm, d, math.sqrt(model.n) * sw) for d in (1.0, -1.0)]
+    msgs = []
+    for name, e, direction, s_w in attempts:
+        pb = FixedVolumeProblem(model, V_star, e, c_V=ref_up / sV, p_floor=p_floor)
+        fcfg = replace(cfg, scales=(s_w, sp * sV / s_w), max_steps=max_steps)  # force = p V / length
+        found, msg, n_steps, n_newton = _follow(tracer, pb, fcfg, x0, direction, W_up, V_star / sV,
+                                                1e-3 * cfg.tol * ref_up, max_zeros)
+        if found is not None:
+            lin, it = found
+            t, v, q, z = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
+            return (PathPoint(lin.u, lin.p, z, t, v, q, math.nan, it),
+                    f"fixed-volume path ({name} control): stable state in {n_steps} steps ({n_newton} Newton iterations)")
+        msgs.append(f"{name} {'+' if direction > 0 else '-'}: {msg} after {n_steps} steps")
+    return None, "fixed-volume path: " + "; ".join(msgs)
+
+
+def _follow(tracer: Tracer, pb: FixedVolumeProblem, fcfg, x0: np.ndarray, direction: float, W_up: float,
+            V_target: float, F_tol: float, max_zeros: int):
+    """Follow the fixed-volume path from ``x0`` along ``direction * e``; returns
+    ``((linearisation, iterations) or None, message, steps, Newton iterations)``."""
+    from snapjump_cli.metrics import _root_on_step, constrained_instability
+
+    model = tracer.pb
+    ftr = Tracer(pb, fcfg)
+    state = {"zeros": 0, "found": None}
 
     def stop(path) -> str | None:
         pts = path.points
         a, b = pts[-2], pts[-1]
+        if not model.energy(b.u[:-1]) <= W_up + 1e-9 * max(1.0, abs(W_up)):
+            return "climbed above the upper state's energy"
         if not (a.p * b.p < 0.0 or (b.p == 0.0 and a.p != 0.0)):
             return None
         state["zeros"] += 1
-        root = _root_on_step(ftr, a, b, pts[-3] if len(pts) > 2 else None, lambda pt: pt.p,
-                             1e-3 * cfg.tol * ref_up, 40)
-        u, p = root.u[:-1].copy(), float(root.u[-1])
-        res = tracer.correct(u, p, None, None, 0.0, target=(0, V_star / sV))
+        root = _root_on_step(ftr, a, b, pts[-3] if len(pts) > 2 else None, lambda pt: pt.p, F_tol, 40)
+        res = tracer.correct(root.u[:-1].copy(), float(root.u[-1]), None, None, 0.0, target=(0, V_target))
         if res is not None:
             lin, it = res
             n_unstable = constrained_instability(tracer, lin)
             below = lin.E < W_up - 1e-12 * max(1.0, abs(W_up))
             log.debug("fixed-volume path: F = 0 at w = %.6g (%d unstable, W %.6g vs upper %.6g)",
-                      lin.u[pole], n_unstable, lin.E, W_up)
+                      float(pb.e @ lin.u), n_unstable, lin.E, W_up)
             if n_unstable == 0 and below:
                 state["found"] = (lin, it)
                 return "stable state at V*"
         if state["zeros"] >= max_zeros:
-            return "no stable state among the zeros of the pole force"
+            return "no stable state among the zeros of the force"
         return None
 
     try:
         start = start_point(ftr, x0, 0.0, t_prev=np.array([direction, 0.0]))
         path = trace(pb, fcfg, stop, u0=x0, tracer=ftr, start=start)
     except ContinuationFailed as exc:
-        return None, f"fixed-volume path failed: {exc}"
-    if state["found"] is None:
-        return None, f"fixed-volume path: {path.stop_reason or 'no stable state found'} after {len(path.points) - 1} steps"
-    lin, it = state["found"]
-    t, v, q, z = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
-    n_steps = len(path.points) - 1
-    return (PathPoint(lin.u, lin.p, z, t, v, q, math.nan, it),
-            f"fixed-volume path: stable state in {n_steps} steps ({ftr.n_newton} Newton iterations)")
+        return None, f"failed ({exc})", 0, ftr.n_newton
+    return state["found"], path.stop_reason, len(path.points) - 1, ftr.n_newton

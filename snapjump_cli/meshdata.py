@@ -18,7 +18,7 @@ Conventions
   offset 0, so V is the true cavity volume.
   Single inner cap (loaded from above): pole -> base corner along the upper surface; outer cap
   alone (loaded from below): base corner -> pole along the lower surface. For single caps the
-  offset makes V(X) = 0, i.e. V is the supplied volume dV of SPEC section 3
+  offset makes V(X) = 0, i.e. V is the supplied volume dV of docs/physics.md section 3
   (inner: V_under(X) - V_under(x); outer: V_under(x) - V_under(X)).
 """
 from __future__ import annotations

@@ -1,17 +1,18 @@
-"""Snap metrics of SPEC section 5 from a traced path: V*, p*, the lower state, dE two ways.
+"""Snap metrics (docs/physics.md section 5) from a traced path: V*, p*, the lower state, dE two ways.
 
 :class:`SnapTracker` is the continuation's stop criterion: it watches the accepted points, and
 
 1. at the first limit point in volume (``dV/ds`` changes sign from + to -) locates it precisely
-   as the root of ``dV/ds`` (regula falsi on the arc length of a re-solved step, SPEC pitfall d):
+   as the root of ``dV/ds`` (regula falsi on the arc length of a re-solved step, docs/physics.md, pitfall d):
    the *upper state* at ``V*``;
 2. follows the path until the volume comes back to ``V*`` with ``dV/ds > 0`` and solves that
    state exactly at ``V = V*`` (volume control): the *lower state* (``lower_state_method="path"``);
 3. stops (unless the whole curve was asked for) or reports that the path did not come back.
 
-Where the path does not come back to ``V*`` (it can fold several times and turn back, SPEC
-section 5) or comes back on an unstable branch, the lower state is found instead by
-:func:`descend_at_volume`: a volume-constrained energy descent (implicit gradient flow in pseudo
+Where the path does not come back to ``V*`` (it can fold several times and turn back,
+docs/physics.md section 5) or comes back on an unstable branch, the lower state is found instead
+at fixed volume (:mod:`snapjump_cli.lower_state`), with :func:`descend_at_volume` as the fallback:
+a volume-constrained energy descent (implicit gradient flow in pseudo
 time) from the upper state, started along the path's unstable direction
 (``lower_state_method="descent"``). Stability at fixed volume is read off the inertia of the
 band LDL^T (:func:`constrained_instability`).

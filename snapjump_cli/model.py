@@ -1,6 +1,6 @@
 """Mesh + materials -> the small problem interface the continuation needs.
 
-The model works in scaled units (SPEC pitfall e): lengths / ``L`` (the inner cap radius),
+The model works in scaled units (docs/physics.md, pitfall e): lengths / ``L`` (the inner cap radius),
 stresses / ``S`` (the inner cap's shear modulus), so energies are in ``S L^3`` and volumes in
 ``L^3``. Unknowns are the free displacement dofs ``u`` (constrained dofs are zero and dropped)
 and the cavity pressure ``p``.
@@ -10,7 +10,7 @@ Interface used by :mod:`snapjump_cli.continuation` (nothing about meshes leaks t
 * ``n`` - number of free dofs
 * ``linearize(u, p)`` - one assembly: the residual ``R = f_int(u) - p dV/du`` and, on demand,
   the factorisation of the bordered matrix ``[[K_T, dR/dp], [c_u^T, c_p]]`` (``None`` if the
-  iterate left the material domain: a failed iterate, SPEC pitfall c)
+  iterate left the material domain: a failed iterate, docs/physics.md, pitfall c)
 * ``measures(u, p)`` - the path measures ``zeta = (V, p, w)`` (cavity volume, pressure, pole
   displacement) with their derivatives; the arc length is measured in this space
 * ``energy(u)`` - the strain energy

@@ -1,4 +1,5 @@
-"""Apply the mass-spring jump model (SPEC section 6) to sweep results and rank the designs.
+"""Apply the mass-spring jump model (docs/physics.md section 6) to sweep results and rank
+the designs.
 
 Per row:
 

@@ -1,4 +1,4 @@
-"""One scene, end to end: mesh -> model -> continuation -> snap metrics (SPEC sections 3-5).
+"""One scene, end to end: mesh -> model -> continuation -> snap metrics (docs/physics.md sections 3-5).
 
 ``solve_scene`` is what ``snapjump curve`` and every sweep worker call. Everything is computed in
 scaled units (lengths / R, stresses / mu of the inner or only cap) and converted back to SI here.

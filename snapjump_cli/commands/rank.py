@@ -20,8 +20,8 @@ _HELP = """Apply the mass-spring jump model to sweep results and rank the design
 \b
 For every `ok` row: masses m_i, m_o = rho * (V_inner_solid_m3, V_outer_solid_m3), spring
 k_s = 2 dE / dy_pole^2 precompressed by dy_pole, release from h_imp_m, and y_jump_m = the
-highest height of the inner pole (SPEC section 6). `no_snap` rows get y_jump_m = 0 with
-the reason; invalid and failed rows get NaN.
+highest height of the inner pole (docs/physics.md section 6). `no_snap` rows get
+y_jump_m = 0 with the reason; invalid and failed rows get NaN.
 
 Prints the top-N table (lengths in mm, energies in mJ), writes the ranked table (sorted
 by y_jump_m, column `rank`), atomically, and with --plots draws Fig. 4A (energy release

@@ -35,7 +35,7 @@ def test_smoke_sweep_and_rank_with_the_real_solver(tmp_path, capsys, monkeypatch
     assert list(inv["status"]) == ["invalid_geometry"] * 2 and inv["n_nodes"].isna().all()  # never meshed
     solved = df[df["theta_o_deg"] == 90]
     assert len(solved) == 2
-    for _, r in solved.iterrows():  # B and C snap (SPEC section 7)
+    for _, r in solved.iterrows():  # B and C snap (docs/physics.md section 7)
         assert r["status"] == "ok", f"mu_ratio={r['mu_ratio']}: {r['status']}: {r['error']}"
         assert r["mesh_order"] == 1 and r["n_nodes"] > 0 and r["n_dofs"] > 0
         assert r["V_inner_solid_m3"] > 0 and r["V_outer_solid_m3"] > 0 and r["t_total_s"] > 0

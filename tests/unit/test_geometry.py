@@ -21,7 +21,7 @@ def _eq3(eta_i, theta_i_deg, eta_o, theta_o_deg, R_i):
 def test_named_designs_table():
     d = named_designs()
     assert set(NAMES) <= set(d)
-    # SPEC section 7
+    # docs/physics.md section 7
     assert (d["C"]["eta_i"], d["C"]["theta_i"], d["C"]["eta_o"], d["C"]["theta_o"], d["C"]["mu_ratio"]) == (
         8.5, 60, 16.5, 90, 5.8)
     assert (d["D"]["eta_i"], d["D"]["theta_i"], d["D"]["eta_o"], d["D"]["theta_o"]) == (6.2, 80, 12.1, 82)

@@ -1,4 +1,4 @@
-"""Tests of the two-mass jump model (snapjump_cli.jump; SPEC section 6, reference/jump.md)."""
+"""Tests of the two-mass jump model (snapjump_cli.jump; docs/physics.md section 6)."""
 from __future__ import annotations
 
 import math
@@ -20,7 +20,7 @@ from snapjump_cli.jump import (
 )
 
 RHO = 1000.0
-# paper-like inputs (SPEC section 7; volumes in m^3 times rho)
+# paper-like inputs (docs/physics.md section 7; volumes in m^3 times rho)
 C = dict(dE_J=31.4e-3, dy_pole_m=20.89e-3, m_i_kg=RHO * 1.1224e-5, m_o_kg=RHO * 9.170e-6)
 D = dict(dE_J=0.324, dy_pole_m=31.7e-3, m_i_kg=RHO * 2.42e-5, m_o_kg=RHO * 1.72e-5)
 # weak designs with design-C masses

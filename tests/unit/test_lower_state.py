@@ -25,11 +25,11 @@ def test_fixed_volume_residual_and_its_jacobian():
     M = _model()
     u, p = _state(M)
     lin0 = M.linearize(u, p)
-    pb = FixedVolumeProblem(M, lin0.V + 1e-3, M.pole_dof, c_V=2.0, p_floor=1e-3)
+    e = np.random.default_rng(5).standard_normal(M.n)
+    e /= np.linalg.norm(e)
+    pb = FixedVolumeProblem(M, lin0.V + 1e-3, e, c_V=2.0, p_floor=1e-3)
     x, F = np.concatenate([u, [p]]), 0.05
     L = pb.linearize(x, F)
-    e = np.zeros(M.n)
-    e[M.pole_dof] = 1.0
     assert np.allclose(L.R[:-1], lin0.R - F * e, rtol=0, atol=1e-12)
     assert L.R[-1] == 2.0 * (lin0.V - pb.V_star)
     # the bordered system [[dR/dx, dR/dF], [c_x, c_F]] with an arbitrary last row
@@ -51,7 +51,9 @@ def test_fixed_volume_residual_and_its_jacobian():
 
 def test_fixed_volume_measures():
     M = _model()
-    pb = FixedVolumeProblem(M, 1.0, M.pole_dof, c_V=1.0, p_floor=1e-3)
+    e = np.zeros(M.n)
+    e[M.pole_dof] = 1.0  # a point force on the pole
+    pb = FixedVolumeProblem(M, 1.0, e, c_V=1.0, p_floor=1e-3)
     x = np.arange(pb.n, dtype=float)
     z, dz, dzF = pb.measures(x, 0.25)
     assert z.tolist() == [x[M.pole_dof], 0.25]

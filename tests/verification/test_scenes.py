@@ -1,5 +1,5 @@
-"""Snap metrics of the paper's scenes at the default mesh: built-in consistency checks (SPEC
-section 5), the comparisons with the paper that the SPEC says must hold, and regression values.
+"""Snap metrics of the paper's scenes at the default mesh: built-in consistency checks
+(docs/physics.md section 5), the comparisons with the paper that must hold, and regression values.
 
 Regression values were produced by ``snapjump curve`` at the default settings (order 2, nt 2,
 aspect 2) and are listed in the README table beside the paper's values; a change of more than
@@ -81,7 +81,7 @@ def test_designs_C_and_D_against_paper(results):
     assert c["dE_J"] == pytest.approx(31.4e-3, rel=0.10)
     assert c["dy_pole_m"] == pytest.approx(20.89e-3, rel=0.12)
     assert d["dE_J"] == pytest.approx(0.324, rel=0.06)
-    # D's pole travel is ~23 % above the paper's (SPEC section 7 reports ~20 % from an independent
+    # D's pole travel is ~23 % above the paper's (docs/physics.md section 7 reports ~20 % from an independent
     # solver); asserted as a regression above, documented in the README
     for m in (c, d):
         assert 0 < m["h_imp_m"] < m["L0_m"]
