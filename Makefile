@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install run test bench stress clean
+.PHONY: install run test bench bench-mesh stress clean
 
 install: $(STAMP)
 
@@ -21,8 +21,13 @@ run: install
 test: install
 	$(BIN)/python -m pytest -q -x --durations=15
 
+# throughput and answers on the seeded paper-grid sample (-j 2), against bench/regression/baseline.json
 bench: install
-	$(BIN)/python -m bench.run_bench $(BENCH_ARGS)
+	$(BIN)/python -m bench.regression compare -j 2 --report bench/out/THROUGHPUT.md --out bench/out/regression_rows.json $(BENCH_ARGS)
+
+# run time against error per mesh setting (hours; resumable)
+bench-mesh: install
+	$(BIN)/python -m bench.run_bench $(BENCH_MESH_ARGS)
 
 stress: install
 	$(BIN)/python -m pytest -q -m stress tests/

@@ -35,6 +35,9 @@ import numpy as np
 from bench.cases import PAPER_GRID, REPO, cap_cases
 
 BASELINE = Path(__file__).resolve().parent / "regression" / "baseline.json"
+#: Rows whose baseline answer was shown to be wrong, with the reason (``id -> reason``): reported,
+#: not counted as a regression.
+ACCEPTED = Path(__file__).resolve().parent / "regression" / "accepted.json"
 #: Flags every row must keep.
 FLAGS = ("status", "snaps", "self_crossing", "mesh_sensitive")
 #: Metrics compared with a relative tolerance.
@@ -211,6 +214,7 @@ def compare(args) -> int:
     items = [s for s in scenes(doc["n_grid"], doc["seed"]) if not args.only or s["kind"] in args.only]
     if args.limit:
         items = items[: args.limit]
+    accepted = json.loads(ACCEPTED.read_text()) if ACCEPTED.exists() else {}
     t0 = time.perf_counter()
     rows = solve_all(items, args.jobs)
     wall = time.perf_counter() - t0
@@ -222,7 +226,9 @@ def compare(args) -> int:
         for k in METRICS:
             if b.get(k) and r.get(k) is not None:
                 worst[k] = max(worst[k], abs(r[k] - b[k]) / abs(b[k]))
-        if diff:
+        if diff and r["id"] in accepted:
+            print(f"{r['id']}: " + "; ".join(diff) + f"  [accepted: {accepted[r['id']]}]")
+        elif diff:
             bad += 1
             print(f"{r['id']}: " + "; ".join(diff))
     tb = sum(base[r["id"]]["wall_s"] for r in rows)

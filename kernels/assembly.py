@@ -147,6 +147,7 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
     fe = np.empty(nd)
     Ke = np.empty((nd, nd))
     G = np.empty((npr, nd))
+    H = np.empty((npr, nd))
     g = np.empty(npr)
     pb = np.empty(npr)
     DB = np.empty((5, nd))
@@ -208,14 +209,18 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
                         D[k, m] = W * (d2psi[q, k, m] + pq * d2Jq[q, k, m])
                 _add_btdb_lower(dNdX[e, q], N_ref[q], Rq[e, q], D, DB, Ke)
         if want >= 2:
-            # kappa G^T M^-1 G (lower triangle)
+            # kappa G^T M^-1 G (lower triangle) as G^T H with H = kappa M^-1 G
             for k in range(npr):
-                for m in range(npr):
-                    c = ka * Minv[e, k, m]
-                    for i in range(nd):
-                        gik = c * G[k, i]
-                        for j in range(i + 1):
-                            Ke[i, j] += gik * G[m, j]
+                for j in range(nd):
+                    s = 0.0
+                    for m in range(npr):
+                        s += Minv[e, k, m] * G[m, j]
+                    H[k, j] = ka * s
+            for k in range(npr):
+                for i in range(nd):
+                    gik = G[k, i]
+                    for j in range(i + 1):
+                        Ke[i, j] += gik * H[k, j]
         # scatter (Ke holds the lower triangle of a symmetric matrix)
         for i in range(nd):
             di = edofs[e, i]

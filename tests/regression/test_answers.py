@@ -1,0 +1,37 @@
+"""Regression of the answers: a few rows of the committed baseline (bench/regression/baseline.json,
+recorded by the code before the speed work) solved again as the sweep solves them. Every row keeps
+its status and flags, and dE, dy_pole and h_imp stay within 0.5 % (the whole sample, 257 rows, is
+compared by ``make bench``)."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from bench.regression import BASELINE, compare_rows, scenes, solve_one
+
+#: fast path rows (two of them self-crossing) and an invalid design
+IDS = ("grid-0815", "grid-0169", "grid-1601", "grid-3364", "grid-3426", "grid-0321")
+
+
+@pytest.fixture(scope="module")
+def baseline():
+    doc = json.loads(BASELINE.read_text())
+    return doc, {r["id"]: r for r in doc["rows"]}
+
+
+@pytest.mark.parametrize("rid", IDS)
+def test_row_keeps_its_answer(baseline, rid):
+    doc, rows = baseline
+    item = next(s for s in scenes(doc["n_grid"], doc["seed"]) if s["id"] == rid)
+    new = solve_one(item)
+    assert compare_rows(rows[rid], new, 0.005) == []
+
+
+def test_compare_rows_detects_a_changed_answer(baseline):
+    _, rows = baseline
+    b = rows["grid-0815"]
+    assert compare_rows(b, dict(b), 0.005) == []
+    assert compare_rows(b, {**b, "dE_J": b["dE_J"] * 1.006}, 0.005)
+    assert compare_rows(b, {**b, "self_crossing": not b["self_crossing"]}, 0.005)
+    assert compare_rows(b, {**b, "status": "failed"}, 0.005)
