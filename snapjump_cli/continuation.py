@@ -41,6 +41,9 @@ class Problem(Protocol):
 
     n: int
 
+    # optional: ``newton(u, p, scales, tol, max_newton, target=None, riks=None)``, the corrector
+    # of :meth:`Tracer.correct` compiled for this problem (see :meth:`snapjump_cli.model.Model.newton`)
+
     def linearize(self, u: np.ndarray, p: float, stiffness: bool = True):
         """Object with ``.R`` (residual) and ``.factor(c_u, c_p)`` -> solver with ``.solve(rhs)``
         for the bordered matrix ``[[dR/du, dR/dp], [c_u^T, c_p]]``; ``None`` for a failed iterate.
@@ -74,6 +77,7 @@ class ContinuationSettings:
     u_scale: float = 0.0
     ds_bifurcation: float = 1e-3
     tol_path: float | None = None  # Newton tolerance of ordinary path points (None: tol)
+    fused: bool = True  # use the problem's compiled corrector (``problem.newton``) if it has one
 
 
 @dataclass
@@ -170,6 +174,16 @@ class Tracer:
         """
         cfg = self.cfg
         tol = cfg.tol if tol is None else tol
+        fused = getattr(self.pb, "newton", None) if cfg.fused else None
+        if fused is not None:  # the same iteration, compiled (snapjump_kernels.corrector)
+            riks = None
+            if target is None:
+                t_z, t_u, u_0 = t
+                riks = (z0, t_z, t_u, u_0, ds, self.alpha**2)
+            res = fused(u, p, self.sc, tol, cfg.max_newton, target=target, riks=riks)
+            if res is not None:
+                self.n_newton += res[1]
+            return res
         u = u.copy()
         step_small = False
         for it in range(0, cfg.max_newton + 1):

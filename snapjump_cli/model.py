@@ -34,6 +34,7 @@ from snapjump_cli.meshdata import Mesh
 from snapjump_kernels.assembly import assemble, evaluate, pressure_mass_inverse, quadrature_jacobians, reference_geometry
 from snapjump_kernels.banded import band_ldlt_solve, bordered_factor, bordered_solve, envelope_extents, sym_band_matvec
 from snapjump_kernels.cavity import cavity_assemble
+from snapjump_kernels.corrector import newton_correct
 from snapjump_kernels.elements import element_tables
 
 log = logging.getLogger(__name__)
@@ -259,6 +260,7 @@ class Model:
         self.t_assembly = 0.0
         self.t_residual = 0.0
         self.t_factor = 0.0
+        self.t_newton = 0.0  # in the compiled corrector (assembly, factorisation and solves together)
 
     # ---- displacement bookkeeping --------------------------------------------------------------
     def full_displacement(self, u: np.ndarray) -> np.ndarray:
@@ -338,6 +340,38 @@ class Model:
         if not ok:
             return None
         return Linearization(self, u, p, R, g, data if stiffness else None, V + self.V_offset, E)
+
+    def newton(self, u: np.ndarray, p: float, scales: np.ndarray, tol: float, max_newton: int,
+               target: tuple[int, float] | None = None, riks: tuple | None = None) -> tuple[Linearization, int] | None:
+        """The continuation's Newton corrector in one compiled call (:mod:`snapjump_kernels.corrector`).
+
+        ``scales`` are those of the path measures ``(V, p, w)``; the constraint is ``target =
+        (k, value)`` (``zeta_k = value``) or ``riks = (z0, t_z, t_u, u_ref, ds, alpha2)``. Returns
+        the linearisation at the converged state (its stiffness assembled, not factorised) and the
+        iterations, or ``None`` if Newton failed.
+        """
+        t0 = time.perf_counter()
+        if riks is not None:
+            z0, t_z, t_u, u_ref, ds, alpha2 = riks
+            k, val = -1, 0.0
+        else:
+            k, val = target
+            z0 = t_z = np.zeros(3)
+            t_u = u_ref = np.zeros(self.n)
+            ds, alpha2 = 0.0, 0.0
+        ok, it, n_fac, u1, p1, R, g, data, V, E = newton_correct(
+            np.ascontiguousarray(u, dtype=float), float(p), int(k), float(val), np.asarray(z0, float),
+            np.asarray(t_z, float), np.ascontiguousarray(t_u, dtype=float), np.ascontiguousarray(u_ref, dtype=float),
+            float(ds), float(alpha2), np.asarray(scales, float), float(tol), int(max_newton), self.pole_dof,
+            float(self.V_offset), self.kl, self.band_ext, self.dofmap, self.X, self.conn, self.mat, self.mu,
+            self.jm, self.kappa, self.dNdX, self.N_ref, self.Rq, self.Wq, self.Np, self.Minv, self.edofs, self.epos,
+            self.edges, self.edge_dofs, self.edge_pos)
+        self.n_assemblies += it + 1
+        self.n_factorizations += n_fac
+        self.t_newton += time.perf_counter() - t0
+        if not ok:
+            return None
+        return Linearization(self, u1, p1, R, g, data, V, E), it
 
     def energy_volume(self, u: np.ndarray) -> tuple[float, float] | None:
         """Strain energy and cavity volume (scaled, with the offset) from one energy-only pass;

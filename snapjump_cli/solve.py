@@ -128,6 +128,7 @@ def solve_scene(
         scales=scales, tol=solver.tol, ds0=solver.ds0 / 0.02 * 0.05, ds_max=solver.ds_max,
         max_steps=solver.max_steps, max_newton=solver.max_newton, max_turn_deg=solver.max_turn_deg,
         u_scale=solver.u_scale * sc["sw"], tol_path=solver.tol_path,
+        fused=os.environ.get("SNAPJUMP_PROFILE_PHASES", "") != "1",
     )
     tracer = Tracer(model, cfg)
     if outer_alone:
@@ -242,6 +243,7 @@ def solve_scene(
         max_dilatation=float(max(model.max_dilatation(pt.u) for pt in ([st.upper, st.lower] if st.lower else pts[-1:]))),
         stop_reason=path.stop_reason, lower_state_note=lower_note, fold_note=st.fold_note, mesh_s=t_mesh,
         t_assembly_s=model.t_assembly, t_residual_s=model.t_residual, t_factor_s=model.t_factor,
+        t_newton_s=model.t_newton,
         n_factorizations=model.n_factorizations, n_assemblies=model.n_assemblies,
         wall_s=time.perf_counter() - t0,
     )
@@ -280,7 +282,7 @@ def _outer_energy(tracer: Tracer, path: Path, model: Model, E_unit: float, sV: f
 MESH_SENSITIVE_REL = 0.05
 
 
-_TIME_KEYS = ("wall_s", "mesh_s", "t_assembly_s", "t_residual_s", "t_factor_s")
+_TIME_KEYS = ("wall_s", "mesh_s", "t_assembly_s", "t_residual_s", "t_factor_s", "t_newton_s")
 
 
 def suspicious_snap(m: dict) -> str:
@@ -313,7 +315,8 @@ def solve_design(
     reported, the first ones kept as ``dE_J_coarse`` / ``dy_pole_m_coarse``, and ``mesh_sensitive``
     is set when dE or dy_pole moved by more than ``MESH_SENSITIVE_REL``, the refined run no longer
     snaps or fails, or its fold is still a near-cusp. For a re-solved design the timing keys
-    (``wall_s``, ``mesh_s``, ``t_assembly_s``, ``t_residual_s``, ``t_factor_s``) cover both solves.
+    (``wall_s``, ``mesh_s``, ``t_assembly_s``, ``t_residual_s``, ``t_factor_s``, ``t_newton_s``)
+    cover both solves.
     """
     t0 = time.perf_counter()
     m = solve_scene(design, mesh, solver).metrics
