@@ -23,7 +23,7 @@ test: install
 
 # throughput and answers on the seeded paper-grid sample (-j 2), against bench/regression/baseline.json
 bench: install
-	$(BIN)/python -m bench.regression compare -j 2 --report bench/out/THROUGHPUT.md --out bench/out/regression_rows.json $(BENCH_ARGS)
+	$(BIN)/python -m bench.regression compare -j 2 --phase-sample 40 --report bench/out/THROUGHPUT.md --out bench/out/regression_rows.json $(BENCH_ARGS)
 
 # run time against error per mesh setting (hours; resumable)
 bench-mesh: install

@@ -46,7 +46,7 @@ METRICS = ("dE_J", "dy_pole_m", "h_imp_m")
 EXTRA = ("lower_state_method", "p_star_Pa", "V_star_m3", "dE_path_J", "dy_pole_upper_m", "L0_m", "p_max_Pa",
          "n_steps", "n_newton", "n_factorizations", "mesh_check", "fold_note", "error",
          "dE_J_coarse", "dy_pole_m_coarse", "stop_reason", "lower_state_note", "t_assembly_s", "t_factor_s",
-         "mesh_s", "t_residual_s", "n_assemblies")
+         "mesh_s", "t_residual_s", "n_assemblies", "t_newton_s")
 NAMED = ("A", "B", "C", "D", "S20b", "S20c")
 
 
@@ -93,8 +93,13 @@ def _clean(v):
     return v
 
 
-def solve_one(sc: dict) -> dict:
-    """Solve one regression scene; returns its row (flags, metrics, counts, wall time)."""
+def solve_one(sc: dict, phases: bool = False) -> dict:
+    """Solve one regression scene; returns its row (flags, metrics, counts, wall time).
+    ``phases``: through the Python corrector, whose timers split assembly and factorisation."""
+    if phases:
+        os.environ["SNAPJUMP_PROFILE_PHASES"] = "1"
+    else:
+        os.environ.pop("SNAPJUMP_PROFILE_PHASES", None)
     from snapjump_cli import sweep
     from snapjump_cli.config import load_config
     from snapjump_cli.designs import get_design
@@ -116,7 +121,7 @@ def solve_one(sc: dict) -> dict:
                 m = solve_design(d, cfg.mesh, cfg.solver)
                 sweep._result_to_row(row, m)
                 for k in ("n_factorizations", "fold_note", "stop_reason", "lower_state_note", "t_assembly_s",
-                          "t_factor_s", "mesh_s", "t_residual_s", "n_assemblies"):
+                          "t_factor_s", "mesh_s", "t_residual_s", "n_assemblies", "t_newton_s"):
                     row[k] = m.get(k)
             except Exception as e:  # noqa: BLE001 - recorded, as the sweep does
                 row.update(status="failed", error=f"{type(e).__name__}: {e}"[:500])
@@ -133,15 +138,17 @@ def solve_one(sc: dict) -> dict:
     return {k: _clean(row.get(k)) for k in keep}
 
 
-def solve_all(items: list[dict], n_jobs: int) -> list[dict]:
+def solve_all(items: list[dict], n_jobs: int, phases: bool = False) -> list[dict]:
+    """Solve ``items`` with ``n_jobs`` worker processes, one thread each (as the sweep does)."""
     from snapjump_cli.solve import warm_up
 
     warm_up()
     if n_jobs == 1:
-        return [solve_one(s) for s in items]
-    from joblib import Parallel, delayed
+        return [solve_one(s, phases) for s in items]
+    from joblib import Parallel, delayed, parallel_config
 
-    return Parallel(n_jobs=n_jobs, batch_size=1)(delayed(solve_one)(s) for s in items)
+    with parallel_config(backend="loky", inner_max_num_threads=1):
+        return Parallel(n_jobs=n_jobs, batch_size=1)(delayed(solve_one)(s, phases) for s in items)
 
 
 def record(args) -> int:
@@ -195,9 +202,12 @@ def throughput_table(rows: list[dict], wall: float, jobs: int) -> list[str]:
            f"- per valid design: p50 {_pct(w, 50):.3f} s, p90 {_pct(w, 90):.3f} s, max {w.max() if len(w) else 0:.2f} s",
            "", "| phase | share of solve time |", "|---|---|"]
     tot = w.sum()
-    ph = {k: sum((r.get(k) or 0.0) for r in valid) for k in ("mesh_s", "t_assembly_s", "t_residual_s", "t_factor_s")}
+    keys = ("mesh_s", "t_assembly_s", "t_residual_s", "t_factor_s", "t_newton_s")
+    ph = {k: sum((r.get(k) or 0.0) for r in valid) for k in keys}
+    ph = {k: v for k, v in ph.items() if v > 0 or k != "t_newton_s"}
     names = {"mesh_s": "mesh (gmsh)", "t_assembly_s": "assembly with stiffness", "t_residual_s": "energy/residual passes",
-             "t_factor_s": "factorisation (band LDL^T + border)"}
+             "t_factor_s": "factorisation (band LDL^T + border)",
+             "t_newton_s": "compiled Newton corrector (assembly, factorisation, solves)"}
     for k, v in ph.items():
         out.append(f"| {names[k]} | {v / tot:.1%} |")
     out.append(f"| other (solves, Python, metrics) | {1 - sum(ph.values()) / tot:.1%} |")
@@ -255,6 +265,15 @@ def compare(args) -> int:
                       f"(**{tb_g / max(tn_g, 1e-9):.2f}x**)"]
             lines += ["- (its wall time per design set: CPU-s / jobs)"] + throughput_table(
                 base_rows, bw or tb_g / max(doc.get("jobs", 1), 1), doc.get("jobs", 1))[1:]
+        if args.phase_sample:
+            # the same solves through the Python corrector, whose timers split assembly and factorisation
+            sample = [s_ for s_ in items if s_["kind"] == "grid"][: args.phase_sample]
+            t1 = time.perf_counter()
+            prow = solve_all(sample, args.jobs, phases=True)
+            pw = time.perf_counter() - t1
+            lines += ["", f"## Split by phase (the first {len(sample)} sample points through the Python corrector, "
+                      "whose timers split the phases; the compiled corrector does the same work)", ""]
+            lines += throughput_table(prow, pw, args.jobs)[2:]
         lines += ["", "## Answers", "", f"{len(rows)} rows against the baseline: {bad} differ beyond {args.tol:.2%}; "
                   "largest relative changes " + ", ".join(f"{k} {v:.2e}" for k, v in worst.items())]
         Path(args.report).parent.mkdir(parents=True, exist_ok=True)
@@ -279,6 +298,8 @@ def main(argv: list[str] | None = None) -> int:
     c.add_argument("--tol", type=float, default=0.005)
     c.add_argument("--out", default="", help="write the new rows (JSON) here")
     c.add_argument("--report", default="", help="write the throughput report (markdown) here")
+    c.add_argument("--phase-sample", type=int, default=0,
+                   help="also solve this many grid points through the Python corrector for the phase split")
     a = ap.parse_args(argv)
     return record(a) if a.cmd == "record" else compare(a)
 
