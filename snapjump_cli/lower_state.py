@@ -196,7 +196,7 @@ def _follow(tracer: Tracer, pb: FixedVolumeProblem, fcfg, x0: np.ndarray, direct
             V_target: float, F_tol: float, max_zeros: int):
     """Follow the fixed-volume path from ``x0`` along ``direction * e``; returns
     ``((linearisation, iterations) or None, message, steps, Newton iterations)``."""
-    from snapjump_cli.metrics import _root_on_step, constrained_instability
+    from snapjump_cli.metrics import root_on_step, constrained_instability
 
     model = tracer.pb
     ftr = Tracer(pb, fcfg)
@@ -210,7 +210,7 @@ def _follow(tracer: Tracer, pb: FixedVolumeProblem, fcfg, x0: np.ndarray, direct
         if not (a.p * b.p < 0.0 or (b.p == 0.0 and a.p != 0.0)):
             return None
         state["zeros"] += 1
-        root = _root_on_step(ftr, a, b, pts[-3] if len(pts) > 2 else None, lambda pt: pt.p, F_tol, 40)
+        root = root_on_step(ftr, a, b, pts[-3] if len(pts) > 2 else None, lambda pt: pt.p, F_tol, 40)
         res = tracer.correct(root.u[:-1].copy(), float(root.u[-1]), None, None, 0.0, target=(0, V_target))
         if res is not None:
             lin, it = res

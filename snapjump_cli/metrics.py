@@ -33,12 +33,12 @@ from snapjump_cli.continuation import Path, PathPoint, Tracer
 
 log = logging.getLogger(__name__)
 
-__all__ = ["SnapTracker", "hermite_p_dV", "path_self_crosses", "SnapStates", "descend_at_volume", "constrained_instability", "descent_starts"]
+__all__ = ["SnapTracker", "root_on_step", "hermite_p_dV", "path_self_crosses", "SnapStates", "descend_at_volume", "constrained_instability", "descent_starts"]
 
 _G3 = np.polynomial.legendre.leggauss(4)
 
 
-def _root_on_step(tr: Tracer, a: PathPoint, b: PathPoint, a_prev: PathPoint | None, f, tol: float,
+def root_on_step(tr: Tracer, a: PathPoint, b: PathPoint, a_prev: PathPoint | None, f, tol: float,
                   max_iter: int) -> PathPoint:
     """Illinois regula falsi on the length of a re-solved step from ``a`` for a root of ``f``
     (a function of a path point; ``f(a)`` and ``f(b)`` have opposite signs). Returns the point
@@ -219,7 +219,7 @@ class SnapTracker:
     def locate_volume_limit(self, a: PathPoint, b: PathPoint, a_prev: PathPoint | None = None,
                             tol: float = 1e-9, max_iter: int = 30) -> PathPoint:
         """Root of ``dV/ds`` between the path points ``a`` (dV/ds > 0) and ``b`` (dV/ds <= 0)."""
-        return _root_on_step(self.tracer, a, b, a_prev, lambda pt: pt.tangent[0], tol, max_iter)
+        return root_on_step(self.tracer, a, b, a_prev, lambda pt: pt.tangent[0], tol, max_iter)
 
     def locate_volume(self, a: PathPoint, b: PathPoint, V_target: float, a_prev: PathPoint | None = None,
                       max_iter: int = 40) -> PathPoint | None:
@@ -227,7 +227,7 @@ class SnapTracker:
         (``V_a < V_target <= V_b``), then a volume-control Newton polish at exactly ``V_target``.
         Being on the path, the point's arc length is exact for the path integral of dE."""
         tol = 1e-10 * max(1.0, abs(V_target))
-        best = _root_on_step(self.tracer, a, b, a_prev, lambda pt: pt.zeta[0] - V_target, tol, max_iter)
+        best = root_on_step(self.tracer, a, b, a_prev, lambda pt: pt.zeta[0] - V_target, tol, max_iter)
         polished = self.solve_at_volume(best, best, V_target) if best.tangent[0] > 0 else None
         if polished is None:  # fall back on interpolating between the bracketing points
             log.debug("locate_volume: regula falsi did not reach V*; interpolating")

@@ -32,7 +32,7 @@ import numpy as np
 
 from snapjump_cli.meshdata import Mesh
 from snapjump_kernels.assembly import assemble, evaluate, pressure_mass_inverse, quadrature_jacobians, reference_geometry
-from snapjump_kernels.banded import band_ldlt_solve, bordered_factor, bordered_solve, envelope_extents, sym_band_matvec
+from snapjump_kernels.banded import bordered_factor, bordered_solve, envelope_extents
 from snapjump_kernels.cavity import cavity_assemble
 from snapjump_kernels.corrector import newton_correct
 from snapjump_kernels.elements import element_tables
@@ -121,9 +121,7 @@ class BorderedSolver:
         self.kind, self.fac, self.K, self.b, self.c, self.d, self.n = kind, fac, K, b, c, d, n
         self.n_negative = n_negative  # negative eigenvalues of K (banded only)
         self.ext = ext  # envelope column extents of the band (banded only)
-        if kind == "banded":
-            self.Kib = band_ldlt_solve(fac, b, ext) if Kib is None else Kib
-            self.schur = d - float(c @ self.Kib) if schur is None else schur
+        self.Kib, self.schur = Kib, schur  # K^-1 b and d - c^T K^-1 b (banded only)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solution of the bordered system for one right-hand side ``[r; s]`` (length n + 1),
@@ -280,29 +278,27 @@ class Model:
         return self.X + self.full_displacement(u)
 
     # ---- evaluations ---------------------------------------------------------------------------
-    def _eval(self, u, p, want, data=None):
+    def _evaluate(self, u, p, want):
+        """One pass of :func:`snapjump_kernels.assembly.evaluate` (``want`` 0 energy, 1 residual,
+        2 stiffness): ``(E, ok, R, g, V, data)`` with ``V`` including the offset."""
         t0 = time.perf_counter()
-        U = self.full_displacement(u)
-        f = np.zeros(self.n)
-        if data is None:
-            data = np.zeros(1)
-        E, ok, _ = assemble(
-            U, self.conn, self.mat, self.mu, self.jm, self.kappa, self.dNdX, self.N_ref, self.Rq, self.Wq,
-            self.Np, self.Minv, self.edofs, self.epos, want, f, data,
-        )
+        data = np.zeros(self.ndata if want >= 2 else 1)
+        R = np.zeros(self.n)
         g = np.zeros(self.n)
-        V = cavity_assemble(self.X + U, self.edges, self.edge_dofs, self.edge_pos, -p, max(want, 1), g, data)
+        E, ok, V = evaluate(u, self.dofmap, self.X, self.conn, self.mat, self.mu, self.jm, self.kappa, self.dNdX,
+                            self.N_ref, self.Rq, self.Wq, self.Np, self.Minv, self.edofs, self.epos, self.edges,
+                            self.edge_dofs, self.edge_pos, p, want, R, g, data)
         if want >= 2:
             self.n_assemblies += 1
             self.t_assembly += time.perf_counter() - t0
         else:
             self.n_residuals += 1
             self.t_residual += time.perf_counter() - t0
-        return E, ok, f, g, V + self.V_offset
+        return E, ok, R, g, V + self.V_offset, data
 
     def energy(self, u: np.ndarray) -> float:
         """Total strain energy (scaled); ``nan`` outside the material domain."""
-        E, ok, *_ = self._eval(u, 0.0, 0)
+        E, ok, *_ = self._evaluate(u, 0.0, 0)
         return E if ok else float("nan")
 
     def volume(self, u: np.ndarray) -> float:
@@ -311,35 +307,23 @@ class Model:
 
     def residual(self, u: np.ndarray, p: float) -> np.ndarray | None:
         """``f_int(u) - p dV/du``; ``None`` if the iterate left the material domain."""
-        E, ok, f, g, V = self._eval(u, p, 1)
-        return f - p * g if ok else None
+        E, ok, R, g, V, _ = self._evaluate(u, p, 1)
+        return R if ok else None
 
     def internal_force(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """``(f_int, dV/du)``, or ``None`` outside the material domain."""
-        E, ok, f, g, V = self._eval(u, 0.0, 1)
-        return (f, g) if ok else None
+        E, ok, R, g, V, _ = self._evaluate(u, 0.0, 1)
+        return (R, g) if ok else None
 
     def linearize(self, u: np.ndarray, p: float, stiffness: bool = True) -> Linearization | None:
         """Residual and tangent from one assembly; ``None`` outside the material domain.
 
         ``stiffness=False`` evaluates the residual, ``dV/du`` and ``V`` only (about a fifth of the
         cost; no ``factor``)."""
-        t0 = time.perf_counter()
-        data = np.zeros(self.ndata if stiffness else 1)
-        R = np.zeros(self.n)
-        g = np.zeros(self.n)
-        E, ok, V = evaluate(u, self.dofmap, self.X, self.conn, self.mat, self.mu, self.jm, self.kappa, self.dNdX,
-                            self.N_ref, self.Rq, self.Wq, self.Np, self.Minv, self.edofs, self.epos, self.edges,
-                            self.edge_dofs, self.edge_pos, p, 2 if stiffness else 1, R, g, data)
-        if stiffness:
-            self.n_assemblies += 1
-            self.t_assembly += time.perf_counter() - t0
-        else:
-            self.n_residuals += 1
-            self.t_residual += time.perf_counter() - t0
+        E, ok, R, g, V, data = self._evaluate(u, p, 2 if stiffness else 1)
         if not ok:
             return None
-        return Linearization(self, u, p, R, g, data if stiffness else None, V + self.V_offset, E)
+        return Linearization(self, u, p, R, g, data if stiffness else None, V, E)
 
     def newton(self, u: np.ndarray, p: float, scales: np.ndarray, tol: float, max_newton: int,
                target: tuple[int, float] | None = None, riks: tuple | None = None) -> tuple[Linearization, int] | None:
@@ -376,15 +360,8 @@ class Model:
     def energy_volume(self, u: np.ndarray) -> tuple[float, float] | None:
         """Strain energy and cavity volume (scaled, with the offset) from one energy-only pass;
         ``None`` outside the material domain (exactly where :meth:`linearize` gives ``None``)."""
-        t0 = time.perf_counter()
-        R = np.zeros(self.n)
-        g = np.zeros(self.n)
-        E, ok, V = evaluate(u, self.dofmap, self.X, self.conn, self.mat, self.mu, self.jm, self.kappa, self.dNdX,
-                            self.N_ref, self.Rq, self.Wq, self.Np, self.Minv, self.edofs, self.epos, self.edges,
-                            self.edge_dofs, self.edge_pos, 0.0, 0, R, g, np.zeros(1))
-        self.n_residuals += 1
-        self.t_residual += time.perf_counter() - t0
-        return (E, V + self.V_offset) if ok else None
+        E, ok, R, g, V, _ = self._evaluate(u, 0.0, 0)
+        return (E, V) if ok else None
 
     def measures(self, u: np.ndarray, p: float, lin: Linearization | None = None):
         """Path measures ``zeta = (V, p, w)`` and their derivatives (cavity only: cheap; free
