@@ -40,15 +40,39 @@ def element_flops(nen: int, nq: int, npr: int) -> float:
     return nq * per_q + vol + 2 * lower  # + scatter
 
 
+def startup() -> int:
+    """Start-up costs of ``snapjump curve`` in this fresh process (the thin clamped cap)."""
+    t0 = time.perf_counter()
+    import snapjump_cli.commands.curve  # noqa: F401 - what the command imports first
+    t1 = time.perf_counter()
+    from snapjump_cli.geometry import CapScene
+    from snapjump_cli.settings import MeshSettings, SolverSettings
+    from snapjump_cli.solve import solve_scene
+    t2 = time.perf_counter()
+    cap = CapScene(theta_deg=60.0, eta=30.0, bc="clamped")
+    m1 = solve_scene(cap, MeshSettings(), SolverSettings()).metrics
+    t3 = time.perf_counter()
+    m2 = solve_scene(cap, MeshSettings(), SolverSettings()).metrics
+    t4 = time.perf_counter()
+    print(f"load average {os.getloadavg()[0]:.2f}: import of the curve command {t1 - t0:.3f} s, of the solver "
+          f"{t2 - t1:.3f} s; first solve {t3 - t2:.3f} s (meshing {m1['mesh_s']:.3f} s), second {t4 - t3:.3f} s "
+          f"(meshing {m2['mesh_s']:.3f} s): the first call costs {t3 - t2 - (t4 - t3):.3f} s more")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--designs", nargs="*", default=["D", "C", "grid-0037", "grid-1543"])
     ap.add_argument("--sweep", action="store_true", help="solve_design (with the mesh re-check)")
     ap.add_argument("--repo", default=str(REPO))
+    ap.add_argument("--startup", action="store_true",
+                    help="only the start-up costs of a fresh process: imports, first and second solve of a cap")
     a = ap.parse_args(argv)
     repo = Path(a.repo).resolve()
     sys.path.insert(0, str(repo))
+    if a.startup:
+        return startup()
     from snapjump_cli.config import load_config
     from snapjump_cli.designs import get_design
     from snapjump_cli.geometry import Design

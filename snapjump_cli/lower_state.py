@@ -37,6 +37,7 @@ from dataclasses import replace
 import numpy as np
 
 from snapjump_cli.continuation import ContinuationFailed, PathPoint, Tracer, start_point, trace
+from snapjump_kernels.banded import band_ldlt_solve, sym_band_matvec
 
 log = logging.getLogger(__name__)
 
@@ -48,8 +49,6 @@ class _MultiBorderedSolver:
     elimination with the band ``LDL^T`` of ``K`` and one step of iterative refinement."""
 
     def __init__(self, base, B: np.ndarray, C: np.ndarray, D: np.ndarray):
-        from snapjump_kernels.banded import band_ldlt_solve
-
         self.base, self.B, self.C, self.D = base, B, C, D
         self._solve_K = lambda r: band_ldlt_solve(base.fac, r, base.ext)
         KiB = np.empty_like(B)
@@ -58,8 +57,7 @@ class _MultiBorderedSolver:
             KiB[:, k] = self._solve_K(np.ascontiguousarray(B[:, k]))
         self.KiB = KiB
         self.S = D - C.T @ KiB
-        self.n_negative = -1  # the inertia of the whole matrix is not tracked
-        self.schur = None
+        self.n_negative = -1  # the inertia of the whole matrix is not tracked (no det sign)
 
     def _once(self, r, s):
         z = self._solve_K(r)
@@ -67,8 +65,6 @@ class _MultiBorderedSolver:
         return z - self.KiB @ y, y
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        from snapjump_kernels.banded import sym_band_matvec
-
         m = self.B.shape[1]
         r, s = rhs[:-m], rhs[-m:]
         x, y = self._once(r, s)

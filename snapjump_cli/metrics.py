@@ -352,7 +352,7 @@ def descend_at_volume(
             base = lin.factor(dz_du[0], 0.0)  # unshifted: the inertia, and Newton's step once sigma -> 0
             n_unstable = _constrained_negatives(base, lin.g)
         accepted = (u, p, lin, E_new, h, base, n_unstable)
-        ref = float(np.linalg.norm(dz_du[0])) * tracer.sc[0] * max(abs(p), 1e-3 * tracer.sc[1])
+        ref = tracer.residual_scale(lin, dz_du, p)
         rn = float(np.linalg.norm(lin.R)) / ref
         log.debug("descent %d: E=%.12g rn=%.2e h=%.2e sigma_rel=%.1e unstable=%d", it, E_new, rn, h, sigma_rel, n_unstable)
         E_hist.append(E_new)

@@ -33,11 +33,6 @@ log = logging.getLogger(__name__)
 __all__ = ["SolveFailed", "SceneResult", "solve_scene", "solve_design", "build_model", "warm_up"]
 
 
-#: How the lower state off the traced path is found: "volume-path" (continuation at fixed volume,
-#: the energy descent as its fallback) or "descent" (the energy descent only; for comparisons).
-_LOWER_STATE_SOLVER = os.environ.get("SNAPJUMP_LOWER_STATE", "volume-path")
-
-
 class SolveFailed(RuntimeError):
     """The continuation could not characterise the scene; the message gives the cause."""
 
@@ -174,7 +169,7 @@ def solve_scene(
             st.lower, st.lower_method = None, ""
     if st.upper is not None and st.lower is None:
         why = lower_note or failure or path.stop_reason
-        low, msg = (None, "") if _LOWER_STATE_SOLVER == "descent" else snap_at_fixed_volume(tracer, st.upper)
+        low, msg = snap_at_fixed_volume(tracer, st.upper)
         lower_solver = "volume-path"
         if low is None:
             log.debug("%s; falling back on the energy descent", msg)
