@@ -8,12 +8,13 @@ file, the key path (``grid.eta_i.num``) and what was expected, e.g.::
 
 Schema (defaults in brackets)::
 
-    grid:                      # required; the designs are the Cartesian product of the five axes
+    grid:                      # the designs are the Cartesian product of the five axes
       eta_i:    AXIS           # R_i / t_i
       theta_i:  AXIS           # inner polar angle [deg], in (0, 180)
       eta_o:    AXIS           # R_o / t_o
       theta_o:  AXIS           # outer polar angle [deg], in (0, 180)
       mu_ratio: AXIS           # mu_i / mu_o
+    points: POINTS             # instead of grid: an explicit list of designs
     R_i: 0.03                  # inner-cap mid-surface radius [m]
     materials: {mu_i: 0.35e+6, J_m: 24}          # [Pa], Gent locking parameter
     ring: {t_ring_frac: 1/30, w_ring_frac: 1/10} # ring size as fractions of R_i
@@ -22,6 +23,12 @@ Schema (defaults in brackets)::
     output: results/<config stem>.parquet        # relative paths are relative to the working dir
     n_jobs: -1                 # joblib n_jobs (-1: all cores)
     chunk_size: 16             # results per part file (see snapjump_cli.sweep)
+
+Exactly one of ``grid:`` and ``points:`` is given. ``POINTS`` is either a non-empty list of
+mappings ``{eta_i, theta_i, eta_o, theta_o, mu_ratio}`` (angles in degrees, as on the grid axes) or
+the path of a CSV or parquet file with those columns (``theta_i_deg`` / ``theta_o_deg`` are accepted
+for the angles, so a result file can be fed back; other columns are ignored); a relative path is
+relative to the YAML file's folder.
 
 where ``AXIS`` is either a non-empty list of distinct numbers or a mapping ``{start, stop, num}``
 (``numpy.linspace(start, stop, num)``, ``start <= stop``, integer ``num >= 1``; ``num = 1`` needs
@@ -112,7 +119,10 @@ class SweepConfig:
     Attributes
     ----------
     grid : dict
-        Axis name (one of :data:`GRID_AXES`) -> tuple of float values.
+        Axis name (one of :data:`GRID_AXES`) -> tuple of float values (empty tuples with ``points``).
+    points : tuple or None
+        An explicit list of designs instead of the grid: tuples of the five values in the order
+        of :data:`GRID_AXES` (angles in degrees).
     R_i, mu_i, J_m, t_ring_frac, w_ring_frac : float
         Fixed design parameters shared by every grid point.
     mesh, solver : MeshSettings, SolverSettings
@@ -141,16 +151,23 @@ class SweepConfig:
     chunk_size: int = _DEFAULT_CHUNK
     source: str = "<dict>"
     raw: dict = field(default_factory=dict, compare=False)
+    points: tuple[tuple[float, float, float, float, float], ...] | None = None
 
     @property
     def n_designs(self) -> int:
-        """Number of grid points (the size of the Cartesian product)."""
+        """Number of designs (the size of the Cartesian product, or of the point list)."""
+        if self.points is not None:
+            return len(self.points)
         return math.prod(len(self.grid[a]) for a in GRID_AXES)
 
     def designs(self) -> Iterator[DesignPoint]:
-        """Iterate over the grid points in a fixed order (``mu_ratio`` varies fastest)."""
-        axes = [self.grid[a] for a in GRID_AXES]
-        for i, (ei, ti, eo, to, mr) in enumerate(itertools.product(*axes)):
+        """Iterate over the designs in a fixed order (grid: ``mu_ratio`` varies fastest; points:
+        in the order given)."""
+        if self.points is not None:
+            values: Iterator = iter(self.points)
+        else:
+            values = itertools.product(*[self.grid[a] for a in GRID_AXES])
+        for i, (ei, ti, eo, to, mr) in enumerate(values):
             yield DesignPoint(
                 index=i, eta_i=ei, theta_i_deg=ti, eta_o=eo, theta_o_deg=to, mu_ratio=mr,
                 R_i=self.R_i, mu_i=self.mu_i, J_m=self.J_m,
@@ -163,7 +180,7 @@ class SweepConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """The resolved configuration as plain JSON-able data (explicit grid values)."""
-        return {
+        out = {
             "grid": {a: list(self.grid[a]) for a in GRID_AXES},
             "R_i": self.R_i,
             "materials": {"mu_i": self.mu_i, "J_m": self.J_m},
@@ -176,6 +193,10 @@ class SweepConfig:
             "source": self.source,
             "n_designs": self.n_designs,
         }
+        if self.points is not None:
+            del out["grid"]
+            out["points"] = [dict(zip(GRID_AXES, p)) for p in self.points]
+        return out
 
 
 # ---- scalar validators ---------------------------------------------------------------------
@@ -265,6 +286,7 @@ class _Ctx:
 # ---- schema ----------------------------------------------------------------------------------
 _TOP_KEYS: dict[str, str] = {
     "grid": "a mapping with keys " + ", ".join(GRID_AXES),
+    "points": "a list of designs {" + ", ".join(GRID_AXES) + "} or a CSV/parquet file of them",
     "R_i": "the inner-cap radius in metres (> 0)",
     "materials": "a mapping {mu_i, J_m}",
     "ring": "a mapping {t_ring_frac, w_ring_frac}",
@@ -316,6 +338,66 @@ def _parse_axis(ctx: _Ctx, name: str, value: Any) -> tuple[float, ...]:
             values.append(x)
         return tuple(values)
     raise ctx.fail(path, _AXIS_EXPECTED, value)
+
+
+_POINT_KEYS: dict[str, str] = {a: _axis_check(a)[1] for a in GRID_AXES}
+_POINTS_EXPECTED = "a non-empty list of mappings {" + ", ".join(GRID_AXES) + "} or a CSV/parquet file path"
+
+
+def _read_points_file(ctx: _Ctx, value: str) -> list[dict]:
+    """Rows of a CSV or parquet file of designs as dicts keyed by :data:`GRID_AXES`."""
+    import pandas as pd
+
+    path = Path(value)
+    if not path.is_absolute() and not ctx.source.startswith("<"):
+        path = Path(ctx.source).parent / path
+    try:
+        if path.suffix.lower() == ".csv":
+            df = pd.read_csv(path)
+        elif path.suffix.lower() in (".parquet", ".pq"):
+            df = pd.read_parquet(path)
+        else:
+            raise ctx.fail("points", "a .csv or .parquet file", value)
+    except ConfigError:
+        raise
+    except FileNotFoundError:
+        raise ConfigError(ctx.source, "points", f"file not found: {path}") from None
+    except Exception as e:  # unreadable or malformed table
+        raise ConfigError(ctx.source, "points", f"cannot read {path} ({type(e).__name__}: {e})") from None
+    cols = {}
+    for a in GRID_AXES:
+        for c in (a, f"{a}_deg"):
+            if c in df.columns:
+                cols[a] = c
+                break
+        else:
+            raise ConfigError(ctx.source, "points", f"{path}: missing column {a!r} (have: {', '.join(map(str, df.columns))})")
+    if len(df) == 0:
+        raise ConfigError(ctx.source, "points", f"{path}: no rows")
+    return [{a: row[cols[a]] for a in GRID_AXES} for row in df.to_dict("records")]
+
+
+def _parse_points(ctx: _Ctx, value: Any) -> tuple[tuple[float, ...], ...]:
+    if isinstance(value, str) and value.strip():
+        rows = _read_points_file(ctx, value.strip())
+        where = lambda j: f"points (row {j} of {value})"  # noqa: E731
+    elif isinstance(value, (list, tuple)) and value:
+        rows = list(value)
+        where = lambda j: f"points[{j}]"  # noqa: E731
+    else:
+        raise ctx.fail("points", _POINTS_EXPECTED, value)
+    out = []
+    for j, row in enumerate(rows):
+        m = ctx.mapping(where(j), row, _POINT_KEYS, required=GRID_AXES)
+        vals = []
+        for a in GRID_AXES:
+            ok, expected = _axis_check(a)
+            x = ctx.number(f"{where(j)}.{a}", m[a], expected)
+            if not ok(x):
+                raise ctx.fail(f"{where(j)}.{a}", expected, m[a])
+            vals.append(x)
+        out.append(tuple(vals))
+    return tuple(out)
 
 
 def _settings_from(ctx: _Ctx, path: str, value: Any, cls: type, checks: Mapping[str, Callable]) -> Any:
@@ -384,12 +466,18 @@ def parse_config(doc: Any, source: str = "<dict>") -> SweepConfig:
     if doc is None:
         raise ConfigError(source, "grid", "missing required key (the file is empty); expected " + _TOP_KEYS["grid"])
     top = ctx.mapping("", doc, _TOP_KEYS)
-    if "grid" not in top:
-        raise ConfigError(source, "grid", "missing required key; expected " + _TOP_KEYS["grid"])
-    g = ctx.mapping("grid", top["grid"], _GRID_KEYS, required=GRID_AXES)
-    grid = {a: _parse_axis(ctx, a, g[a]) for a in GRID_AXES}
+    if "grid" in top and "points" in top:
+        raise ConfigError(source, "points", "give either grid: or points:, not both")
+    kw: dict[str, Any] = {"source": source, "raw": dict(top)}
+    if "points" in top:
+        kw["points"] = _parse_points(ctx, top["points"])
+        kw["grid"] = {a: () for a in GRID_AXES}
+    elif "grid" not in top:
+        raise ConfigError(source, "grid", "missing required key; expected " + _TOP_KEYS["grid"] + " (or points:)")
+    else:
+        g = ctx.mapping("grid", top["grid"], _GRID_KEYS, required=GRID_AXES)
+        kw["grid"] = {a: _parse_axis(ctx, a, g[a]) for a in GRID_AXES}
 
-    kw: dict[str, Any] = {"grid": grid, "source": source, "raw": dict(top)}
     if "R_i" in top:
         kw["R_i"] = ctx.positive("R_i", top["R_i"])
     if top.get("materials") is not None:

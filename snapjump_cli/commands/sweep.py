@@ -16,12 +16,14 @@ __all__ = ["command", "main"]
 
 log = logging.getLogger(__name__)
 
-_HELP = """Solve the grid of designs in GRID.yaml in parallel into a parquet file.
+_HELP = """Solve the designs in GRID.yaml (a grid or a list of points) in parallel into a parquet file.
 
 \b
 GRID.yaml needs only a `grid:` section with the five axes eta_i, theta_i (deg), eta_o,
 theta_o (deg) and mu_ratio, each a list of values or {start, stop, num}; the designs are
-their Cartesian product. Optional keys: R_i, materials {mu_i, J_m},
+their Cartesian product. Instead of `grid:`, `points:` lists the designs one by one
+({eta_i, theta_i, eta_o, theta_o, mu_ratio} each) or names a CSV/parquet file of them
+(a result file works). Optional keys: R_i, materials {mu_i, J_m},
 ring {t_ring_frac, w_ring_frac}, mesh {order, nt, aspect}, solver {tol, ds0, ...},
 output, n_jobs, chunk_size (see configs/paper_grid.yaml).
 
