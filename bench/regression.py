@@ -11,7 +11,7 @@ The scenes:
 
 * ``grid``: a seeded sample of paper-grid points (``configs/paper_grid.yaml``), solved as the
   sweep solves them (``solve_design`` at the grid's mesh, the row built by the sweep's own
-  ``_result_to_row``), invalid points included;
+  ``snapjump_cli.rows.fill_row``), invalid points included;
 * ``named``: the named designs, the same way (grid mesh, with the sweep's mesh check);
 * ``curve``: the named designs and the Fig. 1 caps as ``snapjump curve`` solves them
   (``solve_scene`` at the default mesh).
@@ -100,7 +100,7 @@ def solve_one(sc: dict, phases: bool = False) -> dict:
         os.environ["SNAPJUMP_PROFILE_PHASES"] = "1"
     else:
         os.environ.pop("SNAPJUMP_PROFILE_PHASES", None)
-    from snapjump_cli import sweep
+    from snapjump_cli.rows import fill_row
     from snapjump_cli.config import load_config
     from snapjump_cli.designs import get_design
     from snapjump_cli.geometry import CapScene, Design, InvalidDesign
@@ -119,7 +119,7 @@ def solve_one(sc: dict, phases: bool = False) -> dict:
         if d is not None:
             try:
                 m = solve_design(d, cfg.mesh, cfg.solver)
-                sweep._result_to_row(row, m)
+                fill_row(row, m)
                 for k in ("n_factorizations", "fold_note", "stop_reason", "lower_state_note", "t_assembly_s",
                           "t_factor_s", "mesh_s", "t_residual_s", "n_assemblies", "t_newton_s"):
                     row[k] = m.get(k)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 import logging
 import sys
-from typing import Sequence
+from typing import Any, Sequence
 
 import click
 
@@ -36,28 +36,75 @@ class LazyGroup(click.Group):
             formatter.write_dl(sorted(COMMANDS.items()))
 
 
+def set_verbosity(ctx: click.Context, verbose: int = 0, quiet: bool = False) -> None:
+    """Set the log level of the ``snapjump_cli`` loggers (the only place that does) and remember
+    ``quiet`` in ``ctx.obj`` for the commands: WARNING by default, INFO with -v, DEBUG with -vv,
+    ERROR with -q (which also hides progress output). Given before or after the sub-command."""
+    obj = ctx.ensure_object(dict)
+    obj["verbose"] = obj.get("verbose", 0) + int(verbose or 0)
+    obj["quiet"] = obj.get("quiet", False) or bool(quiet)
+    v = obj["verbose"]
+    level = logging.ERROR if obj["quiet"] else logging.DEBUG if v >= 2 else logging.INFO if v == 1 else logging.WARNING
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    logging.getLogger("snapjump_cli").setLevel(level)
+
+
+def _verbose_cb(ctx: click.Context, param: click.Parameter, value: int) -> None:
+    if value:
+        set_verbosity(ctx, verbose=value)
+
+
+def _quiet_cb(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    if value:
+        set_verbosity(ctx, quiet=True)
+
+
+def verbosity_options(f):
+    """``-v/--verbose`` and ``-q/--quiet`` on a sub-command too (``snapjump sweep -v ...``)."""
+    f = click.option("-q", "--quiet", is_flag=True, expose_value=False, callback=_quiet_cb,
+                     help="Only errors; no progress output.")(f)
+    f = click.option("-v", "--verbose", count=True, expose_value=False, callback=_verbose_cb,
+                     help="More log output (-v info, -vv debug).")(f)
+    return f
+
+
+def is_quiet() -> bool:
+    """Whether -q was given (before or after the sub-command)."""
+    ctx = click.get_current_context(silent=True)
+    return bool(ctx and ctx.find_root().obj and ctx.find_root().obj.get("quiet"))
+
+
+def injected(name: str):
+    """An object injected by the caller of :func:`main` (e.g. ``solve_fn`` in tests), or None."""
+    ctx = click.get_current_context(silent=True)
+    obj = ctx.find_root().obj if ctx else None
+    return (obj or {}).get(name)
+
+
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="snapjump")
 @click.option("-v", "--verbose", count=True, help="More log output (-v info, -vv debug).")
-@click.option("-q", "--quiet", is_flag=True, help="Only warnings and errors.")
-def cli(verbose: int, quiet: bool) -> None:
+@click.option("-q", "--quiet", is_flag=True, help="Only errors; no progress output.")
+@click.pass_context
+def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
     """snapjump: design snapping inflatable soft jumpers.
 
     Axisymmetric incompressible-Gent FE of two spherical caps inflated under volume control,
     traced with arc-length continuation through its limit points (Gorissen et al., Sci. Robot.
     2020), and a mass-spring model that turns the snap into a jump height.
     """
-    level = logging.DEBUG if verbose >= 2 else logging.INFO if verbose == 1 else logging.WARNING
-    if quiet:
-        level = logging.WARNING
-    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
-    logging.getLogger("snapjump_cli").setLevel(level)
+    set_verbosity(ctx, verbose, quiet)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the exit code (0 ok, 1 failure, 2 bad input)."""
+def main(argv: Sequence[str] | None = None, **inject: Any) -> int:
+    """Run the CLI; returns the exit code (0 ok, 1 failure, 2 bad input).
+
+    ``inject`` passes Python objects to the commands (tests and notebooks), e.g.
+    ``main(["sweep", ...], solve_fn=my_solver, warm_up_fn=None)``.
+    """
     try:
-        rc = cli.main(args=list(argv) if argv is not None else None, prog_name="snapjump", standalone_mode=False)
+        rc = cli.main(args=list(argv) if argv is not None else None, prog_name="snapjump", standalone_mode=False,
+                      obj=dict(inject))
         if isinstance(rc, int):  # ctx.exit(n) under standalone_mode=False returns n
             return rc
     except click.exceptions.Exit as e:

@@ -38,6 +38,14 @@ def _pyplot() -> Any:
     return plt
 
 
+def _save(fig: Any, path: str | Path, dpi: int) -> Path:
+    """Write a figure atomically (a temporary file in the same folder, then a rename)."""
+    from snapjump_cli.results import replace_atomic
+
+    fmt = Path(path).suffix.lstrip(".").lower() or "png"
+    return replace_atomic(lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt), path)
+
+
 def _ok(df: pd.DataFrame) -> pd.DataFrame:
     d = df[df["status"] == "ok"].copy()
     for c in ("dE_J", "dy_pole_m", "R_i", "mu_i"):
@@ -81,8 +89,7 @@ def plot_fig4a(df: pd.DataFrame, path: str | Path) -> Path:
         ax.set_title(f"Energy release vs pole travel ({len(d)} snapping designs)")
         if not d.empty:
             ax.legend(loc="best", fontsize=8)
-        path = Path(path)
-        fig.savefig(path, dpi=150)
+        path = _save(fig, path, 150)
     finally:
         plt.close(fig)
     return path
@@ -112,8 +119,7 @@ def plot_fig4c(ranked: pd.DataFrame, path: str | Path) -> Path:
         ax.set_xlabel(r"$\Delta y_{pole} / R_i$")
         ax.set_ylabel(r"$\Delta E / (\mu_i R_i^3)$")
         ax.set_title("Jump height of the mass-spring model")
-        path = Path(path)
-        fig.savefig(path, dpi=150)
+        path = _save(fig, path, 150)
     finally:
         plt.close(fig)
     return path
@@ -142,8 +148,7 @@ def plot_jump_vs_parameters(ranked: pd.DataFrame, path: str | Path) -> Path:
         axes[0].set_ylabel(r"$y_{jump}$ [mm]")
         if groups:
             axes[-1].legend(loc="best", fontsize=7)
-        path = Path(path)
-        fig.savefig(path, dpi=130)
+        path = _save(fig, path, 130)
     finally:
         plt.close(fig)
     return path
@@ -193,9 +198,7 @@ def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "")
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize=8)
     fig.tight_layout()
-    out = Path(path)
-    tmp = out.with_name(f".{out.name}.tmp{out.suffix}")
-    fig.savefig(tmp, dpi=120)
-    plt.close(fig)
-    tmp.replace(out)
-    return out
+    try:
+        return _save(fig, path, 120)
+    finally:
+        plt.close(fig)

@@ -1,18 +1,8 @@
-"""The sweep result table: column schema, provenance metadata and atomic parquet I/O.
+"""Result files: atomic parquet I/O of result tables and their provenance metadata.
 
-One row per design. Columns (in order):
-
-* ``key`` (stable design hash, see :func:`snapjump_cli.sweep.design_key`), ``index`` (position in
-  the grid), ``status`` (one of :data:`STATUSES`), ``error`` (text, empty when ok);
-* the inputs :data:`INPUT_COLUMNS` (angles in degrees, SI units otherwise);
-* the mesh settings ``mesh_order``, ``mesh_nt``, ``mesh_aspect``;
-* the geometry ``R_o`` and ``Delta`` [m] (null when the design is invalid);
-* every solver metric under the names of :data:`snapjump_cli.settings.RESULT_KEYS`;
-* timings ``t_total_s`` (worker wall clock, meshing + solving) and provenance of the row
-  (``host``, ``pid``, ``finished_utc``).
-
-Metrics of rows that are not ``ok`` may be null (read back as NaN / ``pd.NA``); an ``ok`` row
-never holds a NaN or infinite metric (the sweep turns such a result into ``failed``).
+One row per design; the columns, their types and the validation of a solver result are the row
+contract of :mod:`snapjump_cli.rows` (re-exported here). Metrics of rows that are not ``ok`` may
+be null (read back as NaN / ``pd.NA``); an ``ok`` row never holds a NaN or infinite metric.
 
 Provenance (resolved config, package and dependency versions, git commit) is stored as JSON under
 the key ``snapjump`` of the parquet schema metadata; read it with :func:`read_metadata`.
@@ -31,7 +21,17 @@ from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping
 
-from snapjump_cli.settings import RESULT_KEYS
+from snapjump_cli.rows import (  # the row contract, re-exported for readers of result files
+    BOOL_RESULT_KEYS,
+    FLOAT_RESULT_KEYS,
+    INPUT_COLUMNS,
+    INT_RESULT_KEYS,
+    OPTIONAL_FLOAT_KEYS,
+    RESULT_KEYS,
+    STATUSES,
+    STR_RESULT_KEYS,
+    result_schema,
+)
 
 if TYPE_CHECKING:  # pandas / pyarrow are imported inside the functions: the sweep workers only
     import pandas as pd  # need the column-type constants of this module and stay light
@@ -45,10 +45,15 @@ __all__ = [
     "INT_RESULT_KEYS",
     "STR_RESULT_KEYS",
     "FLOAT_RESULT_KEYS",
+    "OPTIONAL_FLOAT_KEYS",
+    "RESULT_KEYS",
     "result_schema",
     "rows_to_table",
     "write_table_atomic",
     "write_frame_atomic",
+    "replace_atomic",
+    "current_umask",
+    "check_writable",
     "read_results",
     "pandas_types_mapper",
     "read_metadata",
@@ -57,60 +62,8 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: Row status values.
-STATUSES: tuple[str, ...] = ("ok", "no_snap", "invalid_geometry", "failed")
-#: Design inputs stored per row (names of :class:`snapjump_cli.geometry.Design` fields).
-INPUT_COLUMNS: tuple[str, ...] = (
-    "eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio",
-    "R_i", "mu_i", "J_m", "t_ring_frac", "w_ring_frac",
-)
 #: Key of the provenance JSON in the parquet schema metadata.
 METADATA_KEY = b"snapjump"
-
-BOOL_RESULT_KEYS: frozenset[str] = frozenset({"snaps", "self_crossing", "mesh_sensitive"})
-STR_RESULT_KEYS: frozenset[str] = frozenset({"lower_state_method", "mesh_check"})
-#: Float metrics that may be null in an ok row (set only after a mesh-sensitivity re-solve).
-OPTIONAL_FLOAT_KEYS: frozenset[str] = frozenset({"dE_J_coarse", "dy_pole_m_coarse"})
-INT_RESULT_KEYS: frozenset[str] = frozenset({"n_steps", "n_newton", "n_nodes", "n_elements", "n_dofs"})
-#: Every other result key is a float metric.
-FLOAT_RESULT_KEYS: tuple[str, ...] = tuple(
-    k for k in RESULT_KEYS if k not in BOOL_RESULT_KEYS | STR_RESULT_KEYS | INT_RESULT_KEYS
-)
-
-
-def _result_type(key: str) -> "pa.DataType":
-    import pyarrow as pa
-
-    if key in BOOL_RESULT_KEYS:
-        return pa.bool_()
-    if key in STR_RESULT_KEYS:
-        return pa.string()
-    if key in INT_RESULT_KEYS:
-        return pa.int64()
-    return pa.float64()
-
-
-def result_schema() -> pa.Schema:
-    """The arrow schema of a sweep result table (without metadata)."""
-    import pyarrow as pa
-
-    fields = [
-        pa.field("key", pa.string(), nullable=False),
-        pa.field("index", pa.int64()),
-        pa.field("status", pa.string(), nullable=False),
-        pa.field("error", pa.string()),
-    ]
-    fields += [pa.field(c, pa.float64()) for c in INPUT_COLUMNS]
-    fields += [pa.field("mesh_order", pa.int64()), pa.field("mesh_nt", pa.int64()), pa.field("mesh_aspect", pa.float64())]
-    fields += [pa.field("R_o", pa.float64()), pa.field("Delta", pa.float64())]
-    fields += [pa.field(k, _result_type(k)) for k in RESULT_KEYS]
-    fields += [
-        pa.field("t_total_s", pa.float64()),
-        pa.field("host", pa.string()),
-        pa.field("pid", pa.int64()),
-        pa.field("finished_utc", pa.string()),
-    ]
-    return pa.schema(fields)
 
 
 def _with_metadata(table: pa.Table, meta: Mapping[str, Any] | None) -> pa.Table:
@@ -158,9 +111,62 @@ def write_table_atomic(table: pa.Table, path: str | Path) -> Path:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
     try:
+        os.chmod(tmp, 0o666 & ~current_umask())  # mkstemp makes 0600: give the file the usual mode
         pq.write_table(table, tmp)
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    return path
+
+
+def check_writable(path: str | Path, error: type[Exception] = OSError, what: str = "") -> Path:
+    """Make sure a file can be created at ``path``: its folder exists (created if needed) and is
+    writable. Raises ``error`` with one line naming the path otherwise (an ancestor that is a
+    regular file, a read-only folder, ...). Nothing else is written."""
+    path = Path(path)
+    folder = path if what == "folder" else path.parent
+    anc = folder
+    while not anc.exists() and anc != anc.parent:
+        anc = anc.parent
+    if anc.exists() and not anc.is_dir():
+        raise error(f"{path}: cannot write here, {anc} is a file, not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise error(f"{path}: cannot create the folder {folder} ({e.strerror})") from None
+    try:  # a real probe: permission bits say nothing to root, nor about read-only file systems
+        fd, probe = tempfile.mkstemp(prefix=".snapjump-probe-", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as e:
+        raise error(f"{path}: the folder {folder} is not writable ({e.strerror})") from None
+    if what != "folder" and path.is_dir():
+        raise error(f"{path}: is a directory, expected a file path")
+    return path
+
+
+def current_umask() -> int:
+    """The process umask (read without changing it for longer than two system calls)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def replace_atomic(write: Callable[[Path], Any], path: str | Path) -> Path:
+    """Create ``path`` atomically: ``write(tmp)`` writes a temporary file in the same folder, which
+    then replaces ``path`` (mode from the umask). Nothing is left behind if ``write`` fails."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    os.close(fd)
+    try:
+        os.chmod(tmp, 0o666 & ~current_umask())
+        write(Path(tmp))
         os.replace(tmp, path)
     except BaseException:
         try:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, asdict, fields
 
-__all__ = ["MeshSettings", "SolverSettings", "RESULT_KEYS"]
+__all__ = ["MeshSettings", "SolverSettings"]
 
 
 @dataclass(frozen=True)
@@ -63,16 +63,3 @@ class SolverSettings:
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in fields(cls))
-
-
-#: The stable result keys (``snapjump curve --format json`` and one sweep row each).
-RESULT_KEYS: tuple[str, ...] = (
-    "dE_J", "dE_norm", "dE_energy_J", "dE_path_J", "dE_rel_diff",
-    "dy_pole_m", "dy_pole_upper_m", "dy_pole_norm",
-    "p_star_Pa", "V_star_m3", "p_max_Pa", "h_imp_m", "L0_m",
-    "snaps", "self_crossing", "lower_state_method",
-    "n_steps", "n_newton", "wall_s",
-    "n_nodes", "n_elements", "n_dofs",
-    "V_inner_solid_m3", "V_outer_solid_m3",
-    "mesh_sensitive", "dE_J_coarse", "dy_pole_m_coarse", "mesh_check",
-)

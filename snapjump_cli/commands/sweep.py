@@ -10,6 +10,7 @@ from typing import Sequence
 
 import click
 
+from snapjump_cli.cli import injected, is_quiet, verbosity_options
 from snapjump_cli.errors import BadInput
 
 __all__ = ["command", "main"]
@@ -33,7 +34,10 @@ are recorded, never meshed; a design that fails never stops the sweep.
 
 Finished rows are written in chunks to OUTPUT.parts/ (each part atomically) and merged
 into OUTPUT at the end. Running the same command again resumes: designs already
-recorded (same parameters and mesh/solver settings) are skipped.
+recorded (same parameters and mesh/solver settings) are skipped. A second sweep into the
+same output is refused while the first runs (OUTPUT.lock names it); an output holding rows
+of another grid, mesh, solver or material is refused unless --append is given. Every row
+records its code version, commit, mesh and solver settings.
 
 Exit codes: 0 done (even if some designs failed), 1 the sweep could not run,
 2 bad input (config errors name the file and the key path), 130 interrupted.
@@ -62,12 +66,20 @@ class _Interrupted(click.ClickException):
 @click.option("--chunk-size", type=click.IntRange(min=1), default=None, metavar="N",
               help="Finished designs per part file. [default: `chunk_size` of the config, else 16]")
 @click.option("--retry-failed", is_flag=True, help="Solve designs recorded as failed again.")
+@click.option("--append", is_flag=True,
+              help="Add to an output that holds rows of another grid, mesh, solver or material "
+                   "(refused by default, so that results are never mixed by accident).")
+@click.option("--max-designs", type=click.IntRange(min=1), default=None, metavar="N",
+              help="Refuse configs with more designs than N. [default: 100000]")
 @click.option("--progress/--no-progress", default=True, show_default=True,
-              help="Progress bar on stderr (ETA, counts of ok / no-snap / invalid / failed).")
+              help="Progress on stderr: a bar (ETA, counts of ok / no-snap / invalid / failed) on a "
+                   "terminal, a plain line every 30 s otherwise. -q hides it.")
+@verbosity_options
 def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str | None,
-            chunk_size: int | None, retry_failed: bool, progress: bool) -> None:
+            chunk_size: int | None, retry_failed: bool, append: bool, max_designs: int | None,
+            progress: bool) -> None:
     from snapjump_cli.config import ConfigError, load_config
-    from snapjump_cli.sweep import SweepError, SweepInputError, parts_dir, run_sweep
+    from snapjump_cli.sweep import MAX_DESIGNS, SweepError, SweepInputError, parts_dir, run_sweep
 
     try:
         config = load_config(grid)
@@ -84,8 +96,12 @@ def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str 
 
         restore = signal.signal(signal.SIGTERM, _on_term)
     try:
-        summary = run_sweep(config, output=out, n_jobs=n_jobs, scheduler=scheduler, progress=progress,
-                            retry_failed=retry_failed, chunk_size=chunk_size)
+        quiet = is_quiet()
+        summary = run_sweep(config, output=out, n_jobs=n_jobs, scheduler=scheduler, progress=progress and not quiet,
+                            retry_failed=retry_failed, chunk_size=chunk_size, append=append,
+                            max_designs=max_designs or MAX_DESIGNS,
+                            solve_fn=injected("solve_fn"), warm_up_fn=injected("warm_up_fn"),
+                            announce=None if quiet else (lambda line: click.echo(line, err=True)))
     except SweepInputError as e:
         raise BadInput(str(e)) from None
     except SweepError as e:

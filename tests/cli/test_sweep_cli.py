@@ -1,5 +1,5 @@
 """``snapjump sweep``: help, exit codes, bad configs (exit 2 + key path), a run with the
-test-only fake solver hook."""
+test-only fake solver injected."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -13,15 +13,20 @@ FAKES = Path(__file__).resolve().parents[1] / "sweep"
 GOOD = "grid: {eta_i: [6], theta_i: [80], eta_o: [10], theta_o: [78, 84, 86], mu_ratio: [1, 5.8]}\nmesh: {order: 1, nt: 2}\n"
 
 
+_INJECT: dict = {}
+
+
 @pytest.fixture
 def fake_solver(monkeypatch):
-    """Select the test-only fake solver through the documented environment hook."""
+    """Inject the test-only fake solver into the CLI (``cli.main(argv, solve_fn=...)``)."""
     monkeypatch.syspath_prepend(str(FAKES))
-    monkeypatch.setenv("SNAPJUMP_FAKE_SOLVER", "snapjump_fake_solvers:fast_solve")
+    import snapjump_fake_solvers as fake
+
+    monkeypatch.setitem(_INJECT, "solve_fn", fake.fast_solve)
 
 
 def _run(capsys, *argv: str) -> tuple[int, str, str]:
-    code = cli_main(["sweep", *argv])
+    code = cli_main(["sweep", *argv], **_INJECT)
     cap = capsys.readouterr()
     return code, cap.out, cap.err
 

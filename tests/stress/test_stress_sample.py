@@ -23,7 +23,6 @@ def warm():
 
 
 def test_sample_rows_are_classified_and_deterministic(tmp_path, warm, monkeypatch):
-    monkeypatch.delenv("SNAPJUMP_FAKE_SOLVER", raising=False)
     pts = sl.random_extended(4, seed=1)  # 2 valid, 2 violating eq 5
     a = sl.sweep(pts, tmp_path / "a.parquet", mesh=COARSE, n_jobs=1)
     assert len(a) == 4

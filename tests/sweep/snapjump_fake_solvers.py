@@ -2,9 +2,8 @@
 
 They return every key of ``RESULT_KEYS`` with cheap, deterministic, plausible values, so that the
 sweep machinery (resume, chunking, failure handling, schema) can be tested without the FE solver.
-Used in-process (``run_sweep(..., solve_fn=fast_solve)``) and in subprocesses through the
-test-only hook ``SNAPJUMP_FAKE_SOLVER=snapjump_fake_solvers:slow_solve`` (with this folder on
-``PYTHONPATH``).
+Used in-process (``run_sweep(..., solve_fn=fast_solve)``, ``cli.main(argv, solve_fn=fast_solve)``)
+and in subprocesses through ``fake_sweep_main.py`` (the real CLI with ``slow_solve`` injected).
 
 Environment knobs (subprocess tests):
 ``SNAPJUMP_FAKE_DELAY``  seconds each ``slow_solve`` call sleeps (default 0.2);
@@ -17,7 +16,7 @@ import os
 import time
 
 from snapjump_cli.geometry import design_volumes
-from snapjump_cli.settings import RESULT_KEYS
+from snapjump_cli.rows import RESULT_KEYS
 
 WARM_UPS = []
 
@@ -49,6 +48,7 @@ def fast_solve(design, mesh, solver) -> dict:
     dE = (1e-3 * design.mu_ratio * design.eta_o / design.eta_i) if snaps else 0.0
     dy = (0.004 * design.mu_ratio ** 0.5 * design.theta_o_deg / 80.0) if snaps else float("nan")
     out = {k: 0.0 for k in RESULT_KEYS}
+    out.update(mesh_sensitive=False, mesh_check="", dE_J_coarse=None, dy_pole_m_coarse=None)
     out.update(
         dE_J=dE, dE_norm=dE / (design.mu_i * design.R_i ** 3), dE_energy_J=dE, dE_path_J=dE * (1 + 1e-6),
         dE_rel_diff=1e-6, dy_pole_m=dy, dy_pole_upper_m=dy, dy_pole_norm=dy / design.R_i,

@@ -36,10 +36,10 @@ def test_sweep_on_a_dask_cluster_then_resume(grid_file, tmp_path, cluster):
 
 
 def test_cli_scheduler_option(grid_file, tmp_path, cluster, capsys, monkeypatch):
-    monkeypatch.setenv("SNAPJUMP_FAKE_SOLVER", "snapjump_fake_solvers:fast_solve")
     grid = grid_file(grid={"eta_i": [6], "eta_o": [10]})
     out = tmp_path / "cli.parquet"
-    code = cli_main(["sweep", str(grid), "-o", str(out), "--scheduler", cluster.scheduler_address, "--no-progress"])
+    code = cli_main(["sweep", str(grid), "-o", str(out), "--scheduler", cluster.scheduler_address, "--no-progress"],
+                    solve_fn=fake.fast_solve)
     cap = capsys.readouterr()
     assert code == 0, cap.err
     assert "10 designs (0 resumed, 8 solved" in cap.out
@@ -47,11 +47,11 @@ def test_cli_scheduler_option(grid_file, tmp_path, cluster, capsys, monkeypatch)
 
 
 def test_unreachable_scheduler_is_bad_input(grid_file, tmp_path, capsys, monkeypatch):
-    monkeypatch.setenv("SNAPJUMP_FAKE_SOLVER", "snapjump_fake_solvers:fast_solve")
-    monkeypatch.setattr("snapjump_cli.sweep._CONNECT_TIMEOUT_S", 1.0)
+    monkeypatch.setattr("snapjump_cli.execution._CONNECT_TIMEOUT_S", 1.0)
     grid = grid_file(grid={"eta_i": [6], "eta_o": [10]})
     out = tmp_path / "x.parquet"
-    code = cli_main(["sweep", str(grid), "-o", str(out), "--scheduler", "tcp://127.0.0.1:9", "--no-progress"])
+    code = cli_main(["sweep", str(grid), "-o", str(out), "--scheduler", "tcp://127.0.0.1:9", "--no-progress"],
+                    solve_fn=fake.fast_solve)
     err = capsys.readouterr().err
     assert code == 2 and "cannot connect to the dask scheduler" in err
     # the invalid designs were recorded before the connection attempt: a later run resumes from them

@@ -1,8 +1,8 @@
 """Kill a real ``python -m snapjump_cli sweep`` process mid-run, rerun it, and check that the
 result has every design exactly once and that finished designs were not solved again.
 
-The subprocess uses the TEST-ONLY hook ``SNAPJUMP_FAKE_SOLVER=snapjump_fake_solvers:slow_solve``
-(see ``snapjump_cli.sweep``), a fake solver that sleeps ``SNAPJUMP_FAKE_DELAY`` seconds.
+The subprocess runs the real CLI through ``fake_sweep_main.py``, which injects the test-only fake
+solver ``snapjump_fake_solvers.slow_solve`` (it sleeps ``SNAPJUMP_FAKE_DELAY`` seconds).
 """
 from __future__ import annotations
 
@@ -27,7 +27,6 @@ REPO = HERE.parents[1]
 def _env(log: Path, delay: float) -> dict[str, str]:
     env = dict(os.environ)
     env.update(
-        SNAPJUMP_FAKE_SOLVER="snapjump_fake_solvers:slow_solve",
         SNAPJUMP_FAKE_DELAY=str(delay),
         SNAPJUMP_FAKE_LOG=str(log),
         PYTHONPATH=os.pathsep.join([str(HERE), str(REPO), env.get("PYTHONPATH", "")]),
@@ -36,7 +35,7 @@ def _env(log: Path, delay: float) -> dict[str, str]:
 
 
 def _start(grid: Path, out: Path, env: dict[str, str], jobs: int) -> subprocess.Popen:
-    cmd = [sys.executable, "-m", "snapjump_cli", "sweep", str(grid), "-o", str(out), "-j", str(jobs), "--no-progress"]
+    cmd = [sys.executable, str(HERE / "fake_sweep_main.py"), "sweep", str(grid), "-o", str(out), "-j", str(jobs), "--no-progress"]
     return subprocess.Popen(cmd, env=env, cwd=grid.parent, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             start_new_session=True)
 

@@ -18,12 +18,9 @@ from snapjump_cli.cli import main as cli_main
 
 REPO = Path(__file__).resolve().parents[2]
 
-pytestmark = pytest.mark.skipif(find_spec("snapjump_cli.solve") is None,
-                                reason="REAL-SOLVER SMOKE TEST: snapjump_cli/solve.py has not landed yet")
 
 
 def test_smoke_sweep_and_rank_with_the_real_solver(tmp_path, capsys, monkeypatch):
-    monkeypatch.delenv("SNAPJUMP_FAKE_SOLVER", raising=False)
     out = tmp_path / "smoke.parquet"
     code = cli_main(["sweep", str(REPO / "configs" / "smoke.yaml"), "-o", str(out), "--no-progress"])
     cap = capsys.readouterr()
