@@ -20,7 +20,8 @@ from typing import Any, Callable
 import numpy as np
 import pandas as pd
 
-__all__ = ["RANK_COLUMNS", "REQUIRED_COLUMNS", "RankInputError", "rank_results", "top_table"]
+__all__ = ["RANK_COLUMNS", "REQUIRED_COLUMNS", "RankInputError", "check_types", "rank_results", "settings_mix",
+           "top_table"]
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +45,39 @@ def _finite(x: Any) -> bool:
         return x is not None and x is not pd.NA and math.isfinite(float(x))
     except (TypeError, ValueError):
         return False
+
+
+def check_types(df: pd.DataFrame) -> None:
+    """Raise :class:`RankInputError` naming the first required column whose type is wrong
+    (``status`` text, the metrics numbers)."""
+    from pandas.api import types as pt
+
+    for c in REQUIRED_COLUMNS:
+        col = df[c]
+        if c == "status":
+            good = pt.is_string_dtype(col) or (pt.is_object_dtype(col) and col.map(lambda v: isinstance(v, str)).all())
+            expected = "text"
+        else:
+            good = pt.is_numeric_dtype(col) and not pt.is_bool_dtype(col)
+            expected = "numbers"
+        if not good:
+            raise RankInputError(f"column {c!r} has type {col.dtype}, expected {expected}")
+
+
+def settings_mix(df: pd.DataFrame) -> list[str]:
+    """How a result table mixes rows computed differently: one entry per column of
+    :data:`snapjump_cli.rows.SETTINGS_COLUMNS` (plus code version and commit) that takes more than
+    one value, e.g. ``"mesh_nt: 2 (4800 rows), 3 (80 rows)"``; empty if the rows agree."""
+    from snapjump_cli.rows import SETTINGS_COLUMNS
+
+    out = []
+    for c in (*SETTINGS_COLUMNS, "snapjump_version", "git_commit"):
+        if c not in df.columns:
+            continue
+        counts = df[c].dropna().value_counts()
+        if len(counts) > 1:
+            out.append(f"{c}: " + ", ".join(f"{v} ({n} rows)" for v, n in counts.items()))
+    return out
 
 
 def rank_results(
@@ -72,11 +106,12 @@ def rank_results(
     Raises
     ------
     RankInputError
-        If a column of :data:`REQUIRED_COLUMNS` is missing.
+        If a column of :data:`REQUIRED_COLUMNS` is missing or has the wrong type.
     """
     missing = [c for c in REQUIRED_COLUMNS if c not in df.columns]
     if missing:
         raise RankInputError("not a sweep result table: missing column(s) " + ", ".join(missing))
+    check_types(df)
     if params is None or jump_fn is None or masses_fn is None:
         from snapjump_cli import jump
 

@@ -25,7 +25,7 @@ import click
 
 from snapjump_cli.errors import BadInput
 from snapjump_cli.geometry import BASE_CONDITIONS, CapScene, Design, InvalidDesign
-from snapjump_cli.settings import MeshSettings
+from snapjump_cli.settings import NT_MAX, MeshSettings, SettingsError
 
 __all__ = [
     "FiniteFloat",
@@ -132,7 +132,7 @@ _MS = MeshSettings()
 mesh_options = _apply([
     click.option("--order", "order", type=_Order(), default=str(_MS.order), show_default=True,
                  help="Element order: 1 (Q4) or 2 (Q9)."),
-    click.option("--nt", "nt", type=PositiveInt(1, 1000), default=_MS.nt, show_default=True,
+    click.option("--nt", "nt", type=PositiveInt(1, NT_MAX), default=_MS.nt, show_default=True,
                  help="Elements through each cap's thickness."),
     click.option("--aspect", "aspect", type=_F, default=_MS.aspect, show_default=True,
                  help="Largest element length along an arc / through-thickness size."),
@@ -220,12 +220,12 @@ def scene_from_options(
 
 
 def mesh_settings_from_options(order: int | str = _MS.order, nt: int = _MS.nt, aspect: float = _MS.aspect) -> MeshSettings:
-    """:class:`MeshSettings` from the ``--order/--nt/--aspect`` values (BadInput when invalid)."""
+    """:class:`MeshSettings` from the ``--order/--nt/--aspect`` values (BadInput when invalid; the
+    ranges are those of :class:`MeshSettings`, the same as in a YAML config)."""
     if str(order) not in ("1", "2"):
         raise BadInput(f"--order must be 1 or 2, got {order!r}")
-    if isinstance(nt, bool) or not isinstance(nt, int) or nt < 1:
-        raise BadInput(f"--nt must be an integer >= 1, got {nt!r}")
     aspect = _finite("--aspect", aspect)
-    if aspect <= 0:
-        raise BadInput(f"--aspect must be > 0, got {aspect:g}")
-    return MeshSettings(order=int(order), nt=nt, aspect=aspect)
+    try:
+        return MeshSettings(order=int(order), nt=nt, aspect=aspect)
+    except SettingsError as e:
+        raise BadInput(f"--{e.field}: expected {e.expected}, got {e.value!r}") from None

@@ -3,7 +3,39 @@ from __future__ import annotations
 
 from dataclasses import dataclass, asdict, fields
 
-__all__ = ["MeshSettings", "SolverSettings"]
+__all__ = ["MeshSettings", "SolverSettings", "SettingsError", "NT_MAX", "ASPECT_MAX"]
+
+#: Bounds of the mesh density, the same for the YAML configs and the command-line options.
+NT_MAX = 64
+ASPECT_MAX = 100.0
+
+
+class SettingsError(ValueError):
+    """A setting out of its range: ``field``, what was ``expected``, the ``value`` given."""
+
+    def __init__(self, field: str, expected: str, value: object) -> None:
+        super().__init__(f"{field}: expected {expected}, got {value!r}")
+        self.field, self.expected, self.value = field, expected, value
+
+
+def _check(obj: object, rules: dict) -> None:
+    """Validate the fields of a settings dataclass: ``rules[name] = (test, wording)``."""
+    import math
+
+    for name, (test, expected) in rules.items():
+        v = getattr(obj, name)
+        if isinstance(v, float) and not math.isfinite(v):
+            raise SettingsError(name, expected, v)
+        if not test(v):
+            raise SettingsError(name, expected, v)
+
+
+def _is_int(v: object) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_num(v: object) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 @dataclass(frozen=True)
@@ -20,6 +52,13 @@ class MeshSettings:
     order: int = 2
     nt: int = 2
     aspect: float = 2.0
+
+    def __post_init__(self) -> None:
+        _check(self, {
+            "order": (lambda v: _is_int(v) and v in (1, 2), "1 or 2"),
+            "nt": (lambda v: _is_int(v) and 1 <= v <= NT_MAX, f"an integer in [1, {NT_MAX}]"),
+            "aspect": (lambda v: _is_num(v) and 0 < v <= ASPECT_MAX, f"a number in (0, {ASPECT_MAX:g}]"),
+        })
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -56,6 +95,20 @@ class SolverSettings:
     bulk_ratio: float = 1.0e4
     u_scale: float = 1.0
     tol_path: float = 1e-6
+
+    def __post_init__(self) -> None:
+        _check(self, {
+            "tol": (lambda v: _is_num(v) and 0 < v <= 1e-2, "a number in (0, 0.01]"),
+            "tol_path": (lambda v: _is_num(v) and 0 < v <= 1e-2, "a number in (0, 0.01]"),
+            "ds0": (lambda v: _is_num(v) and v > 0, "a number > 0"),
+            "ds_max": (lambda v: _is_num(v) and v >= self.ds0, f"a number >= ds0 = {self.ds0:g}"),
+            "max_steps": (lambda v: _is_int(v) and 1 <= v <= 1_000_000, "an integer in [1, 1000000]"),
+            "max_newton": (lambda v: _is_int(v) and 1 <= v <= 100, "an integer in [1, 100]"),
+            "max_turn_deg": (lambda v: _is_num(v) and 0 < v <= 90, "a number of degrees in (0, 90]"),
+            "full": (lambda v: isinstance(v, bool), "true or false"),
+            "bulk_ratio": (lambda v: _is_num(v) and v > 0, "a number > 0"),
+            "u_scale": (lambda v: _is_num(v) and v >= 0, "a number >= 0"),
+        })
 
     def as_dict(self) -> dict:
         return asdict(self)

@@ -19,6 +19,7 @@ from typing import Sequence
 import click
 import numpy as np
 
+from snapjump_cli.cli import verbosity_options
 from snapjump_cli.errors import BadInput
 from snapjump_cli.scenes import (
     mesh_options,
@@ -101,6 +102,7 @@ def _text(scene, m: dict) -> str:
               help="Write the traced path (p_Pa, V_m3, y_pole_m, strain_energy_J, arc_length) to this CSV file.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Draw the p-V curve (paper Fig. 2A normalisation, dE shaded) to this PNG file.")
+@verbosity_options
 def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, **kw) -> None:
     """Trace one scene's pressure-volume path through its limit points and report the snap.
 

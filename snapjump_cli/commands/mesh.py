@@ -18,6 +18,7 @@ from typing import Sequence
 
 import click
 
+from snapjump_cli.cli import verbosity_options
 from snapjump_cli.errors import BadInput
 from snapjump_cli.scenes import (
     mesh_options,
@@ -139,6 +140,7 @@ def _text(scene, s: dict) -> str:
               help="Write the mesh to FILE (.msh or .vtu).")
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True,
               help="Output format.")
+@verbosity_options
 def command(out: Path | None, fmt: str, **kw) -> None:
     """Build and mesh one scene (design or single cap); print its geometry.
 

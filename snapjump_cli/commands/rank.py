@@ -9,6 +9,7 @@ from typing import Sequence
 
 import click
 
+from snapjump_cli.cli import is_quiet, verbosity_options
 from snapjump_cli.errors import BadInput
 
 __all__ = ["command", "main"]
@@ -41,13 +42,14 @@ against each design parameter.
 @click.option("--rho", type=float, default=1000.0, show_default=True, help="Rubber density [kg/m^3].")
 @click.option("--c-d", "c_d", type=float, default=0.4, show_default=True, help="Dashpot coefficient [kg/s].")
 @click.option("--alpha", type=float, default=0.5, show_default=True, help="Ground restitution coefficient, in [0, 1].")
+@verbosity_options
 def command(results: Path, top: int, output: Path | None, plots_dir: Path | None, rho: float, c_d: float,
             alpha: float) -> None:
     import pyarrow as pa
 
     from snapjump_cli import results as res
     from snapjump_cli.jump import JumpParams
-    from snapjump_cli.rank import RankInputError, rank_results, top_table
+    from snapjump_cli.rank import RankInputError, rank_results, settings_mix, top_table
 
     try:
         params = JumpParams(rho=rho, c_d=c_d, alpha=alpha)
@@ -62,14 +64,24 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
         meta = res.read_metadata(results)
     except (pa.ArrowException, OSError) as e:
         raise BadInput(f"{results}: not a readable parquet file ({str(e).splitlines()[0]})") from None
+    out = output if output is not None else results.with_name(results.name.removesuffix(".parquet") + ".ranked.parquet")
+    if out.resolve() == results.resolve():
+        raise BadInput(f"-o/--output: {out} would overwrite the input results file")
+    # every output place is checked before anything is written
+    res.check_writable(out, BadInput)
+    if plots_dir is not None:
+        res.check_writable(plots_dir, BadInput, what="folder")
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError as e:
+            raise click.ClickException(f"--plots needs matplotlib (pip install 'snapjump[plots]'): {e}") from None
     try:
         ranked = rank_results(df, params)
     except RankInputError as e:
         raise BadInput(f"{results}: {e}") from None
-
-    out = output if output is not None else results.with_name(results.name.removesuffix(".parquet") + ".ranked.parquet")
-    if out.resolve() == results.resolve():
-        raise BadInput(f"-o/--output: {out} would overwrite the input results file")
+    if not is_quiet():
+        for line in settings_mix(df):
+            click.echo(f"warning: {results} mixes rows computed with different settings: {line}", err=True)
     meta = dict(meta)
     meta["rank"] = {
         "source": str(results),

@@ -136,3 +136,35 @@ def test_plots_with_no_snapping_design(tmp_path):
                        "theta_o_deg": [84.0], "y_jump_m": [0.0]})
     files = make_plots(df, tmp_path)
     assert all(f.exists() for f in files)
+
+
+@pytest.mark.parametrize("where", ["output", "plots"])
+def test_unwritable_output_or_plots_is_exit_2_and_writes_nothing(tmp_path, capsys, results_file, where):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")
+    out = tmp_path / "ranked.parquet"
+    argv = [str(results_file), "-o", str(blocker / "r.parquet") if where == "output" else str(out)]
+    if where == "plots":
+        argv += ["--plots", str(blocker / "plots")]
+    code, _, err = _run(capsys, *argv)
+    assert code == 2 and str(blocker) in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
+
+
+def test_right_columns_wrong_types_is_exit_2_naming_the_column(tmp_path, capsys, results_file):
+    df = res.read_results(results_file)
+    bad = tmp_path / "bad.parquet"
+    df.assign(dE_J=df["dE_J"].astype(str)).to_parquet(bad)
+    code, _, err = _run(capsys, str(bad), "-o", str(tmp_path / "o.parquet"))
+    assert code == 2 and "column 'dE_J' has type" in err and "expected numbers" in err
+    assert not (tmp_path / "o.parquet").exists()
+
+
+def test_rank_says_when_a_file_mixes_settings(tmp_path, capsys, results_file):
+    df = res.read_results(results_file)
+    mixed = tmp_path / "mixed.parquet"
+    df.assign(mesh_nt=[2] * (len(df) - 3) + [3] * 3).to_parquet(mixed)
+    code, _, err = _run(capsys, str(mixed), "-o", str(tmp_path / "o.parquet"))
+    assert code == 0 and "mixes rows computed with different settings: mesh_nt: 2 (13 rows), 3 (3 rows)" in err
+    code, _, err = _run(capsys, str(results_file), "-o", str(tmp_path / "o2.parquet"))
+    assert code == 0 and "mixes" not in err

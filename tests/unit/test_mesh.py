@@ -457,10 +457,9 @@ def test_deterministic():
 
 def test_bad_settings():
     d = get_design("C")
-    for s, msg in ((MeshSettings(order=3), "order"), (MeshSettings(nt=0), "nt"),
-                   (MeshSettings(aspect=float("nan")), "aspect")):
-        with pytest.raises(ValueError, match=msg):
-            mesh_scene(d, s)
+    for kw, msg in ((dict(order=3), "order"), (dict(nt=0), "nt"), (dict(aspect=float("nan")), "aspect")):
+        with pytest.raises(ValueError, match=msg):  # the settings refuse bad values themselves
+            mesh_scene(d, MeshSettings(**kw))
     with pytest.raises(ValueError, match="snap"):
         mesh_scene(d, snap=1.5)
     with pytest.raises(TypeError):
