@@ -228,7 +228,7 @@ def main(argv=None) -> int:
         state["bench_wall_s"] = time.perf_counter() - t_start
         state_file.write_text(json.dumps(state, indent=1, default=str))
 
-    from bench.report import write_report
+    from bench.mesh_report import write_report
 
     # runs of the current selection only (the file may hold others)
     names = {c.name for c in cases}

@@ -1,4 +1,6 @@
-"""The benchmark report: ``REPORT.md`` (Markdown tables) and plots (matplotlib, Agg)."""
+"""The mesh study's report (``make bench-mesh``): ``REPORT.md`` (Markdown tables) and plots
+(matplotlib, Agg). The committed copy lives in ``bench/mesh_study/`` (Markdown and data; the plots
+are regenerated, not committed)."""
 from __future__ import annotations
 
 import math
@@ -7,6 +9,20 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from bench import analysis as an
+
+
+def _portable(args: dict) -> dict:
+    """The study's options with paths relative to the repository (no machine paths in the report)."""
+    repo = Path(__file__).resolve().parents[1]
+    out = {}
+    for k, v in args.items():
+        if isinstance(v, str) and v.startswith("/"):
+            try:
+                v = str(Path(v).resolve().relative_to(repo))
+            except ValueError:
+                v = Path(v).name
+        out[k] = v
+    return out
 
 
 def _pct(x: float | None, digits: int = 2) -> str:
@@ -132,7 +148,7 @@ def write_report(runs: list[dict], cases, state: dict, out: Path, aspect_rule: d
     git = state.get("git", {})
     w("# snapjump benchmark: run time against error\n")
     w(f"Generated {datetime.now(timezone.utc).isoformat(timespec='seconds')} by `python -m bench.run_bench` "
-      f"(options: `{state.get('args', {})}`).\n")
+      f"(options: `{_portable(state.get('args', {}))}`).\n")
     w(f"Machine: {mach.get('cpu_model', '?')}, {mach.get('cores', '?')} cores, {mach.get('mem_total', '?')}; "
       f"Python {mach.get('python', '?')}, numba {mach.get('numba', '?')}, numpy {mach.get('numpy', '?')}; "
       f"load average at the end {tuple(round(x, 2) for x in mach.get('loadavg', ()))} (the machine was shared, "
