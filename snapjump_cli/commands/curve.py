@@ -12,7 +12,6 @@ import csv
 import json
 import logging
 import math
-import os
 from pathlib import Path
 from typing import Sequence
 
@@ -51,15 +50,19 @@ def to_jsonable(metrics: dict) -> dict:
 
 
 def _write_csv(curve: dict, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
+    from snapjump_cli.results import replace_atomic
+
     cols = ["p_Pa", "V_m3", "y_pole_m", "energy_J", "s"]
     names = ["p_Pa", "V_m3", "y_pole_m", "strain_energy_J", "arc_length"]
-    with open(tmp, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(names)
-        for row in zip(*(curve[c] for c in cols)):
-            w.writerow([f"{float(x):.12g}" for x in row])
-    os.replace(tmp, path)
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(names)
+            for row in zip(*(curve[c] for c in cols)):
+                w.writerow([f"{float(x):.12g}" for x in row])
+
+    replace_atomic(write, path)
 
 
 def _text(scene, m: dict) -> str:
@@ -118,12 +121,15 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
 
     scene = scene_from_options(**pick_scene_options(kw))
     ms = mesh_settings_from_options(**pick_mesh_options(kw))
+    from snapjump_cli.results import check_writable
+
     for p, suffix in ((csv_path, ".csv"), (plot_path, ".png")):
         if p is not None:
             if p.suffix.lower() != suffix:
                 raise BadInput(f"{p}: expected a {suffix} file")
             if not p.parent.exists():
                 raise BadInput(f"{p}: directory {p.parent} does not exist")
+            check_writable(p, BadInput)
     try:
         res = solve_scene(scene, ms, SolverSettings(full=full))
     except SolveFailed as exc:

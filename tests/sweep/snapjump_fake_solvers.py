@@ -79,8 +79,18 @@ def flaky_solve(design, mesh, solver) -> dict:
     return out
 
 
+_CALLS = []
+
+
 def slow_solve(design, mesh, solver) -> dict:
-    """fast_solve after sleeping SNAPJUMP_FAKE_DELAY seconds."""
+    """fast_solve after sleeping SNAPJUMP_FAKE_DELAY seconds. With SNAPJUMP_FAKE_BLOCK_AFTER=n, every
+    call after the n-th of this process blocks (until the process is stopped), so a test can stop a
+    sweep mid-run whatever the machine's load: the run can never finish before it is stopped."""
+    _CALLS.append(1)
+    block = int(os.environ.get("SNAPJUMP_FAKE_BLOCK_AFTER", "0") or 0)
+    if block and len(_CALLS) > block:
+        while True:
+            time.sleep(0.05)
     time.sleep(float(os.environ.get("SNAPJUMP_FAKE_DELAY", "0.2")))
     return fast_solve(design, mesh, solver)
 

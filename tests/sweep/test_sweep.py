@@ -3,8 +3,10 @@ thread caps and surviving a worker that dies."""
 from __future__ import annotations
 
 import math
+import subprocess
 from pathlib import Path
 
+import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
@@ -39,6 +41,10 @@ def _check_complete(out: Path, config) -> "pd.DataFrame":  # noqa: F821
     return df
 
 
+#: The key of design (6, 80, 12, 82, 1) on the paper grid's mesh with ds0 = 0.02 (KEY_VERSION v1).
+KNOWN_KEY = "ee9521724d224adf09d5c438"
+
+
 def test_design_key_is_stable():
     c = parse_config({"grid": {"eta_i": [6], "theta_i": [80], "eta_o": [12], "theta_o": [82], "mu_ratio": [1]}})
     p = next(c.designs())
@@ -49,7 +55,11 @@ def test_design_key_is_stable():
     assert design_key(p, MeshSettings(order=1), c.solver) != k
     assert design_key(p, c.mesh, SolverSettings(tol=c.solver.tol * 10)) != k
     assert design_key(dict(p.design_kwargs(), mu_ratio=5.8), c.mesh, c.solver) != k
-    assert len(k) == 24 and int(k, 16) >= 0
+    assert len(k) == 24 and set(k) <= set("0123456789abcdef")
+    # the key of a fixed design and settings is fixed across versions (else old results are not reused)
+    assert design_key({"eta_i": 6.0, "theta_i_deg": 80.0, "eta_o": 12.0, "theta_o_deg": 82.0, "mu_ratio": 1.0,
+                       "R_i": 0.03, "mu_i": 0.35e6, "J_m": 24.0, "t_ring_frac": 1 / 30, "w_ring_frac": 0.1},
+                      MeshSettings(order=2, nt=2, aspect=3.0), SolverSettings(ds0=0.02)) == KNOWN_KEY
 
 
 def test_statuses_failures_and_invalid_designs(grid_file, tmp_path, monkeypatch):
@@ -143,6 +153,10 @@ def test_retry_failed_and_extended_grid(grid_file, tmp_path):
     _check_complete(out, big)
 
 
+def df_rows_commit(out) -> set:
+    return {None if v is pd.NA else v for v in res.read_results(out)["git_commit"]}
+
+
 def test_schema_and_provenance(grid_file, tmp_path):
     cfg = load_config(grid_file())
     out = tmp_path / "r.parquet"
@@ -164,7 +178,12 @@ def test_schema_and_provenance(grid_file, tmp_path):
     assert meta["config"]["mesh"] == {"order": 1, "nt": 2, "aspect": 2.0}
     assert set(meta["config"]["solver"]) == set(SolverSettings.field_names())
     assert {"numpy", "pandas", "pyarrow", "joblib"} <= set(meta["dependencies"])
-    assert "git" in meta and (meta["git"] is None or len(meta["git"]["commit"]) == 40)
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(res.__file__).parent, capture_output=True, text=True)
+    if head.returncode == 0:  # a checkout: the commit is recorded, in the metadata and in every row
+        assert meta["git"]["commit"] == head.stdout.strip()
+        assert df_rows_commit(out) == {head.stdout.strip() + ("+dirty" if meta["git"]["dirty"] else "")}
+    else:  # an installed copy without git: recorded as unknown, not invented
+        assert meta["git"] is None and df_rows_commit(out) == {None}
     assert meta["status_counts"]["invalid_geometry"] == 8 and meta["n_rows"] == 40
     df = res.read_results(out)
     ok = df[df["status"] == "ok"].iloc[0]
