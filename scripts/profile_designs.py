@@ -3,7 +3,7 @@ per iteration and the element pass against its flop count (issue 10's before/aft
 
     .venv/bin/python scripts/profile_designs.py [--repeat 3] [--designs D C grid-0037 grid-1543]
 
-Designs are named designs (``configs/designs.yaml``) or ``grid-NNNN`` (the paper grid's point
+Designs are named designs (``snapjump_cli/data/designs.yaml``) or ``grid-NNNN`` (the paper grid's point
 NNNN); each is solved once at the grid's mesh (``solve_scene``; ``--sweep``: as the sweep solves
 it, with the mesh re-check), warm, the median of ``--repeat`` runs. ``--repo DIR`` profiles another
 checkout (e.g. a git worktree of an older commit, with a ``snapjump_kernels -> kernels`` link).

@@ -1,5 +1,6 @@
-"""The named designs of the paper (S2 and S20; docs/physics.md section 7), read from
-``configs/designs.yaml``.
+"""The named designs of the paper (S2 and S20; docs/physics.md section 7), read from the package
+data file ``snapjump_cli/data/designs.yaml`` (with :mod:`importlib.resources`, so an installed
+wheel finds it as well as a checkout).
 
 Each YAML entry holds the design parameters ``eta_i, theta_i, eta_o, theta_o, mu_ratio``
 (angles in degrees) and the paper's reported values ``paper_*`` (SI units).
@@ -9,13 +10,14 @@ from __future__ import annotations
 import copy
 import dataclasses
 from functools import lru_cache
-from pathlib import Path
+from importlib import resources
 
 from snapjump_cli.geometry import Design, InvalidDesign
 
 __all__ = ["DESIGNS_YAML", "named_designs", "get_design", "paper_values", "resolve_name"]
 
-DESIGNS_YAML = Path(__file__).resolve().parents[1] / "configs" / "designs.yaml"
+#: Where the named designs are read from (a Traversable of the installed package).
+DESIGNS_YAML = resources.files("snapjump_cli") / "data" / "designs.yaml"
 
 # YAML key -> Design field
 _PARAM_KEYS = {
@@ -32,8 +34,7 @@ _DESIGN_FIELDS = {f.name for f in dataclasses.fields(Design)}
 def _load() -> dict[str, dict]:
     import yaml
 
-    with open(DESIGNS_YAML, encoding="utf-8") as fh:
-        data = yaml.safe_load(fh) or {}
+    data = yaml.safe_load(DESIGNS_YAML.read_text(encoding="utf-8")) or {}
     if not isinstance(data, dict):
         raise ValueError(f"{DESIGNS_YAML}: expected a mapping of design names, got {type(data).__name__}")
     out: dict[str, dict] = {}

@@ -1,4 +1,4 @@
-"""configs/designs.yaml: every value is a number (YAML 1.1 reads e.g. ``275e-3`` as a string)."""
+"""snapjump_cli/data/designs.yaml: every value is a number (YAML 1.1 reads e.g. ``275e-3`` as a string)."""
 from snapjump_cli.designs import named_designs, paper_values
 
 
