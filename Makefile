@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 
 run: install
 	$(BIN)/snapjump -v sweep configs/paper_grid.yaml -o results/paper_grid.parquet
-	$(BIN)/snapjump rank results/paper_grid.parquet -o results/ranked.parquet --plots results/
+	$(BIN)/snapjump rank results/paper_grid.parquet -o results/ranked.parquet --plots results/ --overwrite
 
 test: install
 	$(BIN)/python -m pytest -q -x --durations=15

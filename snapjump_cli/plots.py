@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-__all__ = ["plot_fig4a", "plot_fig4c", "plot_jump_vs_parameters", "make_plots", "PARAMETERS"]
+__all__ = ["plot_fig4a", "plot_fig4c", "plot_jump_vs_parameters", "make_plots", "PARAMETERS", "PLOT_FILES"]
 
 log = logging.getLogger(__name__)
 
@@ -152,6 +152,10 @@ def plot_jump_vs_parameters(ranked: pd.DataFrame, path: str | Path) -> Path:
     finally:
         plt.close(fig)
     return path
+
+
+#: The files :func:`make_plots` writes into its folder.
+PLOT_FILES: tuple[str, ...] = ("fig4a.png", "fig4c.png", "jump_vs_parameters.png")
 
 
 def make_plots(ranked: pd.DataFrame, out_dir: str | Path) -> list[Path]:

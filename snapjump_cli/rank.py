@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 __all__ = ["RANK_COLUMNS", "REQUIRED_COLUMNS", "RankInputError", "check_types", "rank_results", "settings_mix",
-           "top_table"]
+           "top_frame", "top_table", "TOP_COLUMNS"]
 
 log = logging.getLogger(__name__)
 
@@ -186,28 +186,47 @@ def rank_results(
     return ranked
 
 
+#: Columns of the ranked summary (``rank`` output): column -> (source column, scale to the unit shown).
+TOP_COLUMNS: dict[str, tuple[str, float]] = {
+    "rank": ("rank", 1.0),
+    "eta_i": ("eta_i", 1.0),
+    "theta_i": ("theta_i_deg", 1.0),
+    "eta_o": ("eta_o", 1.0),
+    "theta_o": ("theta_o_deg", 1.0),
+    "mu_ratio": ("mu_ratio", 1.0),
+    "dE_mJ": ("dE_J", 1e3),
+    "dy_pole_mm": ("dy_pole_m", 1e3),
+    "h_imp_mm": ("h_imp_m", 1e3),
+    "y_jump_mm": ("y_jump_m", 1e3),
+    "jumped": ("jumped", 1.0),
+    "jump_complete": ("jump_complete", 1.0),
+    "self_crossing": ("self_crossing", 1.0),
+    "mesh_sensitive": ("mesh_sensitive", 1.0),
+    "lower_state": ("lower_state_method", 1.0),
+    "status": ("status", 1.0),
+}
+
+
+def top_frame(ranked: pd.DataFrame, n: int = 10) -> pd.DataFrame:
+    """The first ``n`` ranked rows with the columns of :data:`TOP_COLUMNS` (lengths in mm, energy
+    in mJ; a column missing from ``ranked`` is left out)."""
+    head = ranked.head(max(0, int(n)))
+    cols = {}
+    for name, (src, scale) in TOP_COLUMNS.items():
+        if src in head.columns:
+            cols[name] = head[src] * scale if scale != 1.0 else head[src]
+    return pd.DataFrame(cols).reset_index(drop=True)
+
+
 def top_table(ranked: pd.DataFrame, n: int = 10) -> str:
     """The first ``n`` ranked rows as a fixed-width text table (lengths in mm, energy in mJ)."""
-    head = ranked.head(max(0, int(n)))
-    cols = {
-        "rank": head["rank"],
-        "eta_i": head.get("eta_i"),
-        "theta_i": head.get("theta_i_deg"),
-        "eta_o": head.get("eta_o"),
-        "theta_o": head.get("theta_o_deg"),
-        "mu_ratio": head.get("mu_ratio"),
-        "dE_mJ": head["dE_J"] * 1e3,
-        "dy_pole_mm": head["dy_pole_m"] * 1e3,
-        "h_imp_mm": head["h_imp_m"] * 1e3,
-        "y_jump_mm": head["y_jump_m"] * 1e3,
-        "jumped": head["jumped"],
-        "status": head["status"],
-    }
-    table = pd.DataFrame({k: v for k, v in cols.items() if v is not None})
+    table = top_frame(ranked, n)
     if table.empty:
         return "(no rows)"
     fmt = {k: (lambda x: "" if pd.isna(x) else f"{x:.4g}") for k in
            ("eta_i", "theta_i", "eta_o", "theta_o", "mu_ratio")}
     fmt.update({k: (lambda x: "-" if pd.isna(x) else f"{x:.2f}") for k in
                 ("dE_mJ", "dy_pole_mm", "h_imp_mm", "y_jump_mm")})
-    return table.to_string(index=False, formatters=fmt, na_rep="-")
+    fmt.update({k: (lambda x: "-" if pd.isna(x) else ("yes" if x else "no")) for k in
+                ("jumped", "jump_complete", "self_crossing", "mesh_sensitive")})
+    return table.to_string(index=False, formatters={k: f for k, f in fmt.items() if k in table.columns}, na_rep="-")

@@ -125,11 +125,15 @@ def write_table_atomic(table: pa.Table, path: str | Path) -> Path:
     return path
 
 
-def check_writable(path: str | Path, error: type[Exception] = OSError, what: str = "") -> Path:
+def check_writable(path: str | Path, error: type[Exception] = OSError, what: str = "",
+                   overwrite: bool = True) -> Path:
     """Make sure a file can be created at ``path``: its folder exists (created if needed) and is
-    writable. Raises ``error`` with one line naming the path otherwise (an ancestor that is a
-    regular file, a read-only folder, ...). Nothing else is written."""
+    writable, and (``overwrite=False``) no file is there already. Raises ``error`` with one line
+    naming the path otherwise (an ancestor that is a regular file, a read-only folder, an existing
+    file without ``--overwrite``, ...). Nothing else is written."""
     path = Path(path)
+    if not overwrite and what != "folder" and path.is_file():
+        raise error(f"{path}: exists; pass --overwrite to replace it")
     folder = path if what == "folder" else path.parent
     anc = folder
     while not anc.exists() and anc != anc.parent:

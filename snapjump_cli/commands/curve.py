@@ -105,8 +105,9 @@ def _text(scene, m: dict) -> str:
               help="Write the traced path (p_Pa, V_m3, y_pole_m, strain_energy_J, arc_length) to this CSV file.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Draw the p-V curve (paper Fig. 2A normalisation, dE shaded) to this PNG file.")
+@click.option("--overwrite", is_flag=True, help="Replace an existing --csv / --plot file (refused by default).")
 @verbosity_options
-def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, **kw) -> None:
+def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, overwrite: bool, **kw) -> None:
     """Trace one scene's pressure-volume path through its limit points and report the snap.
 
     \b
@@ -129,7 +130,7 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
                 raise BadInput(f"{p}: expected a {suffix} file")
             if not p.parent.exists():
                 raise BadInput(f"{p}: directory {p.parent} does not exist")
-            check_writable(p, BadInput)
+            check_writable(p, BadInput, overwrite=overwrite)
     try:
         res = solve_scene(scene, ms, SolverSettings(full=full))
     except SolveFailed as exc:

@@ -138,10 +138,11 @@ def _text(scene, s: dict) -> str:
 @mesh_options
 @click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), default=None, metavar="FILE",
               help="Write the mesh to FILE (.msh or .vtu).")
+@click.option("--overwrite", is_flag=True, help="Replace an existing --out file (refused by default).")
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True,
               help="Output format.")
 @verbosity_options
-def command(out: Path | None, fmt: str, **kw) -> None:
+def command(out: Path | None, fmt: str, overwrite: bool, **kw) -> None:
     """Build and mesh one scene (design or single cap); print its geometry.
 
     Choose the scene with --design NAME, or --eta-i/--theta-i/--eta-o/--theta-o [--mu-ratio],
@@ -156,6 +157,9 @@ def command(out: Path | None, fmt: str, **kw) -> None:
             raise BadInput(f"--out must end in .msh or .vtu, got {str(out)!r}")
         if not out.parent.is_dir():
             raise BadInput(f"--out folder does not exist: {str(out.parent)!r}")
+        from snapjump_cli.results import check_writable
+
+        check_writable(out, BadInput, overwrite=overwrite)
     try:
         mesh = mesh_scene(scene, settings)
     except (RuntimeError, ValueError) as e:  # gmsh or mesh-validity failure: one line, exit 1

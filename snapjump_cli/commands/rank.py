@@ -1,6 +1,7 @@
 """``snapjump rank RESULTS.parquet``: jump height of every design, ranked."""
 from __future__ import annotations
 
+import json
 import logging
 import sys
 from datetime import datetime, timezone
@@ -24,10 +25,14 @@ k_s = 2 dE / dy_pole^2 precompressed by dy_pole, release from h_imp_m, and y_jum
 highest height of the inner pole (docs/physics.md section 6). `no_snap` rows get
 y_jump_m = 0 with the reason; invalid and failed rows get NaN.
 
-Prints the top-N table (lengths in mm, energies in mJ), writes the ranked table (sorted
-by y_jump_m, column `rank`), atomically, and with --plots draws Fig. 4A (energy release
+Prints the top-N table (lengths in mm, energies in mJ; with the flags self_crossing,
+mesh_sensitive, jump_complete and the lower-state method), or CSV / JSON with --format,
+writes the ranked table (sorted by y_jump_m, column `rank`), atomically, and with --plots draws Fig. 4A (energy release
 vs pole travel, by mu ratio), Fig. 4C (jump height over that plane) and the jump height
 against each design parameter.
+
+Existing output files are not replaced unless --overwrite is given (the same in every
+command); nothing is written when any output place is unusable.
 """
 
 
@@ -42,14 +47,19 @@ against each design parameter.
 @click.option("--rho", type=float, default=1000.0, show_default=True, help="Rubber density [kg/m^3].")
 @click.option("--c-d", "c_d", type=float, default=0.4, show_default=True, help="Dashpot coefficient [kg/s].")
 @click.option("--alpha", type=float, default=0.5, show_default=True, help="Ground restitution coefficient, in [0, 1].")
+@click.option("--format", "fmt", type=click.Choice(["text", "csv", "json"]), default="text", show_default=True,
+              help="Standard output: the summary and top-N table (text), the top-N rows as CSV, or a JSON "
+                   "document (counts, top-N rows, files written). Messages go to stderr with csv/json.")
+@click.option("--overwrite", is_flag=True,
+              help="Replace an existing ranked file or plots (refused by default, as in every command).")
 @verbosity_options
 def command(results: Path, top: int, output: Path | None, plots_dir: Path | None, rho: float, c_d: float,
-            alpha: float) -> None:
+            alpha: float, fmt: str, overwrite: bool) -> None:
     import pyarrow as pa
 
     from snapjump_cli import results as res
     from snapjump_cli.jump import JumpParams
-    from snapjump_cli.rank import RankInputError, rank_results, settings_mix, top_table
+    from snapjump_cli.rank import RankInputError, rank_results, settings_mix, top_frame, top_table
 
     try:
         params = JumpParams(rho=rho, c_d=c_d, alpha=alpha)
@@ -68,9 +78,13 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
     if out.resolve() == results.resolve():
         raise BadInput(f"-o/--output: {out} would overwrite the input results file")
     # every output place is checked before anything is written
-    res.check_writable(out, BadInput)
+    res.check_writable(out, BadInput, overwrite=overwrite)
     if plots_dir is not None:
+        from snapjump_cli.plots import PLOT_FILES
+
         res.check_writable(plots_dir, BadInput, what="folder")
+        for name in PLOT_FILES:
+            res.check_writable(plots_dir / name, BadInput, overwrite=overwrite)
         try:
             import matplotlib  # noqa: F401
         except ImportError as e:
@@ -92,22 +106,29 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
     }
     res.write_frame_atomic(ranked, out, meta)
 
-    counts = ranked["status"].value_counts().to_dict()
+    counts = {str(k): int(v) for k, v in ranked["status"].value_counts().items()}
     n_jumped = int(ranked["jumped"].fillna(False).astype(bool).sum())
-    click.echo(f"{results}: {len(ranked)} designs ({', '.join(f'{k} {v}' for k, v in sorted(counts.items()))}); "
-               f"{n_jumped} jump")
-    if top > 0:
-        click.echo(top_table(ranked, top))
-    click.echo(f"wrote {out}")
+    files = [out]
     if plots_dir is not None:
         from snapjump_cli.plots import make_plots
 
-        try:
-            files = make_plots(ranked, plots_dir)
-        except ImportError as e:
-            raise click.ClickException(f"--plots needs matplotlib (pip install 'snapjump[plots]'): {e}") from None
+        files += make_plots(ranked, plots_dir)
+    say = (lambda line: click.echo(line, err=True)) if fmt != "text" else click.echo
+    summary = (f"{results}: {len(ranked)} designs ({', '.join(f'{k} {v}' for k, v in sorted(counts.items()))}); "
+               f"{n_jumped} jump")
+    if fmt == "text":
+        click.echo(summary)
+        if top > 0:
+            click.echo(top_table(ranked, top))
+    elif fmt == "csv":
+        click.echo(top_frame(ranked, top).to_csv(index=False), nl=False)
+    else:
+        rows = json.loads(top_frame(ranked, top).to_json(orient="records"))
+        click.echo(json.dumps({"source": str(results), "n_designs": int(len(ranked)), "status_counts": counts,
+                               "n_jumped": n_jumped, "top": rows, "files": [str(f) for f in files]}, indent=1))
+    if not is_quiet():
         for f in files:
-            click.echo(f"wrote {f}")
+            say(f"wrote {f}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

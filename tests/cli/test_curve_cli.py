@@ -53,6 +53,7 @@ def test_text_summary(capsys):
         (["--cap", "--theta", "60", "--eta", "-3"], "eta"),
         (["--design", "C", "--plot", "out.txt"], "out.txt"),
         (["--design", "C", "--csv", "nodir/x.csv"], "nodir"),
+        (["--design", "C", "--csv", "/proc/x.csv"], "/proc/x.csv"),
         (["--eta-i", "8", "--theta-i", "80", "--eta-o", "10", "--theta-o", "70", "--mu-ratio", "1"], "theta_i"),
     ],
 )
@@ -62,3 +63,18 @@ def test_bad_input_exit_2(capsys, tmp_path, monkeypatch, args, needle):
     err = capsys.readouterr().err
     assert needle in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
+
+
+def test_outputs_under_a_file_or_existing_are_refused(capsys, tmp_path):
+    f = tmp_path / "a_file"
+    f.write_text("x")
+    assert main([*CHEAP, "--csv", str(f / "c.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "a_file is a file, not a folder" in err and len(err.strip().splitlines()) == 1
+    png = tmp_path / "c.png"
+    png.write_bytes(b"old")
+    assert main([*CHEAP, "--plot", str(png)]) == 2
+    assert "exists; pass --overwrite" in capsys.readouterr().err and png.read_bytes() == b"old"
+    assert main([*CHEAP, "--plot", str(png), "--overwrite"]) == 0
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file", "c.png"]  # no temporary files left

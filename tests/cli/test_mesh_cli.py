@@ -179,3 +179,12 @@ def test_console_script(tmp_path):
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and "--eta-o" in r.stderr and "Traceback" not in r.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_existing_out_is_kept_unless_overwrite(capsys, tmp_path):
+    target = tmp_path / "m.msh"
+    target.write_text("old")
+    rc, _, err = run(capsys, "--design", "C", "--out", str(target))
+    assert rc == 2 and "exists; pass --overwrite" in err and target.read_text() == "old"
+    rc, _, _ = run(capsys, "--design", "C", "--out", str(target), "--overwrite")
+    assert rc == 0 and target.read_text() != "old"

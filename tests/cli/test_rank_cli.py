@@ -2,6 +2,7 @@
 the plots, and bad input."""
 from __future__ import annotations
 
+import json
 import math
 import sys
 from pathlib import Path
@@ -168,3 +169,30 @@ def test_rank_says_when_a_file_mixes_settings(tmp_path, capsys, results_file):
     assert code == 0 and "mixes rows computed with different settings: mesh_nt: 2 (13 rows), 3 (3 rows)" in err
     code, _, err = _run(capsys, str(results_file), "-o", str(tmp_path / "o2.parquet"))
     assert code == 0 and "mixes" not in err
+
+
+def test_table_shows_the_flags_and_formats(tmp_path, capsys, results_file):
+    code, out, _ = _run(capsys, str(results_file), "-o", str(tmp_path / "a.parquet"), "--top", "3")
+    header = out.splitlines()[1].split()
+    assert code == 0 and {"self_crossing", "mesh_sensitive", "jump_complete", "lower_state"} <= set(header)
+    code, out, err = _run(capsys, str(results_file), "-o", str(tmp_path / "b.parquet"), "--top", "3", "--format", "csv")
+    lines = out.strip().splitlines()
+    assert code == 0 and len(lines) == 4 and lines[0].startswith("rank,eta_i,theta_i,")
+    assert "wrote" in err and "wrote" not in out
+    code, out, err = _run(capsys, str(results_file), "-o", str(tmp_path / "c.parquet"), "--top", "2", "--format", "json")
+    doc = json.loads(out)
+    assert code == 0 and doc["n_designs"] == 16 and len(doc["top"]) == 2 and doc["top"][0]["rank"] == 1
+    assert doc["top"][0]["y_jump_mm"] >= doc["top"][1]["y_jump_mm"] and doc["files"] == [str(tmp_path / "c.parquet")]
+
+
+def test_existing_outputs_are_kept_unless_overwrite(tmp_path, capsys, results_file):
+    out = tmp_path / "r.parquet"
+    assert _run(capsys, str(results_file), "-o", str(out))[0] == 0
+    before = out.read_bytes()
+    code, _, err = _run(capsys, str(results_file), "-o", str(out))
+    assert code == 2 and f"{out}: exists; pass --overwrite" in err and out.read_bytes() == before
+    assert _run(capsys, str(results_file), "-o", str(out), "--overwrite")[0] == 0
+    plots = tmp_path / "plots"
+    assert _run(capsys, str(results_file), "-o", str(tmp_path / "p1.parquet"), "--plots", str(plots))[0] == 0
+    code, _, err = _run(capsys, str(results_file), "-o", str(tmp_path / "p2.parquet"), "--plots", str(plots))
+    assert code == 2 and "fig4a.png: exists" in err and not (tmp_path / "p2.parquet").exists()
