@@ -6,9 +6,9 @@ Used to bring the paper grid's descent rows (many solved with the first descent)
         --where "status == 'ok' and lower_state_method == 'descent'" --mesh 2,2,3 \
         --resolved results/stress/grid_descent_rows_resolved.parquet --merged results/grid_final.parquet
 
-The re-solve is an ordinary (resumable) sweep over the selected designs; rows are matched by their
-key (design + mesh + solver settings), so ``--mesh`` must be the file's mesh. Prints how much dE
-and dy_pole moved.
+The re-solve is an ordinary (resumable) sweep over the selected designs, given to the sweep as
+``points:`` (the same as a YAML ``points:`` list); rows are matched by their key (design + mesh +
+solver settings), so ``--mesh`` must be the file's mesh. Prints how much dE and dy_pole moved.
 """
 from __future__ import annotations
 
@@ -16,12 +16,11 @@ import argparse
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "stress"))
+import pandas as pd
 
-import pandas as pd  # noqa: E402
-import stresslib as sl  # noqa: E402
-
-from snapjump_cli.settings import MeshSettings  # noqa: E402
+from snapjump_cli import results as res
+from snapjump_cli.config import parse_config
+from snapjump_cli.sweep import run_sweep
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -36,10 +35,13 @@ def main(argv: list[str] | None = None) -> int:
     o, nt, asp = a.mesh.split(",")
     g = pd.read_parquet(a.results)
     sel = g.query(a.where)
-    pts = [{"eta_i": float(r.eta_i), "theta_i_deg": float(r.theta_i_deg), "eta_o": float(r.eta_o),
-            "theta_o_deg": float(r.theta_o_deg), "mu_ratio": float(r.mu_ratio)} for r in sel.itertuples()]
+    pts = [{"eta_i": float(r.eta_i), "theta_i": float(r.theta_i_deg), "eta_o": float(r.eta_o),
+            "theta_o": float(r.theta_o_deg), "mu_ratio": float(r.mu_ratio)} for r in sel.itertuples()]
     print(f"{len(pts)} rows selected", flush=True)
-    r = sl.sweep(pts, a.resolved, mesh=MeshSettings(order=int(o), nt=int(nt), aspect=float(asp)), n_jobs=a.jobs)
+    cfg = parse_config({"points": pts, "mesh": {"order": int(o), "nt": int(nt), "aspect": float(asp)},
+                        "n_jobs": a.jobs}, "<resolve_rows>")
+    run_sweep(cfg, output=a.resolved, progress=True)
+    r = res.read_results(a.resolved)
     rr = r.set_index("key")
     missing = set(rr.index) - set(g.key)
     if missing:

@@ -24,14 +24,13 @@ import math
 import os
 import re
 from collections import Counter
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
 from snapjump_cli import results as res
-from snapjump_cli.config import DesignPoint, SweepConfig, load_config
+from snapjump_cli.config import SweepConfig, load_config, parse_config
 from snapjump_cli.settings import MeshSettings, SolverSettings
 
 REPO = Path(__file__).resolve().parents[2]
@@ -72,36 +71,16 @@ def mesh_settings() -> MeshSettings:
     return MeshSettings(order=int(o), nt=int(nt), aspect=float(a))
 
 
-@dataclass(frozen=True)
-class PointsConfig(SweepConfig):
-    """A sweep over an explicit list of designs (not a Cartesian grid); ``points`` holds dicts with
-    ``eta_i, theta_i_deg, eta_o, theta_o_deg, mu_ratio``. Everything else is :class:`SweepConfig`."""
-
-    points: tuple = ()
-
-    @property
-    def n_designs(self) -> int:
-        return len(self.points)
-
-    def designs(self) -> Iterator[DesignPoint]:
-        for i, p in enumerate(self.points):
-            yield DesignPoint(index=i, eta_i=float(p["eta_i"]), theta_i_deg=float(p["theta_i_deg"]),
-                              eta_o=float(p["eta_o"]), theta_o_deg=float(p["theta_o_deg"]),
-                              mu_ratio=float(p["mu_ratio"]), R_i=self.R_i, mu_i=self.mu_i, J_m=self.J_m,
-                              t_ring_frac=self.t_ring_frac, w_ring_frac=self.w_ring_frac)
-
-    def to_dict(self) -> dict[str, Any]:
-        d = super().to_dict()
-        d["points"] = [dict(p) for p in self.points]
-        return d
-
-
 def points_config(points: list[dict], mesh: MeshSettings | None = None, solver: SolverSettings | None = None,
-                  n_jobs: int | None = None, source: str = "<stress points>") -> PointsConfig:
-    return PointsConfig(grid={a: () for a in ("eta_i", "theta_i", "eta_o", "theta_o", "mu_ratio")},
-                        points=tuple(points), mesh=mesh or mesh_settings(), solver=solver or SolverSettings(),
-                        n_jobs=env_int("SNAPJUMP_STRESS_JOBS", -1) if n_jobs is None else n_jobs, source=source,
-                        chunk_size=8)
+                  n_jobs: int | None = None, source: str = "<stress points>") -> SweepConfig:
+    """A sweep over an explicit list of designs (dicts with ``eta_i, theta_i_deg, eta_o, theta_o_deg,
+    mu_ratio``), through the sweep config's ``points:`` (validated like a YAML file)."""
+    doc = {"points": [{"eta_i": p["eta_i"], "theta_i": p["theta_i_deg"], "eta_o": p["eta_o"],
+                       "theta_o": p["theta_o_deg"], "mu_ratio": p["mu_ratio"]} for p in points],
+           "chunk_size": 8}
+    cfg = parse_config(doc, source)
+    return cfg.replace(mesh=mesh or mesh_settings(), solver=solver or SolverSettings(),
+                       n_jobs=env_int("SNAPJUMP_STRESS_JOBS", -1) if n_jobs is None else n_jobs)
 
 
 def random_extended(n: int, seed: int) -> list[dict]:

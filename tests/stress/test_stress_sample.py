@@ -70,7 +70,7 @@ def test_sample_identical_runs_are_bitwise_identical(warm):
 def test_points_config_and_classifier():
     cfg = sl.points_config(sl.random_extended(3, seed=2), mesh=COARSE, n_jobs=1)
     assert cfg.n_designs == 3 and [p.index for p in cfg.designs()] == [0, 1, 2]
-    assert cfg.to_dict()["points"][1]["eta_i"] == cfg.points[1]["eta_i"]
+    assert cfg.to_dict()["points"][1]["eta_i"] == cfg.points[1][0] == list(cfg.designs())[1].eta_i
     assert sl.cause_of("SolveFailed: volume limit found (V*=1e-4 m^3) but no lower state (x)").startswith("lower state")
     assert sl.cause_of("SolveFailed: continuation failed: max_steps") == "continuation failed"
     assert sl.normalise("V*=1.5e-4 m^3 after 12 steps") == "V*=# m^# after # steps"
