@@ -263,7 +263,7 @@ def write_report(runs: list[dict], cases, state: dict, out: Path, aspect_rule: d
 
     w("## Fixed costs\n")
     if state.get("mesh"):
-        w("Mesh generation (`mesh_scene`, gmsh + RCM renumbering; median of 5):\n")
+        w("Mesh generation (`mesh_scene`, gmsh + Cuthill-McKee renumbering; median of 5):\n")
         w("| scene | setting | nodes | median [s] |")
         w("|---|---|---|---|")
         for r in state["mesh"]:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ElementTables", "element_tables", "shape_q4", "shape_q9"]
+__all__ = ["ElementTables", "element_tables", "quadrature_geometry", "shape_q4", "shape_q9"]
 
 _Q9_NODES = np.array(
     [[-1, -1], [1, -1], [1, 1], [-1, 1], [0, -1], [1, 0], [0, 1], [-1, 0], [0, 0]], dtype=float
@@ -96,3 +96,27 @@ def element_tables(order: int) -> ElementTables:
         Np = np.stack([np.ones(len(w)), pts[:, 0], pts[:, 1]], axis=1)
         return ElementTables(9, N, dN, w, Np)
     raise ValueError(f"element order must be 1 or 2, got {order!r}")
+
+
+def quadrature_geometry(nodes: np.ndarray, elements: np.ndarray, order: int
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The isoparametric map of every element at the quadrature points of :func:`element_tables`.
+
+    Parameters
+    ----------
+    nodes : (n, 2) node coordinates ``(r, y)``
+    elements : (ne, nen) connectivity in gmsh's node order
+    order : 1 (Q4) or 2 (Q9)
+
+    Returns
+    -------
+    r : (ne, nq) radius at the quadrature points
+    det : (ne, nq) Jacobian determinant ``det(d(r, y)/d(xi, eta))``
+    w : (nq,) quadrature weights
+    """
+    tab = element_tables(order)
+    X = np.asarray(nodes, dtype=float)[np.asarray(elements)]  # (ne, nen, 2)
+    r = np.einsum("qa,ea->eq", tab.N, X[:, :, 0])
+    J = np.einsum("qak,eai->eqik", tab.dN, X)
+    det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+    return r, det, tab.w

@@ -31,6 +31,8 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from snapjump_cli.settings import SolverSettings
+
 log = logging.getLogger(__name__)
 
 __all__ = ["Problem", "PathPoint", "Path", "ContinuationFailed", "ContinuationSettings", "trace", "Tracer"]
@@ -60,24 +62,69 @@ class ContinuationFailed(RuntimeError):
     """The path could not be continued; the message gives the cause."""
 
 
+#: The user-facing defaults (one source of truth): :class:`ContinuationSettings` takes its
+#: defaults of the settings it shares with :class:`~snapjump_cli.settings.SolverSettings` from them.
+_USER_DEFAULTS = SolverSettings()
+
+
 @dataclass(frozen=True)
 class ContinuationSettings:
-    """Scaled-unit settings of :func:`trace` (see :class:`snapjump_cli.settings.SolverSettings`)."""
+    """Settings of :func:`trace` in scaled units.
+
+    The settings a user sets (``tol``, ``ds0``, ``ds_max``, ``max_steps``, ``max_newton``,
+    ``max_turn_deg``, ``tol_path`` and, in other units, ``u_scale``) and their defaults are those
+    of :class:`snapjump_cli.settings.SolverSettings`; :meth:`from_solver` copies them, unchanged.
+    The others tune the step control and are not exposed to users.
+
+    Parameters
+    ----------
+    scales : scales of the path measures ``zeta`` (the arc length is measured in ``zeta / scales``)
+    tol : relative Newton tolerance of the limit points, the lower state and the descent
+    ds0, ds_max, ds_min : initial, largest and smallest arc length (scaled)
+    max_steps : bound on continuation steps
+    max_newton : Newton iterations per step before a cut-back
+    max_turn_deg : largest turn of the path tangent (or chord) within one step
+    n_opt : Newton iterations up to which the step grows
+    hermite_predictor : cubic Hermite predictor through the last two points (else the tangent)
+    u_scale : scale of the RMS displacement in the arc length, in the problem's displacement units
+        (0: arc length in the measures only). ``SolverSettings.u_scale`` is in units of the
+        pole-displacement scale; the caller, which knows that scale, converts it.
+    ds_bifurcation : step that crosses a bifurcation point
+    tol_path : Newton tolerance of ordinary path points (``None``: ``tol``)
+    fused : use the problem's compiled corrector (``problem.newton``) if it has one
+    """
 
     scales: tuple[float, float, float]
-    tol: float = 1e-8
-    ds0: float = 0.05
-    ds_max: float = 0.5
+    tol: float = _USER_DEFAULTS.tol
+    ds0: float = _USER_DEFAULTS.ds0
+    ds_max: float = _USER_DEFAULTS.ds_max
     ds_min: float = 1e-7
-    max_steps: int = 400
-    max_newton: int = 8
-    max_turn_deg: float = 10.0
+    max_steps: int = _USER_DEFAULTS.max_steps
+    max_newton: int = _USER_DEFAULTS.max_newton
+    max_turn_deg: float = _USER_DEFAULTS.max_turn_deg
     n_opt: int = 4
     hermite_predictor: bool = True
     u_scale: float = 0.0
     ds_bifurcation: float = 1e-3
-    tol_path: float | None = None  # Newton tolerance of ordinary path points (None: tol)
-    fused: bool = True  # use the problem's compiled corrector (``problem.newton``) if it has one
+    tol_path: float | None = _USER_DEFAULTS.tol_path
+    fused: bool = True
+
+    @classmethod
+    def from_solver(cls, solver: SolverSettings, scales: tuple[float, float, float], u_unit: float = 1.0,
+                    **internal) -> "ContinuationSettings":
+        """The continuation settings of the user's ``solver`` settings, values unchanged.
+
+        Parameters
+        ----------
+        solver : the user's settings (its continuation fields are copied as they are)
+        scales : scales of the path measures
+        u_unit : the unit of ``solver.u_scale`` in the problem's displacement units (the
+            pole-displacement scale; ``u_scale = solver.u_scale * u_unit``)
+        **internal : settings not exposed to users (``ds_min``, ``n_opt``, ``fused``, ...)
+        """
+        return cls(scales=scales, tol=solver.tol, ds0=solver.ds0, ds_max=solver.ds_max,
+                   max_steps=solver.max_steps, max_newton=solver.max_newton, max_turn_deg=solver.max_turn_deg,
+                   u_scale=solver.u_scale * u_unit, tol_path=solver.tol_path, **internal)
 
 
 @dataclass

@@ -1,5 +1,15 @@
-"""The post-snap (lower) state at fixed cavity volume, by displacement control of the snap.
+"""The post-snap (lower) state at the volume ``V*`` of the upper state (docs/physics.md section 5).
 
+:func:`find_lower_state` is the entry point. The lower state the snap tracker found on the path
+(:mod:`snapjump_cli.snap`) is kept if it is stable under volume control
+(:func:`constrained_instability`: the inertia of the band LDL^T). Otherwise, and where the path did
+not come back to ``V*``, the lower state is found off the path, at fixed volume
+(``lower_state_method="descent"``): by displacement control of the snap
+(:func:`snap_at_fixed_volume`, ``lower_state_solver="volume-path"``), with the volume-constrained
+energy descent as the fallback (:func:`descend_at_volume`, ``lower_state_solver="energy-descent"``).
+
+Displacement control at fixed volume
+------------------------------------
 When the traced pressure-volume path does not come back to ``V*`` (or comes back on an unstable
 branch), the lower state is the stable equilibrium that the isochoric snap reaches from the upper
 state. :func:`snap_at_fixed_volume` finds it by following the equilibria at ``V = V*`` under a
@@ -24,24 +34,104 @@ limit: design A on meshes fine along the arc needs it):
 
 This is the classical displacement control of a snap-through, at fixed volume: the path of
 constrained equilibria is smooth where the energy landscape is a long curved valley, so it is
-followed in tens of steps where an energy descent (:func:`snapjump_cli.metrics.descend_at_volume`,
-kept as the fallback) needs hundreds of iterations. The continuation is the ordinary one
+followed in tens of steps where an energy descent (:func:`descend_at_volume`, kept as the
+fallback) needs hundreds of iterations. The continuation is the ordinary one
 (:func:`snapjump_cli.continuation.trace`) on the small problem :class:`FixedVolumeProblem`.
+
+Energy descent at fixed volume
+------------------------------
+:func:`descend_at_volume`: a volume-constrained energy descent (implicit gradient flow in pseudo
+time) from the upper state, started along the path's unstable direction or from post-snap path
+points (:func:`descent_starts`).
 """
 from __future__ import annotations
 
 import logging
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from snapjump_cli.continuation import ContinuationFailed, PathPoint, Tracer, start_point, trace
+from snapjump_cli.snap import SnapStates, root_on_step
 from snapjump_kernels.banded import band_ldlt_solve, sym_band_matvec
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FixedVolumeProblem", "snap_at_fixed_volume"]
+__all__ = [
+    "LowerState",
+    "find_lower_state",
+    "FixedVolumeProblem",
+    "snap_at_fixed_volume",
+    "descend_at_volume",
+    "descent_starts",
+    "constrained_instability",
+]
+
+
+@dataclass
+class LowerState:
+    """What :func:`find_lower_state` found.
+
+    Attributes
+    ----------
+    state : the lower state (``None``: no volume limit, or no lower state found)
+    method : ``"path"`` (on the traced path), ``"descent"`` (off the path, at fixed volume) or ``""``
+    solver : off the path, the solver that found it (or was tried last): ``"volume-path"`` or
+        ``"energy-descent"``; ``None`` on the path
+    note : why the path's own lower state was rejected (``""``: it was not)
+    reason : why the lower state was sought off the path
+    message : the off-path solver's report
+    """
+
+    state: PathPoint | None
+    method: str = ""
+    solver: str | None = None
+    note: str = ""
+    reason: str = ""
+    message: str = ""
+
+
+def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint], why: str = "") -> LowerState:
+    """The lower state of a snap: on the path if the tracker found a stable one, else at fixed volume.
+
+    Parameters
+    ----------
+    tracer : the tracer of the pressure-volume path (its problem is the FE model)
+    states : what the snap tracker found (not modified)
+    points : the traced path's points (post-snap points are start states of the descent)
+    why : why the path gave no lower state (the continuation's failure or stop reason), for the
+        messages
+
+    Returns
+    -------
+    LowerState
+        ``state`` is ``None`` without a volume limit (``states.upper is None``) or when every
+        method failed (``reason`` and ``message`` say why).
+    """
+    if states.upper is None:
+        return LowerState(None)
+    note = ""
+    if states.lower is not None:
+        lin = tracer.pb.linearize(states.lower.u, states.lower.p)
+        n_unstable = constrained_instability(tracer, lin) if lin is not None else 1
+        if n_unstable <= 0:
+            return LowerState(states.lower, states.lower_method)
+        note = f"the path returned to V* on an unstable branch ({n_unstable} unstable modes)"
+    reason = note or why
+    low, msg = snap_at_fixed_volume(tracer, states.upper)
+    solver = "volume-path"
+    if low is None:
+        log.debug("%s; falling back on the energy descent", msg)
+        solver = "energy-descent"
+        # from the upper state along its unstable mode first; post-snap path points as fallbacks
+        for start in [None] + descent_starts(points, states.upper, states.k_before):
+            low, msg = descend_at_volume(tracer, states.upper, start=start)
+            if low is not None:
+                break
+    if low is not None:
+        log.info("lower state at fixed volume (%s): %s", reason, msg)
+    return LowerState(low, "descent" if low is not None else "", solver, note, reason, msg)
 
 
 class _MultiBorderedSolver:
@@ -192,8 +282,6 @@ def _follow(tracer: Tracer, pb: FixedVolumeProblem, fcfg, x0: np.ndarray, direct
             V_target: float, F_tol: float, max_zeros: int):
     """Follow the fixed-volume path from ``x0`` along ``direction * e``; returns
     ``((linearisation, iterations) or None, message, steps, Newton iterations)``."""
-    from snapjump_cli.metrics import root_on_step, constrained_instability
-
     model = tracer.pb
     ftr = Tracer(pb, fcfg)
     state = {"zeros": 0, "found": None}
@@ -227,3 +315,152 @@ def _follow(tracer: Tracer, pb: FixedVolumeProblem, fcfg, x0: np.ndarray, direct
     except ContinuationFailed as exc:
         return None, f"failed ({exc})", 0, ftr.n_newton
     return state["found"], path.stop_reason, len(path.points) - 1, ftr.n_newton
+
+
+def constrained_instability(tracer: Tracer, lin) -> int:
+    """Number of unstable modes of the equilibrium ``lin`` under volume control.
+
+    With ``K`` the tangent and ``g = dV/du``, the inertia of the bordered matrix gives
+    ``neg(Z^T K Z) = neg(K) - [g^T K^-1 g < 0]`` (Haynsworth), ``Z`` spanning ``g``'s complement.
+    Returns -1 if the inertia is not available (SuperLU solver).
+    """
+    z, dz_du, dz_dp = tracer.zeta(lin.u, lin.p)
+    return _constrained_negatives(lin.factor(dz_du[0], 0.0), lin.g)
+
+
+def _constrained_negatives(solver, g: np.ndarray) -> int:
+    """Negative eigenvalues of ``K`` restricted to ``g^T du = 0`` from a bordered solver's
+    ``LDL^T`` (Haynsworth); -1 if the inertia is not available."""
+    if solver is None or getattr(solver, "n_negative", -1) < 0:
+        return -1
+    gKg = -float(g @ solver.Kib)  # Kib = K^-1 (-g)
+    return int(solver.n_negative - (1 if gKg < 0 else 0))
+
+
+def descend_at_volume(
+    tracer: Tracer, upper: PathPoint, kick: float = 0.2, max_iter: int = 2000, tol: float | None = None,
+    start: PathPoint | None = None,
+) -> tuple[PathPoint | None, str]:
+    """The stable state reached from the upper state at fixed volume by energy descent.
+
+    Implicit gradient flow of ``W(u)`` at ``V(u) = V*`` in pseudo time: each iteration solves
+    ``[[K + diag(sigma), -g], [g^T, 0]] [du; dp] = [-R; V* - V]`` and is accepted if the merit
+    ``W - p (V - V*)`` (with the new multiplier) does not rise. The shift is
+    ``sigma = sigma_rel |diag K|`` (a Jacobi metric: a soft thin outer cap and a stiff thick inner
+    cap relax at comparable rates). ``sigma_rel`` shrinks after an accepted step and grows after
+    a rejected one, and is raised until the shifted system is positive definite on the
+    constraint (its inertia from the LDL^T, Haynsworth): every step then goes downhill in every
+    mode, so the flow leaves a saddle along its negative curvature, and where that curvature is
+    small it leaves at the rate ``|lambda| / sigma`` with the smallest ``sigma`` that allows it
+    (a fixed floor on ``sigma`` made the flow crawl for thousands of iterations on ballooning
+    soft outer caps). Once stable, ``sigma -> 0`` ends in Newton's method.
+    Started at ``kick`` (scaled arc length) along the path tangent at the volume limit, the
+    unstable direction of the fold, or at ``start`` (a post-snap path point; its volume is
+    brought back to ``V*`` by at most ``max(0.05, 0.01 V*)`` per iteration).
+
+    Returns
+    -------
+    (PathPoint or None, message)
+    """
+    cfg = tracer.cfg
+    tol = cfg.tol if tol is None else tol
+    V_star = upper.zeta[0]
+    pb = tracer.pb
+    if start is not None:
+        u, p = start.u.copy(), start.p
+    else:
+        u = upper.u + kick * upper.du_ds
+        p = upper.p + kick * upper.dp_ds
+    sigma_rel = 1.0
+    dh_max = max(0.05, 0.01 * abs(V_star))  # largest volume change per iteration (scaled) while restoring V*
+    step_small = False
+    E_hist: list[float] = []  # energy of the accepted iterates
+    n_stall = 20
+    accepted = None  # (u, p, lin, merit-function pieces, unshifted factorisation, its instability)
+    for it in range(max_iter):
+        if accepted is None:
+            lin = pb.linearize(u, p)
+            if lin is None:
+                kick *= 0.25
+                u = upper.u + kick * upper.du_ds
+                p = upper.p + kick * upper.dp_ds
+                continue
+            E_new = lin.E
+            z, dz_du, dz_dp = tracer.zeta(u, p, lin)
+            h = float(z[0] - V_star)
+            base = None
+        else:
+            # a trial step: energy and volume decide; the stiffness is assembled only if it is taken
+            u0, p0, lin0, E0, h0, base0, nu0 = accepted
+            ev = pb.energy_volume(u)
+            ok = ev is not None
+            if ok:
+                E_new = ev[0]
+                h = float(ev[1] / tracer.sc[0] - V_star)
+            # compare with the new multiplier: merit W - p (V - V*); while the volume is still
+            # being restored from a start far from V* any step inside the material domain is
+            # taken. (With a tight threshold here, steps that overshot to |V - V*| ~ 1e-5 were
+            # accepted unchecked and the flow climbed to 5x the energy on thin inner caps.)
+            feasible = abs(h0) < 1e-3 * max(1.0, abs(V_star))
+            if not ok and not feasible:
+                dh_max *= 0.5
+            lin = None
+            if ok and not (feasible and E_new - p * h * tracer.sc[0] > E0 - p * h0 * tracer.sc[0] + 1e-13 * max(1.0, abs(E0))):
+                lin = pb.linearize(u, p)
+            if lin is None:
+                sigma_rel = min(sigma_rel * 8.0, 1e6)
+                u, p, lin, E_new, h, base, n_unstable = u0, p0, lin0, E0, h0, base0, nu0
+            else:
+                sigma_rel *= 0.25
+                base = None
+            z, dz_du, dz_dp = tracer.zeta(u, p, lin)
+        if base is None:
+            base = lin.factor(dz_du[0], 0.0)  # unshifted: the inertia, and Newton's step once sigma -> 0
+            n_unstable = _constrained_negatives(base, lin.g)
+        accepted = (u, p, lin, E_new, h, base, n_unstable)
+        ref = tracer.residual_scale(lin, dz_du, p)
+        rn = float(np.linalg.norm(lin.R)) / ref
+        log.debug("descent %d: E=%.12g rn=%.2e h=%.2e sigma_rel=%.1e unstable=%d", it, E_new, rn, h, sigma_rel, n_unstable)
+        E_hist.append(E_new)
+        # Newton at round-off: a snap at p ~ 0 has a tiny residual scale (the pressure load), and
+        # the residual can stall above tol while energy, volume and state no longer change
+        stalled = (len(E_hist) > n_stall and sigma_rel < 1e-10 and rn < 1e-3
+                   and abs(E_hist[-1] - E_hist[-1 - n_stall]) <= 1e-13 * max(abs(E_new), 1e-300))
+        if n_unstable == 0 and abs(h) < tol and (rn < tol or (rn < 100 * tol and step_small) or stalled):
+            t, v, q, zz = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
+            how = f"at round-off, residual {rn:.1e}, " if rn >= tol else ""
+            return PathPoint(lin.u, lin.p, zz, t, v, q, float("nan"), it), f"descent converged {how}in {it} iterations"
+        # the smallest shift (from the current sigma_rel up) that makes the shifted system
+        # positive definite on the constraint: the step then goes downhill in every mode
+        solver = None
+        while sigma_rel <= 1e6:
+            if n_unstable != 0 or sigma_rel > 1e-10:
+                solver = lin.factor(dz_du[0], 0.0, shift=sigma_rel * lin.diag_abs())
+            else:
+                solver = base
+            if solver is not None and (n_unstable == 0 or _constrained_negatives(solver, lin.g) == 0):
+                break
+            sigma_rel = max(sigma_rel * 8.0, 1e-10)
+            solver = None
+        if solver is None:
+            return None, f"descent: no positive definite shift at iteration {it}"
+        # restore the volume gradually when starting far from V* (a homotopy in the constraint)
+        h_step = float(np.clip(h, -dh_max, dh_max))
+        x = solver.solve(np.concatenate([-lin.R, [-h_step]]))
+        u = u + x[:-1]
+        p = p + x[-1]
+        step_small = float(np.linalg.norm(dz_du @ x[:-1] + dz_dp * x[-1])) < 1e-12
+    return None, f"descent did not converge in {max_iter} iterations"
+
+
+def descent_starts(path_points: list[PathPoint], upper: PathPoint, k_before: int, n: int = 3) -> list[PathPoint]:
+    """Start states for :func:`descend_at_volume`: post-snap path points whose volume is closest
+    to ``V*``, skipping the first fifth of the post-snap arc (the flat neighbourhood of the
+    degenerate saddle, where a descent would crawl)."""
+    after = path_points[k_before + 1 :]
+    if not after:
+        return []
+    s0, s1 = upper.s, after[-1].s
+    far = [pt for pt in after if pt.s >= s0 + 0.2 * (s1 - s0)]
+    far.sort(key=lambda pt: abs(pt.zeta[0] - upper.zeta[0]))
+    return far[:n]

@@ -24,171 +24,55 @@ Edge sets other than ``cavity`` run from the pole towards the base (surfaces) or
 (``ground``, ``base``). Single caps: ``inner_upper`` / ``inner_lower`` are the only cap's surfaces
 (as ``pole_lower`` / ``pole_upper`` are its poles); an outer cap alone also has them under
 ``outer_upper`` / ``outer_lower``.
+
+Nodes are numbered along the structure, in the model's dof order (Cuthill-McKee from the lower
+pole, :func:`snapjump_cli.meshdata.node_order`). Mesh files are written by
+:mod:`snapjump_cli.mesh_io`; volumes and Jacobians of a mesh are in :mod:`snapjump_cli.meshdata`.
 """
 from __future__ import annotations
 
-import contextlib
+import dataclasses
 import logging
 import math
-import os
 import time
-from pathlib import Path
 
 import numpy as np
 
 from snapjump_cli.geometry import CapScene, Design, cap_points, cap_volumes, design_points
-from snapjump_cli.meshdata import REGION_INNER_CAP, REGION_OUTER_CAP, REGION_RING, Mesh
+from snapjump_cli.gmsh_session import LINE_TYPES, QUAD_TYPES, gmsh_session
+from snapjump_cli.meshdata import (
+    REGION_INNER_CAP,
+    REGION_NAMES,
+    REGION_OUTER_CAP,
+    REGION_RING,
+    Mesh,
+    boundary_volume,
+    fixed_dofs,
+    jacobian_dets,
+    node_order,
+    solid_volumes,
+)
+from snapjump_cli.mesh_io import MESH_SUFFIXES, write_mesh
 from snapjump_cli.settings import MeshSettings
 
 __all__ = [
     "mesh_scene",
-    "write_mesh",
-    "element_volumes",
-    "solid_volumes",
-    "jacobian_dets",
-    "boundary_volume",
-    "gmsh_session",
-    "MESH_SUFFIXES",
+    "meshed_design",
     "SNAP_TOL",
     "SNAP_FRAC",
-    "meshed_design",
+    # re-exported for the ``mesh`` command (their homes: snapjump_cli.mesh_io, snapjump_cli.meshdata)
+    "write_mesh",
+    "MESH_SUFFIXES",
+    "solid_volumes",
 ]
 
 log = logging.getLogger(__name__)
 
-#: File formats :func:`write_mesh` understands.
-MESH_SUFFIXES = (".msh", ".vtu")
 #: Relative (to R_i) distance under which x5 and x10 are always taken as the same point.
 SNAP_TOL = 1e-9
 #: ... and the fraction of the local element size (ring element thickness when x10 > x5, outer cap
 #: element thickness when x5 > x10) under which the ring's outer face is moved onto x5.
 SNAP_FRAC = 0.15
-
-REGION_NAMES = {REGION_INNER_CAP: "inner_cap", REGION_RING: "ring", REGION_OUTER_CAP: "outer_cap"}
-
-
-# ------------------------------------------------------------------------------------------------
-# gmsh session
-# ------------------------------------------------------------------------------------------------
-@contextlib.contextmanager
-def gmsh_session(model_name: str = "snapjump"):
-    """Initialise gmsh quietly (no GUI, no config files, no signal handler), yield the module and
-    always finalise it, even on error. If gmsh was already initialised by the caller, a fresh model
-    is added and removed instead of finalising."""
-    import gmsh
-
-    owner = not gmsh.isInitialized()
-    if owner:
-        saved = _python_signal_handlers()
-        gmsh.initialize(readConfigFiles=False, interruptible=False)
-        # gmsh's C++ initialisation resets SIGINT/SIGTERM to their defaults behind Python's back
-        # (the sweep's clean stop on SIGTERM was lost: the process died, its workers ran on)
-        _reinstall(saved)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.option.setNumber("General.Verbosity", 0)
-        gmsh.option.setNumber("General.NumThreads", 1)
-        gmsh.model.add(model_name)
-        yield gmsh
-    finally:
-        if owner:
-            gmsh.finalize()
-        else:  # pragma: no cover - only when embedded in a caller's gmsh session
-            with contextlib.suppress(Exception):
-                gmsh.model.remove()
-
-
-def _python_signal_handlers() -> dict:
-    """Python's handlers of SIGINT and SIGTERM (empty off the main thread, where they cannot be set)."""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-    return {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(sig) is not None}
-
-
-def _reinstall(handlers: dict) -> None:
-    import signal
-
-    for sig, h in handlers.items():
-        signal.signal(sig, h)
-
-
-# ------------------------------------------------------------------------------------------------
-# Shape functions (gmsh node order) and element integrals
-# ------------------------------------------------------------------------------------------------
-_Q9_REF = np.array(
-    [[-1, -1], [1, -1], [1, 1], [-1, 1], [0, -1], [1, 0], [0, 1], [-1, 0], [0, 0]], dtype=float
-)
-
-
-def _lagrange1d(order: int, nodes1d: np.ndarray, s: np.ndarray):
-    """Values and derivatives of the 1D Lagrange polynomial attached to coordinate ``nodes1d``."""
-    if order == 1:
-        L = 0.5 * (1.0 + nodes1d[None, :] * s[:, None])
-        dL = 0.5 * nodes1d[None, :] * np.ones_like(s)[:, None]
-        return L, dL
-    c = nodes1d[None, :]
-    ss = s[:, None]
-    L = np.where(c == 0, 1.0 - ss**2, 0.5 * ss * (ss + c))
-    dL = np.where(c == 0, -2.0 * ss, ss + 0.5 * c)
-    return L, dL
-
-
-def _shape(order: int, xi: np.ndarray, eta: np.ndarray):
-    """``N`` (nq, nen) and ``dN`` (nq, nen, 2) of Q4 / Q9 in gmsh order at points (xi, eta)."""
-    ref = _Q9_REF[:4] if order == 1 else _Q9_REF
-    Lx, dLx = _lagrange1d(order, ref[:, 0], xi)
-    Ly, dLy = _lagrange1d(order, ref[:, 1], eta)
-    N = Lx * Ly
-    dN = np.stack([dLx * Ly, Lx * dLy], axis=-1)
-    return N, dN
-
-
-def _gauss(order: int):
-    if order == 1:
-        g = np.array([-1.0, 1.0]) / math.sqrt(3.0)
-        w = np.array([1.0, 1.0])
-    else:
-        g = np.array([-math.sqrt(0.6), 0.0, math.sqrt(0.6)])
-        w = np.array([5.0, 8.0, 5.0]) / 9.0
-    xi, eta = np.meshgrid(g, g, indexing="ij")
-    ww = np.outer(w, w)
-    return xi.ravel(), eta.ravel(), ww.ravel()
-
-
-def _geometry_at_gauss(nodes: np.ndarray, elements: np.ndarray, order: int):
-    xi, eta, w = _gauss(order)
-    N, dN = _shape(order, xi, eta)
-    X = nodes[elements]  # (ne, nen, 2)
-    r = np.einsum("qa,ea->eq", N, X[:, :, 0])
-    J = np.einsum("qak,eai->eqik", dN, X)
-    det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
-    return r, det, w
-
-
-def jacobian_dets(nodes: np.ndarray, elements: np.ndarray, order: int) -> np.ndarray:
-    """Jacobian determinants ``det(d(r, y)/d(xi, eta))`` at the Gauss points, shape (ne, nq)
-    (2x2 points for Q4, 3x3 for Q9). Positive everywhere for a valid counter-clockwise mesh."""
-    return _geometry_at_gauss(np.asarray(nodes, float), np.asarray(elements), order)[1]
-
-
-def boundary_volume(nodes: np.ndarray, edges: np.ndarray) -> float:
-    """``pi * sum over edges of integral r^2 dy`` (numpy twin of ``snapjump_kernels.cavity.
-    cavity_volume``; 3-point Gauss is exact for linear and quadratic edges)."""
-    s = np.array([-math.sqrt(0.6), 0.0, math.sqrt(0.6)])
-    w = np.array([5.0, 8.0, 5.0]) / 9.0
-    if edges.shape[1] == 2:
-        N = np.stack([0.5 * (1 - s), 0.5 * (1 + s)], axis=1)
-        dN = np.tile([-0.5, 0.5], (3, 1))
-    else:  # start, end, mid
-        N = np.stack([0.5 * s * (s - 1), 0.5 * s * (s + 1), 1 - s * s], axis=1)
-        dN = np.stack([s - 0.5, s + 0.5, -2 * s], axis=1)
-    X = nodes[edges]  # (m, nen, 2)
-    r = np.einsum("qa,ma->mq", N, X[:, :, 0])
-    dy = np.einsum("qa,ma->mq", dN, X[:, :, 1])
-    return float(np.pi * ((r * r * dy) @ w).sum())
 
 
 def meshed_design(design: Design, mesh: Mesh) -> Design:
@@ -197,26 +81,7 @@ def meshed_design(design: Design, mesh: Mesh) -> Design:
     w = mesh.info.get("w_ring_frac_used")
     if not mesh.info.get("ring_snapped") or w is None:
         return design
-    import dataclasses
-
     return dataclasses.replace(design, w_ring_frac=w)
-
-
-def element_volumes(mesh: Mesh) -> np.ndarray:
-    """Solid volume of revolution of each element, ``sum_q w_q 2 pi r detJ`` [m^3].
-
-    Exact for the isoparametric geometry: the integrand is a polynomial of degree <= 3 (Q4) or
-    <= 5 (Q9) in each reference coordinate, integrated by 2x2 / 3x3 Gauss points.
-    """
-    r, det, w = _geometry_at_gauss(mesh.nodes, mesh.elements, mesh.order)
-    return 2.0 * np.pi * (r * det) @ w
-
-
-def solid_volumes(mesh: Mesh) -> dict[str, float]:
-    """Meshed solid volumes: ``inner_solid`` (inner cap + ring) and ``outer_solid`` [m^3]."""
-    v = element_volumes(mesh)
-    outer = mesh.region == REGION_OUTER_CAP
-    return {"inner_solid": float(v[~outer].sum()), "outer_solid": float(v[outer].sum())}
 
 
 # ------------------------------------------------------------------------------------------------
@@ -448,8 +313,6 @@ def _ring(b: _Builder, P: dict, first_top, more_top, p8: int, p11: int, p9: int,
 # ------------------------------------------------------------------------------------------------
 # Extraction, orientation, renumbering
 # ------------------------------------------------------------------------------------------------
-_QUAD_TYPES = {1: 3, 2: 10}  # gmsh element types: 4-node and 9-node quadrangles
-_LINE_TYPES = {1: 1, 2: 8}  # 2-node and 3-node lines (start, end, mid)
 _FLIP = {1: np.array([0, 3, 2, 1]), 2: np.array([0, 3, 2, 1, 7, 6, 5, 4, 8])}
 
 
@@ -477,18 +340,6 @@ def _chain(edges: np.ndarray, start: int) -> np.ndarray:
     return out
 
 
-def _rcm(n: int, elements: np.ndarray) -> np.ndarray:
-    """Reverse Cuthill-McKee permutation (new -> old) of the node graph of ``elements``."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import reverse_cuthill_mckee
-
-    nen = elements.shape[1]
-    rows = np.repeat(elements, nen, axis=1).ravel()
-    cols = np.tile(elements, (1, nen)).ravel()
-    A = coo_matrix((np.ones(rows.size, np.int8), (rows, cols)), shape=(n, n)).tocsr()
-    return np.asarray(reverse_cuthill_mckee(A, symmetric_mode=True), dtype=np.int64)
-
-
 def _half_bandwidth(elements: np.ndarray) -> int:
     return int((elements.max(axis=1) - elements.min(axis=1)).max()) if elements.size else 0
 
@@ -500,8 +351,9 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
     element size, the ring's outer face is moved onto ``x5`` (``info["ring_snapped"]``,
     ``info["w_ring_frac_used"]``) rather than meshing a sliver; 0 keeps the exact geometry.
 
-    Returns a :class:`~snapjump_cli.meshdata.Mesh` with compact, bandwidth-reduced (RCM) node
-    numbering, counter-clockwise elements and the node/edge sets of the scene.
+    Returns a :class:`~snapjump_cli.meshdata.Mesh` with compact, bandwidth-reduced node numbering
+    (Cuthill-McKee from the lower pole, :func:`~snapjump_cli.meshdata.node_order`),
+    counter-clockwise elements and the node/edge sets of the scene.
     Raises ``ValueError`` for bad mesh settings.
     """
     if not isinstance(scene, (Design, CapScene)):
@@ -517,11 +369,44 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
     if not (isinstance(aspect, (int, float)) and math.isfinite(aspect) and aspect > 0):
         raise ValueError(f"aspect must be a finite number > 0, got {aspect!r}")
 
-    # one-time imports (slow on first use) stay out of the timing
+    # the one-time import (slow on first use) stays out of the timing
     import gmsh as _gmsh  # noqa: F401
-    import scipy.sparse.csgraph  # noqa: F401
 
     t0 = time.perf_counter()
+    xy, elements, region, material, node_sets, edge_sets, bk, gmsh_version = _generate(scene, settings, snap)
+    t_gmsh = time.perf_counter() - t0
+    nodes, elements, node_sets, edge_sets = _compact(xy, elements, node_sets, edge_sets)
+    nodes[node_sets["axis"], 0] = 0.0
+    _orient(nodes, elements, order)
+    nodes, elements, region, material, node_sets, edge_sets = _renumber(nodes, elements, region, material,
+                                                                         node_sets, edge_sets)
+
+    offset = 0.0
+    if bk["scene"] != "design":
+        offset = -boundary_volume(nodes, edge_sets["cavity"])  # V(X) = 0 exactly (meshed)
+    info = dict(bk["info"])
+    info.update(
+        order=order, nt_setting=nt, aspect=float(aspect), n_nodes=int(nodes.shape[0]),
+        n_elements=int(elements.shape[0]), half_bandwidth=_half_bandwidth(elements),
+        gmsh_version=gmsh_version, gmsh_s=t_gmsh, mesh_s=time.perf_counter() - t0,
+    )
+    if bk["scene"] != "design":
+        info["V_under_exact"] = cap_volumes(scene)["under"]
+    mesh = Mesh(
+        nodes=nodes, elements=elements, order=order, region=region, material=material,
+        node_sets=node_sets, edge_sets=edge_sets, cavity_volume_offset=offset,
+        scene=bk["scene"], info=info,
+    )
+    log.debug("meshed %s: %d nodes, %d elements in %.1f ms", mesh.scene, mesh.n_nodes, mesh.n_elements,
+              1e3 * info["mesh_s"])
+    return mesh
+
+
+def _generate(scene: Design | CapScene, settings: MeshSettings, snap: float) -> tuple:
+    """Build and mesh the scene with gmsh; returns its node coordinates, connectivity, region and
+    material per element, node and edge sets (in gmsh's node order), the builder's bookkeeping and
+    gmsh's version."""
+    order = settings.order
     with gmsh_session() as gmsh:
         b = _Builder(gmsh)
         bk = _build(b, scene, settings, snap)
@@ -539,7 +424,7 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
         lookup = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
         lookup[tags] = np.arange(tags.size)
 
-        qtype, ltype = _QUAD_TYPES[order], _LINE_TYPES[order]
+        qtype, ltype = QUAD_TYPES[order], LINE_TYPES[order]
         elems, region, material = [], [], []
         for s, reg, mat in b.surfaces:
             types, _, ntags = gmsh.model.mesh.getElements(2, s)
@@ -581,13 +466,13 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
                 node_sets[name] = np.array([point_node(P[k]) for k in spec[1]], dtype=np.int64)
             else:
                 node_sets[name] = np.unique(np.concatenate([curve_nodes(c) for c in spec[1]]))
-    t_gmsh = time.perf_counter() - t0
-
     elements = np.concatenate(elems).astype(np.int64)
-    region = np.concatenate(region)
-    material = np.concatenate(material)
+    return (xy, elements, np.concatenate(region), np.concatenate(material), node_sets, edge_sets, bk,
+            gmsh_version)
 
-    # every node used, none duplicated (gmsh may keep unused nodes only on points such as centres)
+
+def _compact(xy: np.ndarray, elements: np.ndarray, node_sets: dict, edge_sets: dict) -> tuple:
+    """Drop the nodes no element uses (gmsh may keep some on points such as centres)."""
     used = np.zeros(xy.shape[0], bool)
     used[elements.ravel()] = True
     if not used.all():
@@ -598,10 +483,11 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
         elements = remap[elements]
         edge_sets = {k: remap[v] for k, v in edge_sets.items()}
         node_sets = {k: remap[v] for k, v in node_sets.items()}
-    nodes = np.ascontiguousarray(xy)
-    nodes[node_sets["axis"], 0] = 0.0
+    return np.ascontiguousarray(xy), elements, node_sets, edge_sets
 
-    # counter-clockwise elements (positive Jacobian at every Gauss point)
+
+def _orient(nodes: np.ndarray, elements: np.ndarray, order: int) -> None:
+    """Make every element counter-clockwise (positive Jacobian at every Gauss point), in place."""
     det = jacobian_dets(nodes, elements, order)
     neg = (det <= 0).all(axis=1)
     elements[neg] = elements[neg][:, _FLIP[order]]
@@ -611,8 +497,14 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
         bad = int(np.flatnonzero((det <= 0).any(axis=1))[0])
         raise RuntimeError(f"element {bad} has a non-positive Jacobian (min {det[bad].min():.3g}): invalid mesh")
 
-    # bandwidth reduction: reverse Cuthill-McKee, then elements sorted by their lowest node
-    perm = _rcm(nodes.shape[0], elements)
+
+def _renumber(nodes: np.ndarray, elements: np.ndarray, region: np.ndarray, material: np.ndarray,
+              node_sets: dict, edge_sets: dict) -> tuple:
+    """Bandwidth reduction: nodes in Cuthill-McKee order from the (inner) cap's lower pole (the
+    model's dof order, :func:`~snapjump_cli.meshdata.node_order`), elements sorted by their
+    lowest node."""
+    perm = node_order(nodes.shape[0], elements, int(node_sets["pole_lower"][0]),
+                      fixed_dofs(nodes.shape[0], node_sets))
     inv = np.empty_like(perm)
     inv[perm] = np.arange(perm.size)
     nodes = nodes[perm]
@@ -621,117 +513,4 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
     elements, region, material = elements[eorder], region[eorder], material[eorder]
     node_sets = {k: np.sort(inv[v]).astype(np.int64) for k, v in node_sets.items()}
     edge_sets = {k: inv[v].astype(np.int64) for k, v in edge_sets.items()}
-
-    offset = 0.0
-    if bk["scene"] != "design":
-        offset = -boundary_volume(nodes, edge_sets["cavity"])  # V(X) = 0 exactly (meshed)
-    info = dict(bk["info"])
-    info.update(
-        order=order, nt_setting=nt, aspect=float(aspect), n_nodes=int(nodes.shape[0]),
-        n_elements=int(elements.shape[0]), half_bandwidth=_half_bandwidth(elements),
-        gmsh_version=gmsh_version, gmsh_s=t_gmsh, mesh_s=time.perf_counter() - t0,
-    )
-    if bk["scene"] != "design":
-        info["V_under_exact"] = cap_volumes(scene)["under"]
-    mesh = Mesh(
-        nodes=nodes, elements=elements, order=order, region=region, material=material,
-        node_sets=node_sets, edge_sets=edge_sets, cavity_volume_offset=offset,
-        scene=bk["scene"], info=info,
-    )
-    log.debug("meshed %s: %d nodes, %d elements in %.1f ms", mesh.scene, mesh.n_nodes, mesh.n_elements,
-              1e3 * info["mesh_s"])
-    return mesh
-
-
-# ------------------------------------------------------------------------------------------------
-# Output
-# ------------------------------------------------------------------------------------------------
-def write_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
-    """Write ``mesh`` to ``path``: ``.msh`` (gmsh 4.1, physical groups per region and edge set)
-    or ``.vtu`` (VTK XML, cell data ``region`` / ``material``). Written to a temporary file in the
-    same folder and renamed, so a failed write leaves nothing behind. Returns the path."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in MESH_SUFFIXES:
-        raise ValueError(f"mesh file must end in {' or '.join(MESH_SUFFIXES)}, got {str(path)!r}")
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.partial{suffix}")
-    try:
-        if suffix == ".msh":
-            _write_msh(mesh, tmp)
-        else:
-            _write_vtu(mesh, tmp)
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-    return path
-
-
-def _write_msh(mesh: Mesh, path: Path) -> None:
-    n = mesh.n_nodes
-    with gmsh_session("snapjump_out") as gmsh:
-        m = gmsh.model
-        tags = np.arange(1, n + 1)
-        xyz = np.column_stack([mesh.nodes, np.zeros(n)]).ravel()
-        base = m.addDiscreteEntity(2)
-        m.mesh.addNodes(2, base, tags.tolist(), xyz.tolist())
-        qtype, ltype = _QUAD_TYPES[mesh.order], _LINE_TYPES[mesh.order]
-        next_tag = 1
-        first = True
-        for reg in sorted(set(mesh.region.tolist())):
-            sel = mesh.elements[mesh.region == reg]
-            ent = base if first else m.addDiscreteEntity(2)
-            first = False
-            etags = np.arange(next_tag, next_tag + sel.shape[0])
-            next_tag += sel.shape[0]
-            m.mesh.addElementsByType(ent, qtype, etags.tolist(), (sel + 1).ravel().tolist())
-            pg = m.addPhysicalGroup(2, [ent])
-            m.setPhysicalName(2, pg, REGION_NAMES.get(reg, f"region{reg}"))
-        for name, edges in sorted(mesh.edge_sets.items()):
-            if edges.size == 0:
-                continue
-            ent = m.addDiscreteEntity(1)
-            etags = np.arange(next_tag, next_tag + edges.shape[0])
-            next_tag += edges.shape[0]
-            m.mesh.addElementsByType(ent, ltype, etags.tolist(), (edges + 1).ravel().tolist())
-            pg = m.addPhysicalGroup(1, [ent])
-            m.setPhysicalName(1, pg, name)
-        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-        gmsh.option.setNumber("Mesh.Binary", 0)
-        gmsh.write(str(path))
-
-
-_VTK_TYPES = {1: 9, 2: 28}  # VTK_QUAD, VTK_BIQUADRATIC_QUAD (same node order as gmsh)
-
-
-def _write_vtu(mesh: Mesh, path: Path) -> None:
-    n, ne, nen = mesh.n_nodes, mesh.n_elements, mesh.elements.shape[1]
-
-    def arr(a, fmt):
-        return " ".join(fmt % v for v in np.asarray(a).ravel())
-
-    pts = np.column_stack([mesh.nodes, np.zeros(n)])
-    lines = [
-        '<?xml version="1.0"?>',
-        '<VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian">',
-        "<UnstructuredGrid>",
-        f'<Piece NumberOfPoints="{n}" NumberOfCells="{ne}">',
-        '<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">',
-        arr(pts, "%.17g"),
-        "</DataArray></Points>",
-        "<Cells>",
-        '<DataArray type="Int64" Name="connectivity" format="ascii">', arr(mesh.elements, "%d"), "</DataArray>",
-        '<DataArray type="Int64" Name="offsets" format="ascii">', arr(np.arange(1, ne + 1) * nen, "%d"),
-        "</DataArray>",
-        '<DataArray type="UInt8" Name="types" format="ascii">', arr(np.full(ne, _VTK_TYPES[mesh.order]), "%d"),
-        "</DataArray>",
-        "</Cells>",
-        "<CellData>",
-        '<DataArray type="Int32" Name="region" format="ascii">', arr(mesh.region, "%d"), "</DataArray>",
-        '<DataArray type="Int32" Name="material" format="ascii">', arr(mesh.material, "%d"), "</DataArray>",
-        "</CellData>",
-        "</Piece>",
-        "</UnstructuredGrid>",
-        "</VTKFile>",
-    ]
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return nodes, elements, region, material, node_sets, edge_sets

@@ -16,8 +16,9 @@ Interface used by :mod:`snapjump_cli.continuation` (nothing about meshes leaks t
 * ``energy(u)`` - the strain energy
 
 Linear solvers. The free dofs are numbered along the structure (Cuthill-McKee from the inner
-cap's lower pole), so the symmetric ``K_T`` is banded. ``solver="banded"`` (default) factorises it
-with a numba band LDL^T (:mod:`snapjump_kernels.banded`, which also gives the number of negative
+cap's lower pole, :func:`snapjump_cli.meshdata.cuthill_mckee`, the node order of the meshes of
+:func:`snapjump_cli.mesh.mesh_scene`), so the symmetric ``K_T`` is banded. ``solver="banded"``
+(default) factorises it with a numba band LDL^T (:mod:`snapjump_kernels.banded`, which also gives the number of negative
 eigenvalues) and handles the border by block elimination with one step of iterative refinement
 on the full bordered system (accurate next to limit points, where ``K_T`` is nearly singular);
 ``solver="superlu"`` factorises the whole bordered matrix with SuperLU (a cross-check).
@@ -26,11 +27,10 @@ from __future__ import annotations
 
 import logging
 import time
-from collections import deque
 
 import numpy as np
 
-from snapjump_cli.meshdata import Mesh
+from snapjump_cli.meshdata import Mesh, cuthill_mckee, fixed_dofs
 from snapjump_kernels.assembly import assemble, evaluate, pressure_mass_inverse, quadrature_jacobians, reference_geometry
 from snapjump_kernels.banded import bordered_factor, bordered_solve, envelope_extents
 from snapjump_kernels.cavity import cavity_assemble
@@ -40,33 +40,6 @@ from snapjump_kernels.elements import element_tables
 log = logging.getLogger(__name__)
 
 __all__ = ["Model", "Linearization"]
-
-
-def _cuthill_mckee(n_nodes: int, conn: np.ndarray, start: int) -> np.ndarray:
-    """Breadth-first (Cuthill-McKee) node order from ``start``; neighbours by increasing degree."""
-    nen = conn.shape[1]
-    r = np.repeat(conn, nen, axis=1).ravel().astype(np.int64)
-    c = np.tile(conn, (1, nen)).ravel().astype(np.int64)
-    pairs = np.unique(r * n_nodes + c)  # the node graph (with self-loops), rows sorted, columns sorted
-    indices = pairs % n_nodes
-    indptr = np.concatenate([[0], np.cumsum(np.bincount(pairs // n_nodes, minlength=n_nodes))])
-    deg = np.diff(indptr)
-    seen = np.zeros(n_nodes, bool)
-    order = []
-    for s in [start] + list(np.argsort(deg)):
-        if seen[s]:
-            continue
-        seen[s] = True
-        q = deque([s])
-        while q:
-            v = q.popleft()
-            order.append(v)
-            nb = indices[indptr[v] : indptr[v + 1]]
-            nb = nb[~seen[nb]]
-            nb = nb[np.argsort(deg[nb], kind="stable")]
-            seen[nb] = True
-            q.extend(nb.tolist())
-    return np.array(order, dtype=np.int64)
 
 
 class Linearization:
@@ -185,13 +158,10 @@ class Model:
 
         # ---- dofs, numbered along the structure ---------------------------------------------------
         nn = self.X.shape[0]
-        fixed = np.zeros((nn, 2), bool)
-        fixed[mesh.node_sets["axis"], 0] = True
-        fixed[mesh.node_sets.get("dirichlet_x", np.zeros(0, int)), 0] = True
-        fixed[mesh.node_sets.get("dirichlet_y", np.zeros(0, int)), 1] = True
+        fixed = fixed_dofs(nn, mesh.node_sets)
         self.fixed = fixed
         start = int(np.atleast_1d(mesh.node_sets.get("pole_lower", [pole_node]))[0])
-        order = _cuthill_mckee(nn, self.conn, start)
+        order = cuthill_mckee(nn, self.conn, start)  # the identity on a mesh from mesh_scene
         dofmap = -np.ones((nn, 2), np.int64)
         k = 0
         for v in order:

@@ -71,7 +71,9 @@ class SolverSettings:
     Parameters
     ----------
     tol : relative Newton tolerance on the residual (scaled by the load norm)
-    ds0 : initial arc length (scaled)
+    ds0 : initial arc length (scaled), used as given. (Before the settings were unified, the
+        continuation silently multiplied it by 2.5: the old default 0.02 meant 0.05, the default
+        now; a config that gave ``ds0: X`` then took steps of 2.5 X and now takes X.)
     ds_max : maximum arc length (scaled)
     max_steps : bound on continuation steps
     max_newton : Newton iterations per step before a cut-back
@@ -86,7 +88,7 @@ class SolverSettings:
     """
 
     tol: float = 1e-8
-    ds0: float = 0.02
+    ds0: float = 0.05
     ds_max: float = 1.0
     max_steps: int = 2000
     max_newton: int = 8

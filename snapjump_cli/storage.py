@@ -45,8 +45,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: Bumped whenever the meaning of a key changes (old results are then not reused).
-KEY_VERSION = "snapjump-sweep-v1"
+#: Bumped whenever the meaning of a key changes (old results are then not reused). v2: ``ds0`` is
+#: used as given (v1 keys hashed a ds0 that the continuation multiplied by 2.5).
+KEY_VERSION = "snapjump-sweep-v2"
 
 
 def now_utc() -> str:

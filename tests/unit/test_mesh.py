@@ -10,17 +10,18 @@ from scipy.spatial import cKDTree
 
 from snapjump_cli.designs import get_design
 from snapjump_cli.geometry import CapScene, Design, cap_points, cap_volumes, design_points, design_volumes
-from snapjump_cli.mesh import (
-    SNAP_FRAC,
+from snapjump_cli.mesh import SNAP_FRAC, mesh_scene, meshed_design
+from snapjump_cli.mesh_io import write_mesh
+from snapjump_cli.meshdata import (
+    REGION_INNER_CAP,
+    REGION_OUTER_CAP,
+    REGION_RING,
+    Mesh,
     boundary_volume,
     element_volumes,
     jacobian_dets,
-    mesh_scene,
-    meshed_design,
     solid_volumes,
-    write_mesh,
 )
-from snapjump_cli.meshdata import REGION_INNER_CAP, REGION_OUTER_CAP, REGION_RING, Mesh
 from snapjump_cli.settings import MeshSettings
 from snapjump_kernels.cavity import cavity_volume
 
@@ -161,7 +162,7 @@ def test_valid_and_conforming(scene, order):
     ax = m.node_sets["axis"]
     assert (m.nodes[ax, 0] == 0.0).all()
     assert set(np.flatnonzero(m.nodes[:, 0] < 1e-12 * R)) == set(ax.tolist())
-    # bandwidth kept small by RCM
+    # bandwidth kept small by the Cuthill-McKee numbering
     assert m.info["half_bandwidth"] < m.n_nodes / 4
     assert m.info["n_nodes"] == m.n_nodes and m.info["order"] == order
 
@@ -516,7 +517,7 @@ def test_gmsh_session_keeps_the_python_signal_handlers():
     (exit 130, finished rows kept, workers shut down) relies on its Python SIGTERM handler."""
     import signal
 
-    from snapjump_cli.mesh import gmsh_session
+    from snapjump_cli.gmsh_session import gmsh_session
 
     def caught() -> int:
         line = [x for x in open("/proc/self/status").read().splitlines() if x.startswith("SigCgt:")][0]

@@ -12,8 +12,7 @@ import pytest
 
 from snapjump_cli.designs import get_design
 from snapjump_cli.geometry import CapScene
-from snapjump_cli.lower_state import snap_at_fixed_volume
-from snapjump_cli.metrics import constrained_instability, descend_at_volume, descent_starts
+from snapjump_cli.lower_state import constrained_instability, descend_at_volume, descent_starts, snap_at_fixed_volume
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.solve import solve_scene
 

@@ -17,7 +17,7 @@ def _trace_sphere(order: int, nt: int, bulk: float = 1e4):
     m = sphere_mesh(A, B, nt, 4 * nt, order)
     M = Model(m, np.array([MU]), np.array([JM]), bulk, 1.0, 1.0)
     V0 = M.volume(np.zeros(M.n))
-    cfg = ContinuationSettings(scales=(V0, 0.5, 0.5), ds0=0.1, ds_max=0.5, max_steps=300)
+    cfg = ContinuationSettings(scales=(V0, 0.5, 0.5), ds0=0.1, ds_max=0.5, max_steps=300, tol_path=None)
     path = trace(M, cfg, lambda path: "done" if path.points[-1].zeta[0] > 12.0 else None)
     p = np.array([pt.p for pt in path.points])
     V = np.array([pt.zeta[0] * V0 for pt in path.points])
