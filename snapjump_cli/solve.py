@@ -28,7 +28,7 @@ from snapjump_cli.snap import SnapStates, SnapTracker, state_at_pressure
 
 log = logging.getLogger(__name__)
 
-__all__ = ["SolveFailed", "SceneResult", "solve_scene", "solve_design", "build_model", "warm_up"]
+__all__ = ["SolveFailed", "SceneResult", "solve_scene", "solve_checked", "solve_design", "build_model", "warm_up"]
 
 
 class SolveFailed(RuntimeError):
@@ -193,54 +193,70 @@ def suspicious_snap(m: dict) -> str:
     return ""
 
 
-def solve_design(
-    design: Design, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings(),
+def solve_checked(
+    scene: Design | CapScene, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings(),
     check_mesh: bool = True,
-) -> dict:
-    """Sweep entry point: the metrics dict of one design (see :func:`solve_scene`).
+) -> SceneResult:
+    """Solve a scene the way every command reports it: :func:`solve_scene`, then the mesh check.
 
     With ``check_mesh``, a suspicious snap (:func:`suspicious_snap`) is re-solved with one more
     element through the thickness (and, for a near-cusp fold, elements half as long along the arcs
-    as well: the fold is an under-resolution of the arc, design A); the refined metrics are
-    reported, the first ones kept as ``dE_J_coarse`` / ``dy_pole_m_coarse``, and ``mesh_sensitive``
-    is set when dE or dy_pole moved by more than ``MESH_SENSITIVE_REL``, the refined run no longer
-    snaps or fails, or its fold is still a near-cusp. For a re-solved design the timing keys
-    (``wall_s``, ``mesh_s``, ``t_assembly_s``, ``t_residual_s``, ``t_factor_s``, ``t_newton_s``)
-    cover both solves.
+    as well: the fold is an under-resolution of the arc, design A); the refined solve is reported,
+    the first metrics kept as ``dE_J_coarse`` / ``dy_pole_m_coarse``, and ``mesh_sensitive`` is set
+    when dE or dy_pole moved by more than ``MESH_SENSITIVE_REL``, the refined run no longer snaps
+    or fails, or its fold is still a near-cusp; ``mesh_check`` says why and how it was checked. For
+    a re-solved scene the timing keys (``wall_s``, ``mesh_s``, ``t_assembly_s``, ``t_residual_s``,
+    ``t_factor_s``, ``t_newton_s``) cover both solves.
+
+    Returns
+    -------
+    SceneResult
+        The reported solve (the refined one after a re-solve), its ``metrics`` completed with
+        ``mesh_sensitive``, ``mesh_check``, ``dE_J_coarse`` and ``dy_pole_m_coarse``.
     """
     t0 = time.perf_counter()
-    m = solve_scene(design, mesh, solver).metrics
+    res = solve_scene(scene, mesh, solver)
+    m = res.metrics
     m.update(mesh_sensitive=False, dE_J_coarse=None, dy_pole_m_coarse=None, mesh_check="")
     why = suspicious_snap(m) if check_mesh else ""
     if not why:
-        return m
+        return res
     nt = mesh.nt + 1
     # element length along the arc ~ aspect * t / nt: halve it for a near-cusp, keep it otherwise
     aspect = mesh.aspect * nt / (2 * mesh.nt) if m.get("fold_note") else mesh.aspect
     finer = MeshSettings(order=mesh.order, nt=nt, aspect=aspect)
     coarse = m
     try:
-        m = solve_scene(design, finer, solver).metrics
+        res = solve_scene(scene, finer, solver)
+        m = res.metrics
         m.update(mesh_sensitive=False, mesh_check=f"{why}; re-solved at nt={finer.nt}"
                  + (f", aspect={finer.aspect:.3g}" if finer.aspect != mesh.aspect else ""))
     except SolveFailed as exc:
         coarse["wall_s"] = time.perf_counter() - t0
         coarse["mesh_sensitive"] = True
         coarse["mesh_check"] = f"{why}; refined run failed: {exc}"
-        return coarse
+        return res
     m["dE_J_coarse"], m["dy_pole_m_coarse"] = coarse["dE_J"], coarse["dy_pole_m"]
     for k in _TIME_KEYS:  # the cost of the design is that of both solves
         m[k] = (m.get(k) or 0) + (coarse.get(k) or 0)
     if not m["snaps"]:
         m["mesh_sensitive"] = True
-        return m
+        return res
     if m.get("fold_note"):
         m["mesh_sensitive"] = True
         m["mesh_check"] += "; still a near-cusp"
     for k in ("dE_J", "dy_pole_m"):
         if abs(m[k] - coarse[k]) > MESH_SENSITIVE_REL * max(abs(m[k]), abs(coarse[k])):
             m["mesh_sensitive"] = True
-    return m
+    return res
+
+
+def solve_design(
+    design: Design, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings(),
+    check_mesh: bool = True,
+) -> dict:
+    """Sweep entry point: the metrics dict of one design as :func:`solve_checked` reports it."""
+    return solve_checked(design, mesh, solver, check_mesh).metrics
 
 
 def warm_up() -> float:

@@ -3,8 +3,13 @@
 JSON keys (stable): ``dE_J``, ``dE_norm`` (dE / (mu_i R_i^3)), ``dE_energy_J``, ``dE_path_J``,
 ``dy_pole_m``, ``dy_pole_norm`` (/R_i), ``p_star_Pa``, ``V_star_m3``, ``p_max_Pa``, ``h_imp_m``,
 ``L0_m``, ``snaps``, ``self_crossing``, ``lower_state_method``, ``n_steps``, ``n_newton``,
-``wall_s``; plus diagnostics (``dE_rel_diff``, ``dy_pole_upper_m``, ``p_lower_Pa``, mesh size,
-``max_dilatation``, timings, ``stop_reason``; ``E_o_J`` for an outer cap alone).
+``wall_s``, ``mesh_sensitive``, ``mesh_check``, ``dE_J_coarse``, ``dy_pole_m_coarse``; plus
+diagnostics (``dE_rel_diff``, ``dy_pole_upper_m``, ``p_lower_Pa``, mesh size, ``max_dilatation``,
+timings, ``stop_reason``; ``E_o_J`` for an outer cap alone).
+
+A scene is solved exactly as a sweep solves a design (:func:`snapjump_cli.solve.solve_checked`):
+a suspicious snap is re-solved on a finer mesh and the refined answer is reported, so ``curve``
+and the ranked table give one answer per design and mesh.
 """
 from __future__ import annotations
 
@@ -83,9 +88,13 @@ def _text(scene, m: dict) -> str:
             lines.append(f"h_imp            {m['h_imp_m'] * 1e3:.5g} mm")
         if m.get("L0_m") is not None:
             lines.append(f"L_0              {m['L0_m'] * 1e3:.5g} mm")
-        if m.get("fold_note"):
-            lines.append(f"warning          {m['fold_note']}: this snap can change with the mesh; "
-                         "compare a finer one (--nt, --aspect)")
+    if m.get("mesh_check"):
+        lines.append(f"mesh check       {m['mesh_check']}"
+                     + (f" (coarse: dE {m['dE_J_coarse'] * 1e3:.6g} mJ, dy_pole {m['dy_pole_m_coarse'] * 1e3:.5g} mm)"
+                        if m.get("dE_J_coarse") is not None else ""))
+    if m.get("mesh_sensitive"):
+        lines.append("warning          mesh_sensitive: this snap changes with the mesh (see the mesh check); "
+                     "compare finer meshes (--nt, --aspect)")
     if m.get("E_o_J") is not None:
         lines.append(f"E_o (p/mu_o=0.5) {m['E_o_J'] * 1e3:.6g} mJ")
     lines += [
@@ -118,7 +127,7 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
       snapjump curve --cap outer --theta 90 --eta 16.5
     """
     from snapjump_cli.settings import SolverSettings
-    from snapjump_cli.solve import SolveFailed, solve_scene
+    from snapjump_cli.solve import SolveFailed, solve_checked
 
     scene = scene_from_options(**pick_scene_options(kw))
     ms = mesh_settings_from_options(**pick_mesh_options(kw))
@@ -132,7 +141,7 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
                 raise BadInput(f"{p}: directory {p.parent} does not exist")
             check_writable(p, BadInput, overwrite=overwrite)
     try:
-        res = solve_scene(scene, ms, SolverSettings(full=full))
+        res = solve_checked(scene, ms, SolverSettings(full=full))
     except SolveFailed as exc:
         raise click.ClickException(f"solve failed: {exc}") from None
     m = to_jsonable(res.metrics)

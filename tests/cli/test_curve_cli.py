@@ -10,7 +10,7 @@ from snapjump_cli.commands.curve import main
 STABLE_KEYS = (
     "dE_J", "dE_norm", "dE_energy_J", "dE_path_J", "dy_pole_m", "dy_pole_norm", "p_star_Pa",
     "V_star_m3", "p_max_Pa", "h_imp_m", "L0_m", "snaps", "self_crossing", "lower_state_method",
-    "n_steps", "n_newton", "wall_s",
+    "n_steps", "n_newton", "wall_s", "mesh_sensitive", "mesh_check", "dE_J_coarse", "dy_pole_m_coarse",
 )
 CHEAP = ["--cap", "--theta", "60", "--eta", "8.5", "--bc", "roller-point"]
 
@@ -30,6 +30,7 @@ def test_json_keys_and_outputs(capsys, tmp_path):
     m = json.loads(out)
     assert all(k in m for k in STABLE_KEYS)
     assert m["snaps"] is True and m["lower_state_method"] in ("path", "descent")
+    assert m["mesh_sensitive"] is False and m["mesh_check"] == "" and m["dE_J_coarse"] is None
     assert m["dE_J"] > 0 and m["dy_pole_m"] > 0
     assert abs(m["dE_energy_J"] - m["dE_path_J"]) <= 5e-3 * m["dE_J"]
     assert m["dE_norm"] == pytest.approx(m["dE_J"] / (0.35e6 * 0.03**3), rel=1e-12)
@@ -78,3 +79,23 @@ def test_outputs_under_a_file_or_existing_are_refused(capsys, tmp_path):
     assert main([*CHEAP, "--plot", str(png), "--overwrite"]) == 0
     assert png.read_bytes()[:4] == b"\x89PNG"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file", "c.png"]  # no temporary files left
+
+
+def test_curve_reports_what_the_sweep_reports(monkeypatch, capsys):
+    """One answer per design: curve goes through the sweep's solve (the mesh check and re-solve)."""
+    import snapjump_cli.solve as solve
+
+    calls = []
+
+    def fake_scene(scene, mesh, solver):
+        calls.append((mesh.nt, mesh.aspect))
+        m = {"snaps": True, "dE_J": 2.78e-3 if mesh.nt == 2 else 6.39e-3, "dE_norm": 0.3, "dy_pole_m": 0.0102,
+             "lower_state_method": "path", "fold_note": "volume limit at a near-cusp: x" if mesh.nt == 2 else ""}
+        return solve.SceneResult(metrics=m)
+
+    monkeypatch.setattr(solve, "solve_scene", fake_scene)
+    monkeypatch.setattr("snapjump_cli.commands.curve._text", lambda scene, m: f"{m['dE_J']} {m['mesh_check']}")
+    assert main(["--design", "A"]) == 0
+    out = capsys.readouterr().out
+    assert calls == [(2, 2.0), (3, 1.5)]
+    assert out.startswith("0.00639 volume limit at a near-cusp; re-solved at nt=3, aspect=1.5")

@@ -1,9 +1,12 @@
 """Snap metrics of the paper's scenes at the default mesh: built-in consistency checks
 (docs/physics.md section 5), the comparisons with the paper that must hold, and regression values.
 
-Regression values were produced by ``snapjump curve`` at the default settings (order 2, nt 2,
-aspect 2) and are listed in the README table beside the paper's values; a change of more than
-0.3 % means the numerics changed and the README table must be regenerated.
+Regression values are the answers ``snapjump curve`` reports at the default settings (order 2,
+nt 2, aspect 2; :func:`snapjump_cli.solve.solve_checked`, i.e. after the mesh check) and are
+listed in the scenes table of docs/verification.md beside the paper's values; a change of more than
+0.3 % means the numerics changed and that table must be regenerated. Design A's default mesh folds
+at a near-cusp (2.78 mJ, the coarse mesh's branch); the answer reported, and pinned here, is the
+re-solve on the finer mesh (nt 3, aspect 1.5), which agrees with the mesh-converged 6.38-6.40 mJ.
 """
 from __future__ import annotations
 
@@ -14,7 +17,7 @@ from snapjump_cli.designs import get_design
 from snapjump_cli.geometry import CapScene
 from snapjump_cli.lower_state import constrained_instability, descend_at_volume, descent_starts, snap_at_fixed_volume
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.solve import solve_scene
+from snapjump_cli.solve import solve_checked, solve_scene, suspicious_snap
 
 SCENES = {
     "cap30-clamped": CapScene(theta_deg=60, eta=30, bc="clamped"),
@@ -24,11 +27,11 @@ SCENES = {
     "C": get_design("C"),
     "D": get_design("D"),
 }
-# (dE [J], dy_pole [m]) at the default mesh
+# (dE [J], dy_pole [m]) reported at the default mesh
 REGRESSION = {
     "cap30-clamped": (1.5441919e-04, 3.8406749e-03),
     "cap8.5-roller-point": (3.3818771e-03, 6.9140667e-03),
-    "A": (2.7800103e-03, 1.0213380e-02),
+    "A": (6.38695e-03, 1.23670e-02),  # after the near-cusp re-solve (coarse fold: 2.7800e-3, 1.0213e-2)
     "B": (1.2460825e-02, 1.0216149e-02),
     "C": (2.9431153e-02, 1.8937141e-02),
     "D": (3.1089187e-01, 3.8934970e-02),
@@ -61,9 +64,24 @@ def test_upper_is_a_volume_limit_and_lower_is_stable_at_the_same_volume(results,
     assert r.metrics["max_dilatation"] < 1e-3  # incompressible: |theta - 1| = |p_e| / kappa
 
 
+@pytest.fixture(scope="module")
+def reported(results):
+    """The answers as the commands report them (solve_checked): A (near-cusp) and the thin clamped
+    cap (a tiny snap, dE < 1e-4 mu R^3) are re-solved one level finer."""
+    out = {}
+    for name, r in results.items():
+        if suspicious_snap(r.metrics):
+            out[name] = solve_checked(SCENES[name], MeshSettings(), SolverSettings()).metrics
+        else:
+            out[name] = r.metrics
+    return out
+
+
 @pytest.mark.parametrize("name", list(SCENES))
-def test_regression(results, name):
-    m = results[name].metrics
+def test_regression(reported, name):
+    m = reported[name]
+    assert bool(m.get("mesh_check")) is (name in ("A", "cap30-clamped"))
+    assert bool(m.get("mesh_sensitive")) is (name == "A")  # the thin cap holds under refinement
     dE, dy = REGRESSION[name]
     assert m["dE_J"] == pytest.approx(dE, rel=3e-3)
     assert m["dy_pole_m"] == pytest.approx(dy, rel=3e-3)
