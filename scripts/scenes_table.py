@@ -1,4 +1,4 @@
-"""Reproduce the README's table of the paper's scenes: dE and dy_pole of the Fig. 1 caps (every
+"""Reproduce docs/verification.md's table of the paper's scenes: dE and dy_pole of the Fig. 1 caps (every
 base reading of docs/physics.md section 1), the outer cap's E_o, and designs A-D, at several mesh levels,
 beside the paper's values.
 

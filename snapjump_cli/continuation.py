@@ -274,7 +274,7 @@ class Tracer:
 
         The predictor is the tangent line, or with ``prev`` (the point before ``pt``) the cubic
         Hermite extrapolation through both points and their tangents (fewer steps than the
-        quadratic through ``prev`` tangent at ``pt``: scripts/profile_designs.py, README).
+        quadratic through ``prev`` tangent at ``pt``: scripts/profile_designs.py, docs/performance.md).
         """
         u0 = pt.u + ds * pt.du_ds
         p0 = pt.p + ds * pt.dp_ds

@@ -2,7 +2,7 @@
 
 A scene is chosen by exactly one selector group:
 
-* ``--design NAME`` (a named design, ``configs/designs.yaml``),
+* ``--design NAME`` (a named design, ``snapjump_cli/data/designs.yaml``),
 * ``--eta-i --theta-i --eta-o --theta-o [--mu-ratio]`` (an explicit design),
 * ``--cap [inner|outer] --theta DEG --eta ETA [--bc ...]`` (a single cap; bare ``--cap`` = inner).
 
@@ -112,7 +112,7 @@ _F = FiniteFloat()
 
 scene_options = _apply([
     click.option("--design", "design", metavar="NAME", default=None,
-                 help="A named design (A, B, C, D, S20b, S20c; configs/designs.yaml)."),
+                 help="A named design (A, B, C, D, S20b, S20c; snapjump_cli/data/designs.yaml)."),
     click.option("--eta-i", "eta_i", type=_F, default=None, help="Explicit design: inner cap R_i/t_i."),
     click.option("--theta-i", "theta_i", type=_F, default=None, metavar="DEG", help="Explicit design: inner cap polar angle [deg]."),
     click.option("--eta-o", "eta_o", type=_F, default=None, help="Explicit design: outer cap R_o/t_o."),
