@@ -31,17 +31,14 @@ class Case:
 
 
 def cap_cases() -> list[Case]:
-    """The caps of Fig. 1: theta = 60 deg, eta = 30 clamped; eta = 8.5 under the four base conditions."""
-    out = [Case("cap30-clamped", CapScene(theta_deg=60.0, eta=30.0, bc="clamped"), "cap",
-                "cap theta=60, eta=30, clamped")]
-    for bc in ("clamped", "roller", "roller-point", "ring-roller"):
-        out.append(Case(f"cap8.5-{bc}", CapScene(theta_deg=60.0, eta=8.5, bc=bc), "cap",
-                        f"cap theta=60, eta=8.5, {bc}"))
-    return out
+    """The caps of Fig. 1 (:data:`snapjump_cli.designs.FIG1_CAPS`)."""
+    from snapjump_cli.designs import fig1_caps
+
+    return [Case(name, sc, "cap", f"cap theta=60, eta={sc.eta:g}, {sc.bc}") for name, sc in fig1_caps().items()]
 
 
 def named_cases(names: tuple[str, ...] = ("A", "B", "C", "D")) -> list[Case]:
-    """The paper's named designs (``configs/designs.yaml``)."""
+    """The paper's named designs (``snapjump_cli/data/designs.yaml``)."""
     from snapjump_cli.designs import get_design
 
     out = []

@@ -11,14 +11,12 @@ import os
 import statistics
 import sys
 
-from snapjump_cli.designs import get_design
-from snapjump_cli.geometry import CapScene
+from snapjump_cli.designs import fig1_caps, get_design
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.solve import solve_scene, warm_up
 
 SCENES = {
-    "cap 60/30 clamped": CapScene(60, 30, bc="clamped"),
-    "cap 60/8.5 roller-point": CapScene(60, 8.5, bc="roller-point"),
+    **fig1_caps(("cap30-clamped", "cap8.5-roller-point")),
     **{k: get_design(k) for k in "ABCD"},
 }
 

@@ -13,18 +13,13 @@ import json
 import sys
 import time
 
-from snapjump_cli.designs import get_design, paper_values
-from snapjump_cli.geometry import CapScene
+from snapjump_cli.designs import FIG1_CAPS, fig1_caps, get_design, paper_values
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.solve import SolveFailed, solve_scene, warm_up
 
 MU, R = 0.35e6, 0.030
 SCENES = {
-    "cap 60/30 clamped": (CapScene(60, 30, bc="clamped"), (1.50e-5, 0.131)),
-    "cap 60/8.5 clamped": (CapScene(60, 8.5, bc="clamped"), (4.78e-6, 0.063)),
-    "cap 60/8.5 roller": (CapScene(60, 8.5, bc="roller"), (8.00e-4, 0.267)),
-    "cap 60/8.5 roller-point": (CapScene(60, 8.5, bc="roller-point"), (8.00e-4, 0.267)),
-    "cap 60/8.5 ring-roller": (CapScene(60, 8.5, bc="ring-roller"), (8.00e-4, 0.267)),
+    **{name: (sc, FIG1_CAPS[name][2]) for name, sc in fig1_caps().items()},
     **{k: (get_design(k), None) for k in "ABCD"},
 }
 

@@ -12,9 +12,9 @@ import dataclasses
 from functools import lru_cache
 from importlib import resources
 
-from snapjump_cli.geometry import Design, InvalidDesign
+from snapjump_cli.geometry import CapScene, Design, InvalidDesign
 
-__all__ = ["DESIGNS_YAML", "named_designs", "get_design", "paper_values", "resolve_name"]
+__all__ = ["DESIGNS_YAML", "FIG1_CAPS", "fig1_caps", "named_designs", "get_design", "paper_values", "resolve_name"]
 
 #: Where the named designs are read from (a Traversable of the installed package).
 DESIGNS_YAML = resources.files("snapjump_cli") / "data" / "designs.yaml"
@@ -90,3 +90,21 @@ def paper_values(name: str) -> dict:
     """The paper's reported values of a named design: its ``paper_*`` entries (SI units)."""
     entry = _load()[resolve_name(name)]
     return {k: v for k, v in entry.items() if k.startswith("paper_")}
+
+
+#: The single caps of the paper's Fig. 1 (theta = 60 deg; eta = 30 clamped, eta = 8.5 under the four
+#: base conditions of docs/physics.md section 1): name -> (eta, bc, the paper's (dE / (mu R^3), dy / R)).
+FIG1_CAPS: dict[str, tuple[float, str, tuple[float, float]]] = {
+    "cap30-clamped": (30.0, "clamped", (1.50e-5, 0.131)),
+    "cap8.5-clamped": (8.5, "clamped", (4.78e-6, 0.063)),
+    "cap8.5-roller": (8.5, "roller", (8.00e-4, 0.267)),
+    "cap8.5-roller-point": (8.5, "roller-point", (8.00e-4, 0.267)),
+    "cap8.5-ring-roller": (8.5, "ring-roller", (8.00e-4, 0.267)),
+}
+
+
+def fig1_caps(names: tuple[str, ...] | None = None) -> dict[str, CapScene]:
+    """The Fig. 1 caps as :class:`~snapjump_cli.geometry.CapScene` objects (all, or ``names``), in
+    the order of :data:`FIG1_CAPS`; their paper values are ``FIG1_CAPS[name][2]``."""
+    keys = list(FIG1_CAPS) if names is None else list(names)
+    return {k: CapScene(theta_deg=60.0, eta=FIG1_CAPS[k][0], bc=FIG1_CAPS[k][1]) for k in keys}
