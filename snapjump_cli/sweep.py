@@ -265,12 +265,87 @@ def run_sweep(
                            chunk, flush_interval_s, consolidate_output, append, announce, t_start)
 
 
+@dataclass
+class _Plan:
+    """What a run has to do: rows already recorded, invalid designs (rows ready), tasks to solve."""
+
+    counts: dict[str, int]
+    n_resumed: int
+    invalid_rows: list[dict[str, Any]]
+    tasks: list[dict[str, Any]]
+
+
+def _plan(config: SweepConfig, points: list[DesignPoint], keys: list[str], done: dict[str, str],
+          retry_failed: bool, stamp: dict[str, Any], limit_threads: bool) -> _Plan:
+    """Sort the designs into recorded (skipped), invalid geometry (recorded here, never meshed) and
+    tasks for the solver."""
+    plan = _Plan(counts={s: 0 for s in res.STATUSES}, n_resumed=0, invalid_rows=[], tasks=[])
+    for p, k in zip(points, keys):
+        prev = done.get(k)
+        if prev is not None and not (retry_failed and prev == "failed"):
+            plan.counts[prev] = plan.counts.get(prev, 0) + 1
+            plan.n_resumed += 1
+            continue
+        row = _base_row(p, k, config.mesh, stamp)
+        try:
+            design = Design(**p.design_kwargs())
+        except InvalidDesign as e:
+            row.update(status="invalid_geometry", error=str(e), finished_utc=now_utc(), t_total_s=0.0)
+            plan.invalid_rows.append(row)
+            continue
+        plan.tasks.append({"row": row, "design": design, "mesh": config.mesh, "solver": config.solver,
+                           "limit_threads": limit_threads})
+    return plan
+
+
+def _stamp(config: SweepConfig) -> dict[str, Any]:
+    """The provenance every row of this run carries: code version and commit, solver settings."""
+    from snapjump_cli import __version__
+
+    git = res.git_commit()
+    return {"snapjump_version": __version__,
+            "git_commit": (git["commit"] + ("+dirty" if git.get("dirty") else "")) if git else None,
+            "solver_settings": settings_json(config.solver.as_dict())}
+
+
+def _solve_all(tasks: list[dict[str, Any]], solve_fn: SolveFn, warm_up_fn: Callable[[], Any] | None, n_jobs: int,
+               scheduler: str | None, marker_dir: Path, record: Callable[[dict[str, Any]], None],
+               clients: list[Any]) -> None:
+    """Compile the kernels once (``warm_up_fn``), then solve every task (in-process, joblib
+    processes, or a dask cluster, whose client is appended to ``clients`` for the caller to close)
+    and ``record`` each row as it finishes."""
+    backend = "loky"
+    if scheduler is not None:
+        client = connect(scheduler)
+        clients.append(client)
+        backend, n_jobs = "dask", -1
+    if warm_up_fn is not None:
+        t0 = time.perf_counter()
+        try:
+            warm_up_fn()
+        except Exception as e:  # noqa: BLE001 - reported as one line; -vv shows the traceback
+            log.debug("warm-up failed", exc_info=True)
+            raise SweepError(f"the solver warm-up (kernel compilation) failed: {type(e).__name__}: {e}") from e
+        log.info("solver kernels compiled in %.1f s", time.perf_counter() - t0)
+    md = None
+    if n_jobs != 1 or backend != "loky":
+        marker_dir.mkdir(parents=True, exist_ok=True)
+        md = marker_dir
+    if backend == "dask":
+        from joblib import parallel_config
+
+        with parallel_config(backend="dask", client=clients[-1]):
+            for row in execute(tasks, solve_fn, n_jobs, backend, md):
+                record(row)
+    else:
+        for row in execute(tasks, solve_fn, n_jobs, backend, md):
+            record(row)
+
+
 def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, scheduler: str | None,
                 solve_fn: SolveFn | None, warm_up_fn: Callable[[], Any] | None, progress: bool, retry_failed: bool,
                 chunk: int, flush_interval_s: float, consolidate_output: bool, append: bool,
                 announce: Callable[[str], None] | None, t_start: float) -> SweepSummary:
-    from snapjump_cli import __version__
-
     done = done_keys(output)
     points = list(config.designs())
     keys = [design_key(p, config.mesh, config.solver) for p in points]
@@ -278,34 +353,13 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
     if not append:
         check_compatible(output, set(keys), cfg_dict)
     order = {k: p.index for k, p in zip(keys, points)}
-    git = res.git_commit()
-    stamp = {"snapjump_version": __version__,
-             "git_commit": (git["commit"] + ("+dirty" if git.get("dirty") else "")) if git else None,
-             "solver_settings": settings_json(config.solver.as_dict())}
-    counts = {s: 0 for s in res.STATUSES}
-    invalid_rows: list[dict[str, Any]] = []
-    tasks: list[dict[str, Any]] = []
-    n_resumed = 0
-    for p, k in zip(points, keys):
-        prev = done.get(k)
-        if prev is not None and not (retry_failed and prev == "failed"):
-            counts[prev] = counts.get(prev, 0) + 1
-            n_resumed += 1
-            continue
-        row = _base_row(p, k, config.mesh, stamp)
-        try:
-            design = Design(**p.design_kwargs())
-        except InvalidDesign as e:
-            row.update(status="invalid_geometry", error=str(e), finished_utc=now_utc(), t_total_s=0.0)
-            invalid_rows.append(row)
-            continue
-        tasks.append({"row": row, "design": design, "mesh": config.mesh, "solver": config.solver,
-                      "limit_threads": scheduler is not None})
+    plan = _plan(config, points, keys, done, retry_failed, _stamp(config), scheduler is not None)
+    counts, n_resumed, invalid_rows, tasks = plan.counts, plan.n_resumed, plan.invalid_rows, plan.tasks
     if n_resumed:
         log.info("resuming %s: %d of %d designs already recorded", output, n_resumed, len(points))
     workers = (os.cpu_count() or 1) if n_jobs < 0 else n_jobs
     if announce is not None:
-        est = estimate_seconds(len(tasks), config.mesh, workers if scheduler is None else workers)
+        est = estimate_seconds(len(tasks), config.mesh, workers)
         announce(f"sweep: {len(points)} designs ({n_resumed} already recorded, {len(invalid_rows)} invalid geometry, "
                  f"{len(tasks)} to solve" + (f" on {workers} worker{'s' if workers != 1 else ''}, roughly "
                                              f"{_fmt_duration(est)}" if tasks and scheduler is None else "") + ")")
@@ -342,42 +396,18 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
                              "failed": counts["failed"]}, refresh=False)
             bar.update(1)
 
-    client = None
+    clients: list[Any] = []
     try:
         for row in invalid_rows:
             record(row)
         if tasks:
-            backend = "loky"
-            if scheduler is not None:
-                backend, client = "dask", connect(scheduler)
-                n_jobs = -1
-            if warm_up_fn is not None:
-                t0 = time.perf_counter()
-                try:
-                    warm_up_fn()
-                except Exception as e:  # noqa: BLE001 - reported as one line; -vv shows the traceback
-                    log.debug("warm-up failed", exc_info=True)
-                    raise SweepError(f"the solver warm-up (kernel compilation) failed: {type(e).__name__}: {e}") from e
-                log.info("solver kernels compiled in %.1f s", time.perf_counter() - t0)
-            md = None
-            if n_jobs != 1 or backend != "loky":
-                marker_dir.mkdir(parents=True, exist_ok=True)
-                md = marker_dir
-            if backend == "dask":
-                from joblib import parallel_config
-
-                with parallel_config(backend="dask", client=client):
-                    for row in execute(tasks, solve_fn, n_jobs, backend, md):
-                        record(row)
-            else:
-                for row in execute(tasks, solve_fn, n_jobs, backend, md):
-                    record(row)
+            _solve_all(tasks, solve_fn, warm_up_fn, n_jobs, scheduler, marker_dir, record, clients)
     finally:
         writer.flush()  # keep every finished row, also on Ctrl-C or errors
         stack.close()
         if bar is not None:
             bar.close()
-        if client is not None:
+        for client in clients:
             client.close()
         if marker_dir.is_dir():
             for p in marker_dir.iterdir():
