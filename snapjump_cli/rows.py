@@ -36,6 +36,7 @@ __all__ = [
     "STR_RESULT_KEYS",
     "INT_RESULT_KEYS",
     "OPTIONAL_FLOAT_KEYS",
+    "ASYM_KEYS",
     "FLOAT_RESULT_KEYS",
     "PROVENANCE_COLUMNS",
     "SETTINGS_COLUMNS",
@@ -64,13 +65,17 @@ RESULT_KEYS: tuple[str, ...] = (
     "n_nodes", "n_elements", "n_dofs",
     "V_inner_solid_m3", "V_outer_solid_m3",
     "mesh_sensitive", "dE_J_coarse", "dy_pole_m_coarse", "mesh_check",
+    "asym_first", "asym_n", "asym_V_m3", "asym_p_Pa", "asym_lower_stable",
 )
-BOOL_RESULT_KEYS: frozenset[str] = frozenset({"snaps", "self_crossing", "mesh_sensitive"})
+BOOL_RESULT_KEYS: frozenset[str] = frozenset({"snaps", "self_crossing", "mesh_sensitive", "asym_first",
+                                              "asym_lower_stable"})
 STR_RESULT_KEYS: frozenset[str] = frozenset({"lower_state_method", "mesh_check"})
-INT_RESULT_KEYS: frozenset[str] = frozenset({"n_steps", "n_newton", "n_nodes", "n_elements", "n_dofs"})
-#: Float metrics that may be null in an ok row (set only after a mesh-sensitivity re-solve, or not
-#: defined for a lower state off the traced path, or for a scene without a ground ring / outer cap).
-OPTIONAL_FLOAT_KEYS: frozenset[str] = frozenset({"dE_J_coarse", "dy_pole_m_coarse"})
+INT_RESULT_KEYS: frozenset[str] = frozenset({"n_steps", "n_newton", "n_nodes", "n_elements", "n_dofs", "asym_n"})
+#: Float metrics that may be null in an ok row (set only after a mesh-sensitivity re-solve, or only
+#: by the harmonic check, ``solver.harmonics > 0``, and then only when a harmonic lost stability).
+OPTIONAL_FLOAT_KEYS: frozenset[str] = frozenset({"dE_J_coarse", "dy_pole_m_coarse", "asym_V_m3", "asym_p_Pa"})
+#: The keys of the harmonic check (all null when it is off).
+ASYM_KEYS: tuple[str, ...] = ("asym_first", "asym_n", "asym_V_m3", "asym_p_Pa", "asym_lower_stable")
 #: Every other result key is a float metric.
 FLOAT_RESULT_KEYS: tuple[str, ...] = tuple(
     k for k in RESULT_KEYS if k not in BOOL_RESULT_KEYS | STR_RESULT_KEYS | INT_RESULT_KEYS

@@ -83,6 +83,8 @@ class SolverSettings:
     bulk_ratio : kappa / mu of the volumetric penalty of the mixed formulation
     tol_path : Newton tolerance of ordinary path points; the limit point, the lower state and the
         descent always use ``tol``
+    harmonics : check the traced states against non-axisymmetric perturbations ``cos n phi``,
+        ``n = 1..harmonics`` (:mod:`snapjump_cli.harmonics`; 0 = off, the default)
     u_scale : scale of the RMS displacement in the arc length, in units of the pole-displacement
         scale (0 = arc length in (V, p, pole) only)
     """
@@ -97,6 +99,7 @@ class SolverSettings:
     bulk_ratio: float = 1.0e4
     u_scale: float = 1.0
     tol_path: float = 1e-6
+    harmonics: int = 0
 
     def __post_init__(self) -> None:
         _check(self, {
@@ -110,6 +113,7 @@ class SolverSettings:
             "full": (lambda v: isinstance(v, bool), "true or false"),
             "bulk_ratio": (lambda v: _is_num(v) and v > 0, "a number > 0"),
             "u_scale": (lambda v: _is_num(v) and v >= 0, "a number >= 0"),
+            "harmonics": (lambda v: _is_int(v) and 0 <= v <= 64, "an integer in [0, 64]"),
         })
 
     def as_dict(self) -> dict:

@@ -23,6 +23,7 @@ from snapjump_cli.lower_state import find_lower_state
 from snapjump_cli.meshdata import Mesh
 from snapjump_cli.metrics import scene_curve, snap_metrics
 from snapjump_cli.model import Model
+from snapjump_cli.rows import ASYM_KEYS
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.snap import SnapStates, SnapTracker, state_at_pressure
 
@@ -197,7 +198,29 @@ def solve_checked(
     scene: Design | CapScene, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings(),
     check_mesh: bool = True,
 ) -> SceneResult:
-    """Solve a scene the way every command reports it: :func:`solve_scene`, then the mesh check.
+    """Solve a scene the way every command reports it: :func:`solve_scene`, the mesh check, and
+    (``solver.harmonics > 0``) the Fourier-harmonic stability check of the reported solve
+    (:func:`snapjump_cli.harmonics.check_harmonics`: ``asym_first``, ``asym_n``, ``asym_V_m3``,
+    ``asym_p_Pa``, ``asym_lower_stable``; all None when it is off).
+    """
+    res = _solve_mesh_checked(scene, mesh, solver, check_mesh)
+    m = res.metrics
+    m.update({k: None for k in ASYM_KEYS})
+    if solver.harmonics > 0 and res.model is not None and res.path is not None:
+        from snapjump_cli.harmonics import check_harmonics
+
+        t0 = time.perf_counter()
+        h = check_harmonics(res, solver.harmonics)
+        m.update({k: h.get(k) for k in ASYM_KEYS})
+        m["asym_wall_s"] = time.perf_counter() - t0
+        m["wall_s"] = (m.get("wall_s") or 0.0) + m["asym_wall_s"]
+    return res
+
+
+def _solve_mesh_checked(
+    scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool,
+) -> SceneResult:
+    """:func:`solve_scene`, then the mesh check.
 
     With ``check_mesh``, a suspicious snap (:func:`suspicious_snap`) is re-solved with one more
     element through the thickness (and, for a near-cusp fold, elements half as long along the arcs

@@ -79,10 +79,19 @@ def design_key(point: DesignPoint | Design | Mapping[str, Any], mesh: MeshSettin
         "v": KEY_VERSION,
         "design": {c: float(src[c]) for c in res.INPUT_COLUMNS},
         "mesh": _typed(mesh.as_dict()),
-        "solver": _typed(solver.as_dict()),
+        "solver": _typed(_key_settings(solver)),
     }
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+#: Solver settings added after KEY_VERSION v2 with the value that leaves the computation as it was:
+#: left out of the key at that value, so rows computed before the setting existed are still found.
+_NEUTRAL_SETTINGS = {"harmonics": 0}
+
+
+def _key_settings(solver: SolverSettings) -> dict[str, Any]:
+    return {k: v for k, v in solver.as_dict().items() if not (k in _NEUTRAL_SETTINGS and v == _NEUTRAL_SETTINGS[k])}
 
 
 def _typed(d: Mapping[str, Any]) -> dict[str, Any]:

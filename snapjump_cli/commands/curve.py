@@ -3,7 +3,9 @@
 JSON keys (stable): ``dE_J``, ``dE_norm`` (dE / (mu_i R_i^3)), ``dE_energy_J``, ``dE_path_J``,
 ``dy_pole_m``, ``dy_pole_norm`` (/R_i), ``p_star_Pa``, ``V_star_m3``, ``p_max_Pa``, ``h_imp_m``,
 ``L0_m``, ``snaps``, ``self_crossing``, ``lower_state_method``, ``n_steps``, ``n_newton``,
-``wall_s``, ``mesh_sensitive``, ``mesh_check``, ``dE_J_coarse``, ``dy_pole_m_coarse``; plus
+``wall_s``, ``mesh_sensitive``, ``mesh_check``, ``dE_J_coarse``, ``dy_pole_m_coarse``, the
+harmonic check's ``asym_first``, ``asym_n``, ``asym_V_m3``, ``asym_p_Pa``, ``asym_lower_stable``
+(null without ``--harmonics``); plus
 diagnostics (``dE_rel_diff``, ``dy_pole_upper_m``, ``p_lower_Pa``, mesh size, ``max_dilatation``,
 timings, ``stop_reason``; ``E_o_J`` for an outer cap alone).
 
@@ -97,6 +99,15 @@ def _text(scene, m: dict) -> str:
                      "compare finer meshes (--nt, --aspect)")
     if m.get("E_o_J") is not None:
         lines.append(f"E_o (p/mu_o=0.5) {m['E_o_J'] * 1e3:.6g} mJ")
+    if m.get("asym_first") is not None:
+        if m["asym_first"]:
+            lines.append(f"asymmetric mode  n = {m['asym_n']} loses stability before V*, at "
+                         f"V = {m['asym_V_m3'] * 1e6:.5g} ml, p = {m['asym_p_Pa'] / 1e3:.5g} kPa: the axisymmetric "
+                         "snap is not what happens")
+        else:
+            lines.append("asymmetric mode  none up to V* (harmonics checked)")
+        if m.get("asym_lower_stable") is not None:
+            lines.append(f"lower state, 3D {'stable' if m['asym_lower_stable'] else 'UNSTABLE'} against the harmonics checked")
     lines += [
         f"p_max            {m['p_max_Pa'] / 1e3:.5g} kPa",
         f"self-crossing    {'yes' if m['self_crossing'] else 'no'}",
@@ -115,8 +126,13 @@ def _text(scene, m: dict) -> str:
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Draw the p-V curve (paper Fig. 2A normalisation, dE shaded) to this PNG file.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing --csv / --plot file (refused by default).")
+@click.option("--harmonics", type=click.IntRange(0, 64), default=0, show_default=True, metavar="N",
+              help="Check every path state up to the snap and the lower state against non-axisymmetric "
+                   "modes cos(n phi), n = 1..N (Fourier-harmonic tangents; 0 = off). Reports asym_first, "
+                   "asym_n, asym_V_m3, asym_p_Pa and asym_lower_stable.")
 @verbosity_options
-def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, overwrite: bool, **kw) -> None:
+def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, overwrite: bool, harmonics: int,
+            **kw) -> None:
     """Trace one scene's pressure-volume path through its limit points and report the snap.
 
     \b
@@ -141,7 +157,7 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
                 raise BadInput(f"{p}: directory {p.parent} does not exist")
             check_writable(p, BadInput, overwrite=overwrite)
     try:
-        res = solve_checked(scene, ms, SolverSettings(full=full))
+        res = solve_checked(scene, ms, SolverSettings(full=full, harmonics=harmonics))
     except SolveFailed as exc:
         raise click.ClickException(f"solve failed: {exc}") from None
     m = to_jsonable(res.metrics)

@@ -99,3 +99,17 @@ def test_curve_reports_what_the_sweep_reports(monkeypatch, capsys):
     out = capsys.readouterr().out
     assert calls == [(2, 2.0), (3, 1.5)]
     assert out.startswith("0.00639 volume limit at a near-cusp; re-solved at nt=3, aspect=1.5")
+
+
+def test_harmonics_option_reports_the_asymmetric_check(capsys):
+    """Fig. S16's inner cap (eta 10, theta 60, ring-roller): a harmonic (n = 1) loses stability
+    before V*, which the axisymmetric self-crossing heuristic misses (docs/harmonics.md)."""
+    scene = ["--cap", "--theta", "60", "--eta", "10", "--bc", "ring-roller", "--format", "json"]
+    assert main(scene) == 0
+    off = json.loads(capsys.readouterr().out)
+    assert all(off[k] is None for k in ("asym_first", "asym_n", "asym_V_m3", "asym_p_Pa", "asym_lower_stable"))
+    assert main([*scene, "--harmonics", "3"]) == 0
+    on = json.loads(capsys.readouterr().out)
+    assert on["asym_first"] is True and on["asym_n"] == 1 and on["self_crossing"] is False
+    assert 0 < on["asym_V_m3"] <= on["V_star_m3"] and 0 < on["asym_p_Pa"] <= on["p_max_Pa"]
+    assert on["dE_J"] == off["dE_J"]  # the check does not change the axisymmetric answer

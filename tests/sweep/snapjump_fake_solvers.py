@@ -48,7 +48,8 @@ def fast_solve(design, mesh, solver) -> dict:
     dE = (1e-3 * design.mu_ratio * design.eta_o / design.eta_i) if snaps else 0.0
     dy = (0.004 * design.mu_ratio ** 0.5 * design.theta_o_deg / 80.0) if snaps else float("nan")
     out = {k: 0.0 for k in RESULT_KEYS}
-    out.update(mesh_sensitive=False, mesh_check="", dE_J_coarse=None, dy_pole_m_coarse=None)
+    out.update(mesh_sensitive=False, mesh_check="", dE_J_coarse=None, dy_pole_m_coarse=None, asym_first=None,
+               asym_n=None, asym_V_m3=None, asym_p_Pa=None, asym_lower_stable=None)
     out.update(
         dE_J=dE, dE_norm=dE / (design.mu_i * design.R_i ** 3), dE_energy_J=dE, dE_path_J=dE * (1 + 1e-6),
         dE_rel_diff=1e-6, dy_pole_m=dy, dy_pole_upper_m=dy, dy_pole_norm=dy / design.R_i,

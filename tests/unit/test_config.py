@@ -151,3 +151,12 @@ def test_linspace_values_are_exact_endpoints():
     c = parse_config({"grid": {**GRID, "eta_o": {"start": 5, "stop": 20, "num": 10}}})
     v = c.grid["eta_o"]
     assert v[0] == 5.0 and v[-1] == 20.0 and len(v) == 10 and all(math.isfinite(x) for x in v)
+
+
+def test_solver_harmonics_setting():
+    from snapjump_cli.config import ConfigError, parse_config
+
+    grid = {"grid": {"eta_i": [6], "theta_i": [80], "eta_o": [12], "theta_o": [85], "mu_ratio": [1]}}
+    assert parse_config({**grid, "solver": {"harmonics": 4}}).solver.harmonics == 4
+    with pytest.raises(ConfigError, match=r"solver.harmonics: expected an integer in \[0, 64\]"):
+        parse_config({**grid, "solver": {"harmonics": 65}}, "x.yaml")
