@@ -139,20 +139,7 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
     nq = Wq.shape[1]
     npr = Np.shape[1]
     nd = 2 * nen
-    f = np.empty(5)
-    dpsi = np.zeros((nq, 5))
-    d2psi = np.zeros((nq, 5, 5))
-    dJq = np.empty((nq, 5))
-    d2Jq = np.empty((nq, 5, 5))
-    fe = np.empty(nd)
-    Ke = np.empty((nd, nd))
-    G = np.empty((npr, nd))
-    H = np.empty((npr, nd))
-    g = np.empty(npr)
-    pb = np.empty(npr)
-    DB = np.empty((5, nd))
-    D = np.empty((5, 5))
-    sv = np.empty(5)
+    f, dpsi, d2psi, dJq, d2Jq, fe, Ke, G, H, g, pb, DB, D, sv = _work_arrays(nq, npr, nd)
     energy = 0.0
     maxdev = 0.0
     for e in range(ne):
@@ -209,35 +196,70 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
                         D[k, m] = W * (d2psi[q, k, m] + pq * d2Jq[q, k, m])
                 _add_btdb_lower(dNdX[e, q], N_ref[q], Rq[e, q], D, DB, Ke)
         if want >= 2:
-            # kappa G^T M^-1 G (lower triangle) as G^T H with H = kappa M^-1 G
-            for k in range(npr):
-                for j in range(nd):
-                    s = 0.0
-                    for m in range(npr):
-                        s += Minv[e, k, m] * G[m, j]
-                    H[k, j] = ka * s
-            for k in range(npr):
-                for i in range(nd):
-                    gik = G[k, i]
-                    for j in range(i + 1):
-                        Ke[i, j] += gik * H[k, j]
-        # scatter (Ke holds the lower triangle of a symmetric matrix)
-        for i in range(nd):
-            di = edofs[e, i]
-            if di < 0:
-                continue
-            f_out[di] += fe[i]
-            if want >= 2:
-                for j in range(i + 1):
-                    v = Ke[i, j]
-                    pij = epos[e, i, j]
-                    if pij >= 0:
-                        data_out[pij] += v
-                    if j != i:
-                        pji = epos[e, j, i]
-                        if pji >= 0:
-                            data_out[pji] += v
+            _add_volumetric_lower(Minv[e], ka, G, H, Ke)
+        _scatter(edofs[e], epos[e], fe, Ke, want, f_out, data_out)
     return energy, True, maxdev
+
+
+@njit(cache=True, inline="always")
+def _work_arrays(nq, npr, nd):
+    """Scratch arrays of :func:`assemble` for elements with ``nq`` quadrature points, ``npr``
+    pressure modes and ``nd`` dofs: ``f, dpsi, d2psi, dJq, d2Jq, fe, Ke, G, H, g, pb, DB, D, sv``."""
+    f = np.empty(5)
+    dpsi = np.zeros((nq, 5))
+    d2psi = np.zeros((nq, 5, 5))
+    dJq = np.empty((nq, 5))
+    d2Jq = np.empty((nq, 5, 5))
+    fe = np.empty(nd)
+    Ke = np.empty((nd, nd))
+    G = np.empty((npr, nd))
+    H = np.empty((npr, nd))
+    g = np.empty(npr)
+    pb = np.empty(npr)
+    DB = np.empty((5, nd))
+    D = np.empty((5, 5))
+    sv = np.empty(5)
+    return f, dpsi, d2psi, dJq, d2Jq, fe, Ke, G, H, g, pb, DB, D, sv
+
+
+@njit(cache=True, inline="always")
+def _add_volumetric_lower(Minv_e, ka, G, H, Ke):
+    """Lower triangle of ``Ke += kappa G^T M^-1 G``, formed as ``G^T H`` with ``H = kappa M^-1 G``
+    (``Minv_e`` the element's ``M^-1``; ``H`` is scratch)."""
+    npr, nd = G.shape
+    for k in range(npr):
+        for j in range(nd):
+            s = 0.0
+            for m in range(npr):
+                s += Minv_e[k, m] * G[m, j]
+            H[k, j] = ka * s
+    for k in range(npr):
+        for i in range(nd):
+            gik = G[k, i]
+            for j in range(i + 1):
+                Ke[i, j] += gik * H[k, j]
+
+
+@njit(cache=True, inline="always")
+def _scatter(edofs_e, epos_e, fe, Ke, want, f_out, data_out):
+    """Add an element's force ``fe`` (and for ``want >= 2`` its stiffness; ``Ke`` holds the lower
+    triangle of a symmetric matrix) into ``f_out`` and ``data_out`` (``edofs_e``, ``epos_e``: the
+    element's rows of ``edofs`` and ``epos``)."""
+    for i in range(fe.shape[0]):
+        di = edofs_e[i]
+        if di < 0:
+            continue
+        f_out[di] += fe[i]
+        if want >= 2:
+            for j in range(i + 1):
+                v = Ke[i, j]
+                pij = epos_e[i, j]
+                if pij >= 0:
+                    data_out[pij] += v
+                if j != i:
+                    pji = epos_e[j, i]
+                    if pji >= 0:
+                        data_out[pji] += v
 
 
 @njit(cache=True)

@@ -391,26 +391,14 @@ def descend_at_volume(
             base = None
         else:
             # a trial step: energy and volume decide; the stiffness is assembled only if it is taken
-            u0, p0, lin0, E0, h0, base0, nu0 = accepted
-            ev = pb.energy_volume(u)
-            ok = ev is not None
-            if ok:
-                E_new = ev[0]
-                h = float(ev[1] / tracer.sc[0] - V_star)
-            # compare with the new multiplier: merit W - p (V - V*); while the volume is still
-            # being restored from a start far from V* any step inside the material domain is
-            # taken. (With a tight threshold here, steps that overshot to |V - V*| ~ 1e-5 were
-            # accepted unchecked and the flow climbed to 5x the energy on thin inner caps.)
-            feasible = abs(h0) < 1e-3 * max(1.0, abs(V_star))
-            if not ok and not feasible:
+            lin, E_trial, h_trial, outside = _trial_step(tracer, u, p, accepted, V_star)
+            if outside:
                 dh_max *= 0.5
-            lin = None
-            if ok and not (feasible and E_new - p * h * tracer.sc[0] > E0 - p * h0 * tracer.sc[0] + 1e-13 * max(1.0, abs(E0))):
-                lin = pb.linearize(u, p)
             if lin is None:
                 sigma_rel = min(sigma_rel * 8.0, 1e6)
-                u, p, lin, E_new, h, base, n_unstable = u0, p0, lin0, E0, h0, base0, nu0
+                u, p, lin, E_new, h, base, n_unstable = accepted
             else:
+                E_new, h = E_trial, h_trial
                 sigma_rel *= 0.25
                 base = None
             z, dz_du, dz_dp = tracer.zeta(u, p, lin)
@@ -432,16 +420,7 @@ def descend_at_volume(
             return PathPoint(lin.u, lin.p, zz, t, v, q, float("nan"), it), f"descent converged {how}in {it} iterations"
         # the smallest shift (from the current sigma_rel up) that makes the shifted system
         # positive definite on the constraint: the step then goes downhill in every mode
-        solver = None
-        while sigma_rel <= 1e6:
-            if n_unstable != 0 or sigma_rel > 1e-10:
-                solver = lin.factor(dz_du[0], 0.0, shift=sigma_rel * lin.diag_abs())
-            else:
-                solver = base
-            if solver is not None and (n_unstable == 0 or _constrained_negatives(solver, lin.g) == 0):
-                break
-            sigma_rel = max(sigma_rel * 8.0, 1e-10)
-            solver = None
+        solver, sigma_rel = _descent_solver(lin, dz_du, base, n_unstable, sigma_rel)
         if solver is None:
             return None, f"descent: no positive definite shift at iteration {it}"
         # restore the volume gradually when starting far from V* (a homotopy in the constraint)
@@ -451,6 +430,52 @@ def descend_at_volume(
         p = p + x[-1]
         step_small = float(np.linalg.norm(dz_du @ x[:-1] + dz_dp * x[-1])) < 1e-12
     return None, f"descent did not converge in {max_iter} iterations"
+
+
+def _trial_step(tracer: Tracer, u: np.ndarray, p: float, accepted: tuple, V_star: float) -> tuple:
+    """Judge a trial step of :func:`descend_at_volume` from ``accepted`` (the last accepted
+    iterate ``(u, p, lin, E, h, ...)``) to ``(u, p)``.
+
+    Returns ``(lin, E, h, outside)``: the linearisation at ``(u, p)`` if the step is taken, else
+    ``None``; its energy and volume error (meaningful if taken); ``outside`` when the step left
+    the material domain while the volume was still being restored (the caller then halves the
+    largest volume change per iteration).
+    """
+    pb = tracer.pb
+    _, _, _, E0, h0, _, _ = accepted
+    ev = pb.energy_volume(u)
+    ok = ev is not None
+    E_new = h = math.nan
+    if ok:
+        E_new = ev[0]
+        h = float(ev[1] / tracer.sc[0] - V_star)
+    # compare with the new multiplier: merit W - p (V - V*); while the volume is still
+    # being restored from a start far from V* any step inside the material domain is
+    # taken. (With a tight threshold here, steps that overshot to |V - V*| ~ 1e-5 were
+    # accepted unchecked and the flow climbed to 5x the energy on thin inner caps.)
+    feasible = abs(h0) < 1e-3 * max(1.0, abs(V_star))
+    lin = None
+    if ok and not (feasible and E_new - p * h * tracer.sc[0] > E0 - p * h0 * tracer.sc[0] + 1e-13 * max(1.0, abs(E0))):
+        lin = pb.linearize(u, p)
+    return lin, E_new, h, not ok and not feasible
+
+
+def _descent_solver(lin, dz_du: np.ndarray, base, n_unstable: int, sigma_rel: float) -> tuple:
+    """The smallest shift, from ``sigma_rel`` up (by factors of 8), that makes the shifted system
+    of :func:`descend_at_volume` positive definite on the constraint: ``(solver, sigma_rel)``, or
+    ``(None, sigma_rel)`` if none up to ``1e6`` does. Without unstable modes and with
+    ``sigma_rel <= 1e-10`` the unshifted factorisation ``base`` is used (Newton's step)."""
+    solver = None
+    while sigma_rel <= 1e6:
+        if n_unstable != 0 or sigma_rel > 1e-10:
+            solver = lin.factor(dz_du[0], 0.0, shift=sigma_rel * lin.diag_abs())
+        else:
+            solver = base
+        if solver is not None and (n_unstable == 0 or _constrained_negatives(solver, lin.g) == 0):
+            break
+        sigma_rel = max(sigma_rel * 8.0, 1e-10)
+        solver = None
+    return solver, sigma_rel
 
 
 def descent_starts(path_points: list[PathPoint], upper: PathPoint, k_before: int, n: int = 3) -> list[PathPoint]:

@@ -154,85 +154,92 @@ def _build(b: _Builder, scene: Design | CapScene, s: MeshSettings, snap: float =
     extract node and edge sets (point tags, curve tags with their start points)."""
     nt, aspect = int(s.nt), float(s.aspect)
     bk: dict = {"points": {}, "edge_sets": {}, "node_curves": {}, "info": {}}
-    P, E = bk["points"], bk["edge_sets"]
-
     if isinstance(scene, Design):
-        d = scene
-        pts = design_points(d)
-        yb = pts["7"][1]
-        ci = _CapGeom(0.0, d.R_i, d.eta_i, yb)
-        co = _CapGeom(d.Delta, d.R_o, d.eta_o, yb)
-        x6 = pts["6i"][0]
-        x5, x10 = pts["5"][0], pts["10"][0]
-        nt_i = nt
-        h = ci.t / nt_i
-        n_ring = _count(d.t_ring, h)
-        h_ring = d.t_ring / n_ring
-        # x5 and x10 closer than a fraction of the local element size would leave a sliver
-        # (a narrow ring column, or a thin row through the outer cap): move the ring's free
-        # outer face (points 9, 10) onto x5 instead.
-        gap = x5 - x10
-        tol = max(SNAP_TOL * d.R_i, snap * (co.t / nt if gap > 0 else h_ring))
-        coincide = abs(gap) <= tol
-        overhang = gap > 0 and not coincide
-        nt_o = max(nt, 2) if overhang else nt
-        na_i, na_o = ci.arc_count(nt_i, aspect), co.arc_count(nt_o, aspect)
-        y_g = pts["8"][1]
+        return _build_design(b, scene, nt, aspect, snap, bk)
+    return _build_cap(b, scene, nt, aspect, bk)
 
-        for k in ("1", "2", "3", "4", "5", "7", "8", "9", "10"):
-            if k in ("9", "10") and coincide:
-                continue
-            P[k] = b.point(*pts[k])
-        P["6"] = b.point(*pts["6i"])
-        if coincide:
-            P["10"] = P["5"]
-            P["9"] = b.point(x5, y_g)
-        c_i, c_o = b.point(0.0, 0.0), b.point(0.0, d.Delta)
-        P["11"] = b.point(x6, y_g)  # ring bottom below point 6
 
-        # inner cap
-        ax_i = b.line(P["1"], P["2"], nt_i)
-        lo_i = b.arc(P["1"], c_i, P["7"], na_i)
-        up_i = b.arc(P["2"], c_i, P["6"], na_i)
-        base_i = b.line(P["7"], P["6"], nt_i)
-        b.cap(P["1"], P["2"], P["7"], P["6"], [base_i], lo_i, up_i, ax_i, REGION_INNER_CAP, 0)
-        # outer cap
-        ax_o = b.line(P["3"], P["4"], nt_o)
-        lo_o = b.arc(P["3"], c_o, P["6"], na_o)
-        up_o = b.arc(P["4"], c_o, P["5"], na_o)
-        if overhang:
-            n1 = min(max(int(round(nt_o * (x10 - x6) / (x5 - x6))), 1), nt_o - 1)
-            base_o = [b.line(P["6"], P["10"], n1), b.line(P["10"], P["5"], nt_o - n1)]
-            top_ring = [(base_o[0], P["6"], P["10"], n1)]
-        else:
-            base_o = [b.line(P["6"], P["5"], nt_o)]
-            top_ring = [(base_o[0], P["6"], P["5"], nt_o)]
-            if not coincide:
-                n_free = _count(x10 - x5, aspect * h_ring)
-                top_ring.append((b.line(P["5"], P["10"], n_free), P["5"], P["10"], n_free))
-        b.cap(P["3"], P["4"], P["6"], P["5"], base_o, lo_o, up_o, ax_o, REGION_OUTER_CAP, 1)
-        # ring: [x7, x6] under the inner cap base, then the pieces of the top face beyond x6
-        ground = _ring(b, P, (base_i, P["7"], P["6"], nt_i), top_ring, P["8"], P["11"], P["9"], n_ring)
+def _build_design(b: _Builder, d: Design, nt: int, aspect: float, snap: float, bk: dict) -> dict:
+    """:func:`_build` for a design: inner cap, ring and outer cap (see the module docstring)."""
+    P, E = bk["points"], bk["edge_sets"]
+    pts = design_points(d)
+    yb = pts["7"][1]
+    ci = _CapGeom(0.0, d.R_i, d.eta_i, yb)
+    co = _CapGeom(d.Delta, d.R_o, d.eta_o, yb)
+    x6 = pts["6i"][0]
+    x5, x10 = pts["5"][0], pts["10"][0]
+    nt_i = nt
+    h = ci.t / nt_i
+    n_ring = _count(d.t_ring, h)
+    h_ring = d.t_ring / n_ring
+    # x5 and x10 closer than a fraction of the local element size would leave a sliver
+    # (a narrow ring column, or a thin row through the outer cap): move the ring's free
+    # outer face (points 9, 10) onto x5 instead.
+    gap = x5 - x10
+    tol = max(SNAP_TOL * d.R_i, snap * (co.t / nt if gap > 0 else h_ring))
+    coincide = abs(gap) <= tol
+    overhang = gap > 0 and not coincide
+    nt_o = max(nt, 2) if overhang else nt
+    na_i, na_o = ci.arc_count(nt_i, aspect), co.arc_count(nt_o, aspect)
+    y_g = pts["8"][1]
 
-        E["cavity"] = [(up_i, P["2"]), (lo_o, P["6"])]
-        E["inner_upper"] = [(up_i, P["2"])]
-        E["inner_lower"] = [(lo_i, P["1"])]
-        E["outer_lower"] = [(lo_o, P["3"])]
-        E["outer_upper"] = [(up_o, P["4"])]
-        E["ground"] = ground
-        bk["node_curves"] = {"axis": [ax_i, ax_o], "ground": [c for c, _ in ground]}
-        bk["node_points"] = {"pole_lower": "1", "pole_upper": "2", "outer_pole_lower": "3",
-                             "outer_pole_upper": "4", "point6": "6"}
-        bk["dirichlet"] = {"dirichlet_y": ("points", ["6"]), "dirichlet_x": None}
-        bk["info"] = {"nt": {"inner_cap": nt_i, "ring": n_ring, "outer_cap": nt_o},
-                      "n_arc": {"inner_cap": na_i, "outer_cap": na_o},
-                      "overhang": bool(overhang), "x5_minus_x10": gap,
-                      "ring_snapped": bool(coincide and gap != 0.0),
-                      "w_ring_frac_used": ((x5 if coincide else x10) - x6) / d.R_i}
-        bk["scene"] = "design"
-        return bk
+    for k in ("1", "2", "3", "4", "5", "7", "8", "9", "10"):
+        if k in ("9", "10") and coincide:
+            continue
+        P[k] = b.point(*pts[k])
+    P["6"] = b.point(*pts["6i"])
+    if coincide:
+        P["10"] = P["5"]
+        P["9"] = b.point(x5, y_g)
+    c_i, c_o = b.point(0.0, 0.0), b.point(0.0, d.Delta)
+    P["11"] = b.point(x6, y_g)  # ring bottom below point 6
 
-    c = scene
+    # inner cap
+    ax_i = b.line(P["1"], P["2"], nt_i)
+    lo_i = b.arc(P["1"], c_i, P["7"], na_i)
+    up_i = b.arc(P["2"], c_i, P["6"], na_i)
+    base_i = b.line(P["7"], P["6"], nt_i)
+    b.cap(P["1"], P["2"], P["7"], P["6"], [base_i], lo_i, up_i, ax_i, REGION_INNER_CAP, 0)
+    # outer cap
+    ax_o = b.line(P["3"], P["4"], nt_o)
+    lo_o = b.arc(P["3"], c_o, P["6"], na_o)
+    up_o = b.arc(P["4"], c_o, P["5"], na_o)
+    if overhang:
+        n1 = min(max(int(round(nt_o * (x10 - x6) / (x5 - x6))), 1), nt_o - 1)
+        base_o = [b.line(P["6"], P["10"], n1), b.line(P["10"], P["5"], nt_o - n1)]
+        top_ring = [(base_o[0], P["6"], P["10"], n1)]
+    else:
+        base_o = [b.line(P["6"], P["5"], nt_o)]
+        top_ring = [(base_o[0], P["6"], P["5"], nt_o)]
+        if not coincide:
+            n_free = _count(x10 - x5, aspect * h_ring)
+            top_ring.append((b.line(P["5"], P["10"], n_free), P["5"], P["10"], n_free))
+    b.cap(P["3"], P["4"], P["6"], P["5"], base_o, lo_o, up_o, ax_o, REGION_OUTER_CAP, 1)
+    # ring: [x7, x6] under the inner cap base, then the pieces of the top face beyond x6
+    ground = _ring(b, P, (base_i, P["7"], P["6"], nt_i), top_ring, P["8"], P["11"], P["9"], n_ring)
+
+    E["cavity"] = [(up_i, P["2"]), (lo_o, P["6"])]
+    E["inner_upper"] = [(up_i, P["2"])]
+    E["inner_lower"] = [(lo_i, P["1"])]
+    E["outer_lower"] = [(lo_o, P["3"])]
+    E["outer_upper"] = [(up_o, P["4"])]
+    E["ground"] = ground
+    bk["node_curves"] = {"axis": [ax_i, ax_o], "ground": [c for c, _ in ground]}
+    bk["node_points"] = {"pole_lower": "1", "pole_upper": "2", "outer_pole_lower": "3",
+                         "outer_pole_upper": "4", "point6": "6"}
+    bk["dirichlet"] = {"dirichlet_y": ("points", ["6"]), "dirichlet_x": None}
+    bk["info"] = {"nt": {"inner_cap": nt_i, "ring": n_ring, "outer_cap": nt_o},
+                  "n_arc": {"inner_cap": na_i, "outer_cap": na_o},
+                  "overhang": bool(overhang), "x5_minus_x10": gap,
+                  "ring_snapped": bool(coincide and gap != 0.0),
+                  "w_ring_frac_used": ((x5 if coincide else x10) - x6) / d.R_i}
+    bk["scene"] = "design"
+    return bk
+
+
+def _build_cap(b: _Builder, c: CapScene, nt: int, aspect: float, bk: dict) -> dict:
+    """:func:`_build` for a single cap (with the ring under it for ``bc="ring-roller"``)."""
+    P, E = bk["points"], bk["edge_sets"]
     cp = cap_points(c)
     g = _CapGeom(0.0, c.R, c.eta, cp["base_inner"][1])
     na = g.arc_count(nt, aspect)

@@ -156,11 +156,25 @@ class Model:
             pole_node = int(np.atleast_1d(mesh.node_sets["pole_upper"])[0])
         self.pole_node = pole_node
 
-        # ---- dofs, numbered along the structure ---------------------------------------------------
+        self._number_dofs(mesh.node_sets)
+        self._storage_pattern()
+        self.n_assemblies = 0  # evaluations with the stiffness
+        self.n_residuals = 0  # evaluations of the energy / residual only
+        self.n_factorizations = 0
+        self.t_assembly = 0.0
+        self.t_residual = 0.0
+        self.t_factor = 0.0
+        self.t_newton = 0.0  # in the compiled corrector (assembly, factorisation and solves together)
+
+    # ---- dofs and the storage of K_T -----------------------------------------------------------
+    def _number_dofs(self, node_sets: dict) -> None:
+        """Free dofs numbered along the structure (Cuthill-McKee from the lower pole):
+        ``dofmap``, ``n``, the free-entry bookkeeping and the pole's dof."""
+        pole_node = self.pole_node
         nn = self.X.shape[0]
-        fixed = fixed_dofs(nn, mesh.node_sets)
+        fixed = fixed_dofs(nn, node_sets)
         self.fixed = fixed
-        start = int(np.atleast_1d(mesh.node_sets.get("pole_lower", [pole_node]))[0])
+        start = int(np.atleast_1d(node_sets.get("pole_lower", [pole_node]))[0])
         order = cuthill_mckee(nn, self.conn, start)  # the identity on a mesh from mesh_scene
         dofmap = -np.ones((nn, 2), np.int64)
         k = 0
@@ -178,6 +192,10 @@ class Model:
         if self.pole_dof < 0:
             raise ValueError("the pole node's vertical dof is constrained")
 
+    def _storage_pattern(self) -> None:
+        """Element and cavity dof tables, the band and its envelope, the CSR patterns and the
+        position of every element (and cavity) matrix entry in the assembled data array."""
+        solver, dofmap = self.solver, self.dofmap
         edofs = dofmap[self.conn].reshape(self.conn.shape[0], -1)
         self.edofs = np.ascontiguousarray(edofs)
         edge_dofs = dofmap[self.edges].reshape(self.edges.shape[0], -1)
@@ -222,13 +240,6 @@ class Model:
             self.col_pos = csr_pos(bd, np.full(len(bd), n))
             self.row_pos = csr_pos(np.full(len(bd), n), bd)
             self.corner_pos = int(csr_pos(np.array([n]), np.array([n]))[0])
-        self.n_assemblies = 0  # evaluations with the stiffness
-        self.n_residuals = 0  # evaluations of the energy / residual only
-        self.n_factorizations = 0
-        self.t_assembly = 0.0
-        self.t_residual = 0.0
-        self.t_factor = 0.0
-        self.t_newton = 0.0  # in the compiled corrector (assembly, factorisation and solves together)
 
     # ---- displacement bookkeeping --------------------------------------------------------------
     def full_displacement(self, u: np.ndarray) -> np.ndarray:

@@ -119,7 +119,14 @@ def rank_results(
         jump_fn = jump_fn or jump.jump_height
         masses_fn = masses_fn or jump.masses
     rho = float(getattr(params, "rho", 1000.0))
+    out = _jump_columns(df, params, jump_fn, masses_fn, rho)
+    return _ranked(df, out)
 
+
+def _jump_columns(df: pd.DataFrame, params: Any, jump_fn: Callable[..., Any],
+                  masses_fn: Callable[..., tuple[float, float]], rho: float) -> dict[str, list[Any]]:
+    """The added columns (all of :data:`RANK_COLUMNS` but ``rank``), one value per row of ``df``
+    (``None`` where there is none)."""
     n = len(df)
     out: dict[str, list[Any]] = {c: [None] * n for c in RANK_COLUMNS if c != "rank"}
     n_failed_model = 0
@@ -132,42 +139,61 @@ def rank_results(
             except (ValueError, TypeError):
                 pass
         if status == "ok":
-            try:
-                if out["m_i_kg"][j] is None:
-                    raise ValueError(f"no solid volumes (V_inner_solid_m3={vi}, V_outer_solid_m3={vo})")
-                jr = jump_fn(float(r["dE_J"]), float(r["dy_pole_m"]), float(r["h_imp_m"]),
-                             out["m_i_kg"][j], out["m_o_kg"][j], params)
-            except Exception as e:  # noqa: BLE001 - one bad row never stops the ranking
+            if not _jump_row(out, j, r, params, jump_fn):
                 n_failed_model += 1
-                out["jump_reason"][j] = f"jump model failed: {type(e).__name__}: {e}"
-                out["y_jump_m"][j] = math.nan
-                continue
-            out["y_jump_m"][j] = float(jr.y_jump_m)
-            out["t_peak_s"][j] = float(jr.t_peak_s)
-            out["n_contacts"][j] = int(jr.n_contacts)
-            out["jumped"][j] = bool(jr.jumped)
-            out["lift_off"][j] = bool(getattr(jr, "lift_off", jr.jumped))
-            out["jump_complete"][j] = bool(getattr(jr, "complete", True))
-            out["jump_reason"][j] = str(jr.reason or "")
-            out["k_s"][j] = float(jr.k_s)
-            out["jump_rise_m"][j] = float(jr.y_jump_m) - float(r["h_imp_m"])
         elif status == "no_snap":
-            out["y_jump_m"][j] = 0.0
-            out["jump_rise_m"][j] = 0.0
-            out["t_peak_s"][j] = 0.0
-            out["n_contacts"][j] = 0
-            out["jumped"][j] = False
-            out["lift_off"][j] = False
-            out["jump_complete"][j] = True
-            out["k_s"][j] = 0.0
-            out["jump_reason"][j] = "no snap"
+            _no_snap_row(out, j)
         else:
             out["y_jump_m"][j] = math.nan
             text = "" if err is None or err is pd.NA else str(err)
             out["jump_reason"][j] = f"{status}: {text}" if text else str(status)
     if n_failed_model:
         log.warning("the jump model failed on %d ok row(s); their y_jump_m is NaN", n_failed_model)
+    return out
 
+
+def _jump_row(out: dict[str, list[Any]], j: int, r: dict, params: Any, jump_fn: Callable[..., Any]) -> bool:
+    """Fill row ``j`` (status ``ok``, its masses already in ``out``) from the jump model;
+    ``False`` if the model failed on it (``y_jump_m`` NaN, the reason says why)."""
+    vi, vo = r.get("V_inner_solid_m3"), r.get("V_outer_solid_m3")
+    try:
+        if out["m_i_kg"][j] is None:
+            raise ValueError(f"no solid volumes (V_inner_solid_m3={vi}, V_outer_solid_m3={vo})")
+        jr = jump_fn(float(r["dE_J"]), float(r["dy_pole_m"]), float(r["h_imp_m"]),
+                     out["m_i_kg"][j], out["m_o_kg"][j], params)
+    except Exception as e:  # noqa: BLE001 - one bad row never stops the ranking
+        out["jump_reason"][j] = f"jump model failed: {type(e).__name__}: {e}"
+        out["y_jump_m"][j] = math.nan
+        return False
+    out["y_jump_m"][j] = float(jr.y_jump_m)
+    out["t_peak_s"][j] = float(jr.t_peak_s)
+    out["n_contacts"][j] = int(jr.n_contacts)
+    out["jumped"][j] = bool(jr.jumped)
+    out["lift_off"][j] = bool(getattr(jr, "lift_off", jr.jumped))
+    out["jump_complete"][j] = bool(getattr(jr, "complete", True))
+    out["jump_reason"][j] = str(jr.reason or "")
+    out["k_s"][j] = float(jr.k_s)
+    out["jump_rise_m"][j] = float(jr.y_jump_m) - float(r["h_imp_m"])
+    return True
+
+
+def _no_snap_row(out: dict[str, list[Any]], j: int) -> None:
+    """Fill row ``j`` of a design that does not snap: no jump, height 0."""
+    out["y_jump_m"][j] = 0.0
+    out["jump_rise_m"][j] = 0.0
+    out["t_peak_s"][j] = 0.0
+    out["n_contacts"][j] = 0
+    out["jumped"][j] = False
+    out["lift_off"][j] = False
+    out["jump_complete"][j] = True
+    out["k_s"][j] = 0.0
+    out["jump_reason"][j] = "no snap"
+
+
+def _ranked(df: pd.DataFrame, out: dict[str, list[Any]]) -> pd.DataFrame:
+    """``df`` with the columns ``out`` (typed) and ``rank``, sorted by ``y_jump_m`` (NaN last,
+    ties in the input order)."""
+    n = len(df)
     ranked = df.copy()
     for c in ("y_jump_m", "jump_rise_m", "t_peak_s", "m_i_kg", "m_o_kg", "k_s"):
         ranked[c] = pd.array([math.nan if v is None else v for v in out[c]], dtype="float64")

@@ -396,7 +396,7 @@ def test_bad_params_raise(kw, name):
 def test_grazing_dip_between_samples_is_found():
     """A dip below zero entirely between two samples (all samples positive) is still a contact,
     and a maximum between samples is located exactly."""
-    from snapjump_cli.jump import _first_fall, _maxima
+    from snapjump_cli.jump_events import _first_fall, _maxima
 
     def F(t):
         return (t - 0.5) ** 2 - 1e-6
@@ -426,7 +426,7 @@ def test_grazing_dip_between_samples_is_found():
                                    (0.01, 0.4, 4.0), (0.01, 0.4, 4.0 * (1 + 1e-9))])
 def test_oscillator_sup_bound_is_a_nonincreasing_envelope(m, c, k):
     """The resting-phase certificate: sup_future |x| <= bound, and the bound never grows."""
-    from snapjump_cli.jump import _Osc
+    from snapjump_cli.jump_events import _Osc
 
     osc = _Osc(m, c, k)
     rng = np.random.default_rng(0)

@@ -1,0 +1,388 @@
+"""Closed-form phases and event location of the two-mass jump model (:mod:`snapjump_cli.jump`).
+
+Eqs 16-17 in modal coordinates (:func:`system_matrices`, :func:`eigensystem`): in flight the
+centre of mass falls freely and the spring extension is a damped oscillator (:class:`_Osc`) of
+reduced mass ``mu = m_i m_o / M``; while ``m_i`` rests on the ground ``m_o`` alone oscillates
+about its static equilibrium. :class:`_Model` evaluates both phase kinds (:class:`_Phase`) and
+holds the shared rules: the energy bound on later heights and the impossibility of a lift-off.
+Impacts, lift-offs and apexes are located by sampling on a grid far finer than the oscillation
+period (:func:`_time_grid`) and root finding (:func:`_first_fall`, :func:`_maxima`), one phase
+at a time (:func:`_scan_flight`, :func:`_scan_rest`). See the docstring of
+:mod:`snapjump_cli.jump` for the conventions.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+from scipy.optimize import brentq, minimize_scalar
+
+if TYPE_CHECKING:
+    from snapjump_cli.jump_params import JumpParams
+
+__all__ = ["system_matrices", "eigensystem"]
+
+#: Rebound speed (relative to sqrt(2 dE / mu)) below which a pressed-down m_i comes to rest.
+_V_STICK_REL = 1e-7
+#: Samples per oscillation period when scanning for contacts, lift-offs and apexes.
+_SAMPLES_PER_PERIOD = 64
+_CHUNK = 4096
+
+
+def system_matrices(k_s: float, m_i: float, m_o: float, c_d: float, g: float,
+                    L_rest: float) -> tuple[np.ndarray, np.ndarray]:
+    """Matrices ``A`` (4x4) and ``B`` (4,) of eqs 16-17 for ``Y = [y_i, y_o, v_i, v_o]``.
+
+    ``L_rest`` is the spring's rest length (the paper's ``L_0`` in eq 15).
+    """
+    A = np.array([
+        [0.0, 0.0, 1.0, 0.0],
+        [0.0, 0.0, 0.0, 1.0],
+        [-k_s / m_i, k_s / m_i, -c_d / m_i, c_d / m_i],
+        [k_s / m_o, -k_s / m_o, c_d / m_o, -c_d / m_o],
+    ])
+    B = np.array([0.0, 0.0, -g - k_s * L_rest / m_i, -g + k_s * L_rest / m_o])
+    return A, B
+
+
+def eigensystem(k_s: float, m_i: float, m_o: float, c_d: float) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues and (generalised) eigenvectors of eq 17's ``A``, paper typos corrected.
+
+    Returns
+    -------
+    lam : ndarray, shape (4,), complex
+        ``[0, 0, lambda_3, lambda_4]`` with
+        ``lambda_{3,4} = (-c_d M -/+ sqrt(M) sqrt(c_d^2 M - 4 k_s m_i m_o)) / (2 m_i m_o)``
+        (the paper prints ``-`` for both).
+    P : ndarray, shape (4, 4), complex
+        Columns ``P1 = [1, 1, 0, 0]``, ``P2 = [0, 0, 1, 1]`` (``A P2 = P1``) and
+        ``P_{3,4} = [2 m_o^2 / X, -2 m_i m_o / X, -m_o / m_i, 1]`` with
+        ``X = c_d M +/- sqrt(M) sqrt(c_d^2 M - 4 k_s m_i m_o)`` (the paper prints ``+2 m_i m_o / X``).
+    """
+    M = m_i + m_o
+    root = np.sqrt(complex(M)) * np.sqrt(complex(c_d**2 * M - 4.0 * k_s * m_i * m_o))
+    lam = np.zeros(4, dtype=complex)
+    P = np.zeros((4, 4), dtype=complex)
+    P[:, 0] = [1, 1, 0, 0]
+    P[:, 1] = [0, 0, 1, 1]
+    for j, s in ((2, +1.0), (3, -1.0)):
+        X = c_d * M + s * root
+        lam[j] = -X / (2.0 * m_i * m_o)
+        P[:, j] = [2.0 * m_o**2 / X, -2.0 * m_i * m_o / X, -m_o / m_i, 1.0]
+    return lam, P
+
+
+
+# --------------------------------------------------------------------------------------------
+# Closed-form building blocks
+# --------------------------------------------------------------------------------------------
+class _Osc:
+    """Closed form of ``m x'' + c x' + k x = 0`` (any damping), stable for all ``t >= 0``."""
+
+    def __init__(self, m: float, c: float, k: float) -> None:
+        self.m, self.c, self.k = m, c, k
+        self.sig = c / (2.0 * m)
+        self.w0sq = k / m
+        self.D = self.w0sq - self.sig**2  # omega_d^2 (< 0: overdamped)
+        self.w = math.sqrt(abs(self.D))
+        if self.D > 0.0:
+            period = 2.0 * math.pi / self.w
+        else:  # critically / over-damped: the fastest time constant sets the scale
+            period = 2.0 * math.pi / (self.sig + self.w)
+        if self.D > 0.0 and self.sig > 0.0:
+            period = min(period, 2.0 * math.pi / self.sig)
+        self.dt = period / _SAMPLES_PER_PERIOD
+
+    def _ec_es(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``exp(-sig t) C(t)``, ``exp(-sig t) S(t)`` and ``exp(-sig t) C(t) - 1`` (accurate)."""
+        t = np.asarray(t, dtype=float)
+        sig, w = self.sig, self.w
+        st = sig * t
+        wt = w * t
+        if self.D > 0.0:
+            E = np.exp(-st)
+            EC = E * np.cos(wt)
+            ES = E * np.sin(wt) / w
+            ECm1 = np.expm1(-st) * np.cos(wt) - 2.0 * np.sin(0.5 * wt) ** 2
+        elif self.D < 0.0:
+            small = wt < 0.5
+            ws = np.where(small, wt, 0.0)
+            E = np.exp(-st)
+            a = np.exp((w - sig) * t)
+            b = np.exp(-(w + sig) * t)
+            EC = np.where(small, E * np.cosh(ws), 0.5 * (a + b))
+            ES = np.where(small, E * np.sinh(ws) / w, (a - b) / (2.0 * w))
+            acc = np.expm1(-st) * np.cosh(ws) + 2.0 * np.sinh(0.5 * ws) ** 2
+            ECm1 = np.where(small, acc, EC - 1.0)
+        else:
+            E = np.exp(-st)
+            EC = E
+            ES = E * t
+            ECm1 = np.expm1(-st)
+        return EC, ES, ECm1
+
+    def xv(self, x0: float, v0: float, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(x(t) - x0, x(t), x'(t))`` from ``x(0) = x0``, ``x'(0) = v0``."""
+        EC, ES, ECm1 = self._ec_es(t)
+        dx = x0 * ECm1 + (v0 + self.sig * x0) * ES
+        v = v0 * EC - (self.sig * v0 + self.w0sq * x0) * ES
+        return dx, x0 + dx, v
+
+    def acc(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return -(self.c * v + self.k * x) / self.m
+
+    def sup_bound(self, x0: float, v0: float) -> float:
+        """Upper bound on ``sup_{t >= 0} |x(t)|`` from ``x(0) = x0``, ``x'(0) = v0``.
+
+        Modal envelope: ``R exp(-sig t)`` (under-damped), ``|A| e^{r1 t} + |B| e^{r2 t}``
+        (over-damped), ``max (|x0| + |b| t) exp(-sig t)`` (critical). Evaluated along a
+        trajectory it never increases.
+        """
+        sig, w = self.sig, self.w
+        b = v0 + sig * x0
+        if self.D > 0.0:
+            return math.hypot(x0, b / w)
+        if self.D < 0.0:
+            A = (b + w * x0) / (2.0 * w)  # coefficient of exp((-sig + w) t)
+            return abs(A) + abs(x0 - A)
+        if b == 0.0:
+            return abs(x0)
+        s = max(0.0, 1.0 / sig - abs(x0) / abs(b))
+        return (abs(x0) + abs(b) * s) * math.exp(-sig * s)
+
+
+@dataclass(frozen=True)
+class _Phase:
+    """One motion phase: ``kind`` ``"flight"`` (both free) or ``"rest"`` (m_i on the ground)."""
+
+    kind: str
+    t0: float
+    t1: float
+    y0: float   # y_i at t0
+    v0: float   # v_i at t0
+    e0: float   # spring extension at t0
+    ed0: float  # extension rate at t0
+
+
+class _Model:
+    """Closed-form evaluation of both phase kinds for one parameter set."""
+
+    def __init__(self, k: float, m_i: float, m_o: float, p: JumpParams) -> None:
+        self.k, self.m_i, self.m_o, self.p = k, m_i, m_o, p
+        self.M = m_i + m_o
+        self.r = m_o / self.M
+        self.mu = m_i * m_o / self.M
+        self.g = p.g
+        self.c = p.c_d
+        self.rel = _Osc(self.mu, p.c_d, k)          # flight: relative motion
+        self.rest = _Osc(m_o, p.c_d, k)             # m_i resting: m_o about equilibrium
+        self.e_eq = -m_o * p.g / k                  # static extension while m_i rests
+
+    # ---- flight ----
+    def flight(self, ph: _Phase, t: np.ndarray) -> tuple[np.ndarray, ...]:
+        """``(y_i, v_i, e, e_dot)`` at local times ``t`` of a flight phase."""
+        t = np.asarray(t, dtype=float)
+        w0 = ph.v0 + self.r * ph.ed0  # centre-of-mass velocity
+        de, e, ed = self.rel.xv(ph.e0, ph.ed0, t)
+        y = ph.y0 + w0 * t - 0.5 * self.g * t * t - self.r * de
+        v = w0 - self.g * t - self.r * ed
+        return y, v, e, ed
+
+    def flight_acc(self, e: float, ed: float) -> float:
+        """Acceleration of a free ``m_i`` (spring + dashpot + gravity)."""
+        return (self.k * e + self.c * ed) / self.m_i - self.g
+
+    # ---- resting on the ground ----
+    def rest_state(self, ph: _Phase, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(e, e_dot)`` at local times ``t`` while ``m_i`` rests."""
+        _, x, v = self.rest.xv(ph.e0 - self.e_eq, ph.ed0, np.asarray(t, dtype=float))
+        return x + self.e_eq, v
+
+    def lift_force(self, e: np.ndarray, ed: np.ndarray) -> np.ndarray:
+        """Net non-contact upward force on a resting ``m_i``; it lifts off when this is ``> 0``."""
+        return self.k * e + self.c * ed - self.m_i * self.g
+
+    def lift_margin(self, e: float, ed: float) -> float:
+        """Bound on the future upward pull on a resting ``m_i`` minus what lift-off needs.
+
+        ``F = k x + c x'`` (``x = e - e_eq``) obeys the same oscillator equation as ``x``, and
+        lift-off needs ``F > M g``; so no lift-off can ever happen once
+        ``sup_future |F| <= `` :meth:`_Osc.sup_bound` ``< M g`` (a non-increasing quantity).
+        """
+        x = e - self.e_eq
+        F = self.k * x + self.c * ed
+        dF = self.k * ed + self.c * self.rest.acc(x, ed)
+        return self.rest.sup_bound(F, dF) - self.M * self.g
+
+    def can_lift(self, e: float, ed: float) -> bool:
+        """``False`` once a resting ``m_i`` can provably never lift off again."""
+        return self.lift_margin(e, ed) >= 0.0
+
+    # ---- energy bound ----
+    def height_bound(self, y: float, v: float, e: float, ed: float) -> float:
+        """Upper bound on every later ``y_i`` from the current (non-increasing) energy."""
+        if self.g <= 0.0:
+            return math.inf
+        vo = v + ed
+        E = (0.5 * self.m_i * v * v + 0.5 * self.m_o * vo * vo + self.M * self.g * y
+             + self.m_o * self.g * e + 0.5 * self.k * e * e)
+        return (E + (self.m_o * self.g) ** 2 / (2.0 * self.k)) / (self.M * self.g)
+
+
+def _time_grid(h0: float, dt: float, t_end: float):
+    """Yield chunks of increasing sample times in ``(0, t_end]`` (the last one ends at ``t_end``).
+
+    Steps grow geometrically from ``h0`` up to ``dt`` and then stay at ``dt``.
+    """
+    h0 = min(h0, dt)
+    n_geo = int(math.ceil(math.log2(dt / h0))) if h0 < dt else 0
+    head = np.cumsum(h0 * 2.0 ** np.arange(n_geo))
+    last = float(head[-1]) if head.size else 0.0
+    chunk = np.concatenate([head, last + dt * np.arange(1, _CHUNK + 1)])
+    while True:
+        sel = chunk[chunk < t_end]
+        if sel.size < chunk.size:
+            yield np.append(sel, t_end)
+            return
+        yield chunk
+        chunk = float(chunk[-1]) + dt * np.arange(1, _CHUNK + 1)
+
+
+def _first_fall(F: Callable[[float], float], dF: Callable[[float], float],
+                T: np.ndarray, Fv: np.ndarray, dFv: np.ndarray) -> float | None:
+    """First time after ``T[0]`` at which ``F`` (``>= 0`` at ``T[0]``) reaches ``<= 0``, or ``None``.
+
+    Looks at sign changes between samples and at sampled local minima (refined to the root of
+    ``dF``) so that grazing dips between samples are not missed. ``T[0]`` itself is excluded.
+    """
+    n = T.size
+    best: float | None = None
+    down = np.nonzero((Fv[:-1] > 0.0) & (Fv[1:] <= 0.0))[0]
+    if down.size:
+        k = int(down[0])
+        best_bracket = (T[k], T[k + 1])
+        best = best_bracket[1]
+    # sampled local minima with positive value: refine
+    if n >= 3:
+        mins = np.nonzero((Fv[1:-1] <= Fv[:-2]) & (Fv[1:-1] < Fv[2:]) & (Fv[1:-1] > 0.0))[0] + 1
+        for k in mins:
+            if best is not None and T[k - 1] >= best:
+                break
+            a, b = T[k - 1], T[k + 1]
+            if not (dFv[k - 1] < 0.0 < dFv[k + 1]):
+                continue
+            tm = brentq(dF, a, b, xtol=1e-300, rtol=4 * np.finfo(float).eps)
+            if F(tm) <= 0.0:
+                if best is None or tm < best:
+                    best_bracket = (a, tm)
+                    best = tm
+                break
+    if best is None:
+        return None
+    a, b = best_bracket
+    if F(b) == 0.0:
+        return float(b)
+    return float(brentq(F, a, b, xtol=1e-300, rtol=4 * np.finfo(float).eps))
+
+
+def _maxima(F: Callable[[float], float], dF: Callable[[float], float], T: np.ndarray,
+            Fv: np.ndarray, dFv: np.ndarray, skip: int = 0) -> list[tuple[float, float]]:
+    """Local maxima ``(t, F(t))`` of ``F`` on ``[T[0], T[-1]]``.
+
+    Roots of ``dF`` where it changes sign ``+ -> -`` between samples, plus sampled local maxima
+    without such a sign change next to them (refined by bounded minimisation). Intervals and
+    samples with index ``< skip`` are ignored (already handled with the previous chunk).
+    """
+    out: list[tuple[float, float]] = []
+    eps = 4 * np.finfo(float).eps
+    idx = np.nonzero((dFv[:-1] > 0.0) & (dFv[1:] <= 0.0))[0]
+    covered: set[int] = set()
+    for k in idx:
+        covered.update((int(k), int(k) + 1))
+        if k < skip:
+            continue
+        a, b = T[k], T[k + 1]
+        t = b if dFv[k + 1] == 0.0 else brentq(dF, a, b, xtol=1e-300, rtol=eps)
+        out.append((float(t), float(F(t))))
+    if T.size >= 3:
+        smax = np.nonzero((Fv[1:-1] >= Fv[:-2]) & (Fv[1:-1] > Fv[2:]))[0] + 1
+        for k in smax:
+            if k - 1 < skip or k in covered or (k - 1) in covered:
+                continue
+            a, b = float(T[k - 1]), float(T[k + 1])
+            res = minimize_scalar(lambda s: -F(s), bounds=(a, b), method="bounded",
+                                  options={"xatol": 1e-13 * max(b, 1e-300)})
+            t = float(res.x) if -res.fun > Fv[k] else float(T[k])
+            out.append((t, float(F(t))))
+    return out
+
+
+def _scan_flight(md: "_Model", ph: "_Phase", t_avail: float,
+                 h0: float) -> tuple[float | None, list[tuple[float, float]]]:
+    """First impact (local time, or ``None`` before ``t_avail``) and the apexes before it."""
+
+    def Fy(s: float) -> float:
+        return float(md.flight(ph, s)[0])
+
+    def Fv(s: float) -> float:
+        return float(md.flight(ph, s)[1])
+
+    apexes: list[tuple[float, float]] = []
+    # A flight starting on the ground must be resolved by the first sample: shrink h0 if not.
+    if ph.y0 == 0.0:
+        for _ in range(40):
+            if Fy(min(h0, md.rel.dt, t_avail)) > 0.0:
+                break
+            h0 /= 16.0
+    T_prev = np.array([0.0])
+    Y_prev = np.array([ph.y0])
+    V_prev = np.array([ph.v0])
+    for chunk in _time_grid(h0, md.rel.dt, t_avail):
+        Yc, Vc, _, _ = md.flight(ph, chunk)
+        T = np.concatenate([T_prev, chunk])
+        Yv = np.concatenate([Y_prev, Yc])
+        Vv = np.concatenate([V_prev, Vc])
+        t_hit = _first_fall(Fy, Fv, T, Yv, Vv)
+        if t_hit is not None:
+            keep = T < t_hit
+            T = np.append(T[keep], t_hit)
+            Yv = np.append(Yv[keep], 0.0)
+            Vv = np.append(Vv[keep], Fv(t_hit))
+        apexes.extend(_maxima(Fy, Fv, T, Yv, Vv, skip=T_prev.size - 1))
+        if t_hit is not None:
+            return t_hit, apexes
+        T_prev, Y_prev, V_prev = T[-2:], Yv[-2:], Vv[-2:]
+    return None, apexes
+
+
+def _scan_rest(md: "_Model", ph: "_Phase", t_avail: float,
+               ymax: float) -> tuple[str, float]:
+    """While ``m_i`` rests: ``("lift", t)`` at lift-off, ``("settled", t)`` once no lift-off
+    (or no new maximum) is possible any more, or ``("timeout", t_avail)``."""
+
+    def Ff(s: float) -> float:
+        ee, eed = md.rest_state(ph, s)
+        return -float(md.lift_force(ee, eed))
+
+    def dFf(s: float) -> float:
+        ee, eed = md.rest_state(ph, s)
+        return -float(md.k * eed + md.c * md.rest.acc(ee - md.e_eq, eed))
+
+    T_prev = np.array([0.0])
+    F_prev = np.array([Ff(0.0)])
+    D_prev = np.array([dFf(0.0)])
+    for chunk in _time_grid(md.rest.dt * 1e-4, md.rest.dt, t_avail):
+        Ec, EDc = md.rest_state(ph, chunk)
+        T = np.concatenate([T_prev, chunk])
+        Fv = np.concatenate([F_prev, -md.lift_force(Ec, EDc)])
+        Dv = np.concatenate([D_prev, -(md.k * EDc + md.c * md.rest.acc(Ec - md.e_eq, EDc))])
+        t_lift = _first_fall(Ff, dFf, T, Fv, Dv)
+        if t_lift is not None:
+            return "lift", t_lift
+        e_end, ed_end = float(Ec[-1]), float(EDc[-1])
+        if not md.can_lift(e_end, ed_end) or md.height_bound(0.0, 0.0, e_end, ed_end) <= ymax:
+            return "settled", float(chunk[-1])
+        T_prev, F_prev, D_prev = T[-2:], Fv[-2:], Dv[-2:]
+    return "timeout", t_avail
