@@ -85,6 +85,7 @@ def rank_results(
     params: Any | None = None,
     jump_fn: Callable[..., Any] | None = None,
     masses_fn: Callable[..., tuple[float, float]] | None = None,
+    exclude_asymmetric: bool = False,
 ) -> pd.DataFrame:
     """Compute the jump height of every row and sort by it.
 
@@ -97,6 +98,11 @@ def rank_results(
     jump_fn, masses_fn
         Replacements for :func:`snapjump_cli.jump.jump_height` and :func:`snapjump_cli.jump.masses`
         (tests).
+    exclude_asymmetric
+        Leave unranked the rows whose harmonic check (``solver: {harmonics: N}``) found a
+        non-axisymmetric mode losing stability before V* (``asym_first``): their axisymmetric snap
+        does not happen. ``y_jump_m`` is NaN and ``jump_reason`` says which harmonic. Without it
+        those rows are ranked and the ``asym`` column of the table flags them.
 
     Returns
     -------
@@ -120,6 +126,11 @@ def rank_results(
         masses_fn = masses_fn or jump.masses
     rho = float(getattr(params, "rho", 1000.0))
     out = _jump_columns(df, params, jump_fn, masses_fn, rho)
+    if exclude_asymmetric and "asym_first" in df.columns:
+        for j, (first, n) in enumerate(zip(df["asym_first"], df.get("asym_n", [None] * len(df)))):
+            if first is True or (first is not None and first is not pd.NA and bool(first)):
+                out["y_jump_m"][j] = math.nan
+                out["jump_reason"][j] = f"excluded: harmonic n = {n} loses stability before V* (asymmetric mode)"
     return _ranked(df, out)
 
 
@@ -228,6 +239,7 @@ TOP_COLUMNS: dict[str, tuple[str, float]] = {
     "jump_complete": ("jump_complete", 1.0),
     "self_crossing": ("self_crossing", 1.0),
     "mesh_sensitive": ("mesh_sensitive", 1.0),
+    "asym_n": ("asym_n", 1.0),
     "lower_state": ("lower_state_method", 1.0),
     "status": ("status", 1.0),
 }
@@ -237,10 +249,12 @@ def top_frame(ranked: pd.DataFrame, n: int = 10) -> pd.DataFrame:
     """The first ``n`` ranked rows with the columns of :data:`TOP_COLUMNS` (lengths in mm, energy
     in mJ; a column missing from ``ranked`` is left out)."""
     head = ranked.head(max(0, int(n)))
+    checked = "asym_first" in ranked.columns and bool(ranked["asym_first"].notna().any())
     cols = {}
     for name, (src, scale) in TOP_COLUMNS.items():
-        if src in head.columns:
-            cols[name] = head[src] * scale if scale != 1.0 else head[src]
+        if src not in head.columns or (name == "asym_n" and not checked):  # asym_n: only after the check
+            continue
+        cols[name] = head[src] * scale if scale != 1.0 else head[src]
     return pd.DataFrame(cols).reset_index(drop=True)
 
 
@@ -255,4 +269,5 @@ def top_table(ranked: pd.DataFrame, n: int = 10) -> str:
                 ("dE_mJ", "dy_pole_mm", "h_imp_mm", "y_jump_mm")})
     fmt.update({k: (lambda x: "-" if pd.isna(x) else ("yes" if x else "no")) for k in
                 ("jumped", "jump_complete", "self_crossing", "mesh_sensitive")})
+    fmt["asym_n"] = lambda x: "-" if pd.isna(x) else f"{int(x)}"
     return table.to_string(index=False, formatters={k: f for k, f in fmt.items() if k in table.columns}, na_rep="-")

@@ -50,11 +50,15 @@ command); nothing is written when any output place is unusable.
 @click.option("--format", "fmt", type=click.Choice(["text", "csv", "json"]), default="text", show_default=True,
               help="Standard output: the summary and top-N table (text), the top-N rows as CSV, or a JSON "
                    "document (counts, top-N rows, files written). Messages go to stderr with csv/json.")
+@click.option("--exclude-asymmetric", is_flag=True,
+              help="Leave unranked the designs whose harmonic check (sweep with solver: {harmonics: N}) "
+                   "found a non-axisymmetric mode losing stability before V*; without it they are ranked "
+                   "and the table's asym_n column names the harmonic.")
 @click.option("--overwrite", is_flag=True,
               help="Replace an existing ranked file or plots (refused by default, as in every command).")
 @verbosity_options
 def command(results: Path, top: int, output: Path | None, plots_dir: Path | None, rho: float, c_d: float,
-            alpha: float, fmt: str, overwrite: bool) -> None:
+            alpha: float, fmt: str, exclude_asymmetric: bool, overwrite: bool) -> None:
     import pyarrow as pa
 
     from snapjump_cli import results as res
@@ -90,7 +94,7 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
         except ImportError as e:
             raise click.ClickException(f"--plots needs matplotlib (pip install 'snapjump[plots]'): {e}") from None
     try:
-        ranked = rank_results(df, params)
+        ranked = rank_results(df, params, exclude_asymmetric=exclude_asymmetric)
     except RankInputError as e:
         raise BadInput(f"{results}: {e}") from None
     if not is_quiet():

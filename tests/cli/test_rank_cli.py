@@ -196,3 +196,26 @@ def test_existing_outputs_are_kept_unless_overwrite(tmp_path, capsys, results_fi
     assert _run(capsys, str(results_file), "-o", str(tmp_path / "p1.parquet"), "--plots", str(plots))[0] == 0
     code, _, err = _run(capsys, str(results_file), "-o", str(tmp_path / "p2.parquet"), "--plots", str(plots))
     assert code == 2 and "fig4a.png: exists" in err and not (tmp_path / "p2.parquet").exists()
+
+
+def test_asymmetric_designs_are_flagged_or_excluded(tmp_path, capsys, results_file):
+    df = res.read_results(results_file)
+    ok = df.index[df["status"] == "ok"]
+    asym = df.copy()
+    asym["asym_first"] = pd.array([False] * len(df), dtype="boolean")
+    asym["asym_n"] = pd.array([None] * len(df), dtype="Int64")
+    asym.loc[ok[0], "asym_first"], asym.loc[ok[0], "asym_n"] = True, 2
+    f = tmp_path / "asym.parquet"
+    asym.to_parquet(f)
+    code, out, _ = _run(capsys, str(f), "-o", str(tmp_path / "a.parquet"), "--format", "json", "--top", "20")
+    rows = json.loads(out)["top"]
+    assert code == 0 and sum(r["asym_n"] == 2 for r in rows) == 1  # flagged, still ranked
+    n_ranked = sum(r["rank"] is not None for r in rows)
+    code, out, _ = _run(capsys, str(f), "-o", str(tmp_path / "b.parquet"), "--format", "json", "--top", "20",
+                        "--exclude-asymmetric")
+    rows = json.loads(out)["top"]
+    assert code == 0 and sum(r["rank"] is not None for r in rows) == n_ranked - 1
+    ranked = res.read_results(tmp_path / "b.parquet")
+    assert ranked["jump_reason"].str.contains("harmonic n = 2 loses stability").sum() == 1
+    code, out, _ = _run(capsys, str(results_file), "-o", str(tmp_path / "c.parquet"))
+    assert "asym_n" not in out  # no harmonic check in the file: no column
