@@ -47,12 +47,10 @@ from snapjump_cli.meshdata import (
     REGION_RING,
     Mesh,
     boundary_volume,
-    fixed_dofs,
-    jacobian_dets,
-    node_order,
     solid_volumes,
 )
 from snapjump_cli.mesh_io import MESH_SUFFIXES, write_mesh
+from snapjump_cli.mesh_tidy import chain_edges, compact, half_bandwidth, orient, renumber
 from snapjump_cli.settings import MeshSettings
 
 __all__ = [
@@ -317,40 +315,6 @@ def _ring(b: _Builder, P: dict, first_top, more_top, p8: int, p11: int, p9: int,
     return ground
 
 
-# ------------------------------------------------------------------------------------------------
-# Extraction, orientation, renumbering
-# ------------------------------------------------------------------------------------------------
-_FLIP = {1: np.array([0, 3, 2, 1]), 2: np.array([0, 3, 2, 1, 7, 6, 5, 4, 8])}
-
-
-def _chain(edges: np.ndarray, start: int) -> np.ndarray:
-    """Order and orient the edges of a simple open curve so that it starts at node ``start``."""
-    m = edges.shape[0]
-    at: dict[int, list[int]] = {}
-    for k in range(m):
-        at.setdefault(int(edges[k, 0]), []).append(k)
-        at.setdefault(int(edges[k, 1]), []).append(k)
-    out = np.empty_like(edges)
-    used = np.zeros(m, bool)
-    node = int(start)
-    for i in range(m):
-        cand = [k for k in at.get(node, []) if not used[k]]
-        if len(cand) != 1:
-            raise RuntimeError(f"edge chain broken at node {node} ({len(cand)} continuations)")
-        k = cand[0]
-        used[k] = True
-        e = edges[k].copy()
-        if e[0] != node:
-            e[0], e[1] = e[1], e[0]
-        out[i] = e
-        node = int(e[1])
-    return out
-
-
-def _half_bandwidth(elements: np.ndarray) -> int:
-    return int((elements.max(axis=1) - elements.min(axis=1)).max()) if elements.size else 0
-
-
 def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings(), *, snap: float | None = None) -> Mesh:
     """Mesh a design (inner cap + ring + outer cap) or a single cap; see the module docstring.
 
@@ -382,10 +346,10 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
     t0 = time.perf_counter()
     xy, elements, region, material, node_sets, edge_sets, bk, gmsh_version = _generate(scene, settings, snap)
     t_gmsh = time.perf_counter() - t0
-    nodes, elements, node_sets, edge_sets = _compact(xy, elements, node_sets, edge_sets)
+    nodes, elements, node_sets, edge_sets = compact(xy, elements, node_sets, edge_sets)
     nodes[node_sets["axis"], 0] = 0.0
-    _orient(nodes, elements, order)
-    nodes, elements, region, material, node_sets, edge_sets = _renumber(nodes, elements, region, material,
+    orient(nodes, elements, order)
+    nodes, elements, region, material, node_sets, edge_sets = renumber(nodes, elements, region, material,
                                                                          node_sets, edge_sets)
 
     offset = 0.0
@@ -394,7 +358,7 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
     info = dict(bk["info"])
     info.update(
         order=order, nt_setting=nt, aspect=float(aspect), n_nodes=int(nodes.shape[0]),
-        n_elements=int(elements.shape[0]), half_bandwidth=_half_bandwidth(elements),
+        n_elements=int(elements.shape[0]), half_bandwidth=half_bandwidth(elements),
         gmsh_version=gmsh_version, gmsh_s=t_gmsh, mesh_s=time.perf_counter() - t0,
     )
     if bk["scene"] != "design":
@@ -458,7 +422,7 @@ def _generate(scene: Design | CapScene, settings: MeshSettings, snap: float) -> 
 
         P = bk["points"]
         edge_sets = {
-            name: np.concatenate([_chain(curve_edges(c), point_node(p0)) for c, p0 in parts])
+            name: np.concatenate([chain_edges(curve_edges(c), point_node(p0)) for c, p0 in parts])
             for name, parts in bk["edge_sets"].items()
         }
         node_sets = {name: np.unique(np.concatenate([curve_nodes(c) for c in cs]))
@@ -476,48 +440,3 @@ def _generate(scene: Design | CapScene, settings: MeshSettings, snap: float) -> 
     elements = np.concatenate(elems).astype(np.int64)
     return (xy, elements, np.concatenate(region), np.concatenate(material), node_sets, edge_sets, bk,
             gmsh_version)
-
-
-def _compact(xy: np.ndarray, elements: np.ndarray, node_sets: dict, edge_sets: dict) -> tuple:
-    """Drop the nodes no element uses (gmsh may keep some on points such as centres)."""
-    used = np.zeros(xy.shape[0], bool)
-    used[elements.ravel()] = True
-    if not used.all():
-        keep = np.flatnonzero(used)
-        remap = np.full(xy.shape[0], -1, np.int64)
-        remap[keep] = np.arange(keep.size)
-        xy = xy[keep]
-        elements = remap[elements]
-        edge_sets = {k: remap[v] for k, v in edge_sets.items()}
-        node_sets = {k: remap[v] for k, v in node_sets.items()}
-    return np.ascontiguousarray(xy), elements, node_sets, edge_sets
-
-
-def _orient(nodes: np.ndarray, elements: np.ndarray, order: int) -> None:
-    """Make every element counter-clockwise (positive Jacobian at every Gauss point), in place."""
-    det = jacobian_dets(nodes, elements, order)
-    neg = (det <= 0).all(axis=1)
-    elements[neg] = elements[neg][:, _FLIP[order]]
-    if neg.any():
-        det = jacobian_dets(nodes, elements, order)
-    if not (det > 0).all():
-        bad = int(np.flatnonzero((det <= 0).any(axis=1))[0])
-        raise RuntimeError(f"element {bad} has a non-positive Jacobian (min {det[bad].min():.3g}): invalid mesh")
-
-
-def _renumber(nodes: np.ndarray, elements: np.ndarray, region: np.ndarray, material: np.ndarray,
-              node_sets: dict, edge_sets: dict) -> tuple:
-    """Bandwidth reduction: nodes in Cuthill-McKee order from the (inner) cap's lower pole (the
-    model's dof order, :func:`~snapjump_cli.meshdata.node_order`), elements sorted by their
-    lowest node."""
-    perm = node_order(nodes.shape[0], elements, int(node_sets["pole_lower"][0]),
-                      fixed_dofs(nodes.shape[0], node_sets))
-    inv = np.empty_like(perm)
-    inv[perm] = np.arange(perm.size)
-    nodes = nodes[perm]
-    elements = inv[elements]
-    eorder = np.lexsort((np.arange(elements.shape[0]), elements.min(axis=1)))
-    elements, region, material = elements[eorder], region[eorder], material[eorder]
-    node_sets = {k: np.sort(inv[v]).astype(np.int64) for k, v in node_sets.items()}
-    edge_sets = {k: inv[v].astype(np.int64) for k, v in edge_sets.items()}
-    return nodes, elements, region, material, node_sets, edge_sets
