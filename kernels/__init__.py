@@ -3,5 +3,39 @@
 Modules: ``gent`` (energy density and its first/second derivatives in the axisymmetric
 deformation-gradient components), ``elements`` (Q4/Q9 shape functions and quadrature),
 ``assembly`` (element loops filling a CSR pattern), ``cavity`` (exact cavity volume with its
-gradient and Hessian).
+gradient and Hessian), ``banded`` (band LDL^T with the border), ``corrector`` (the Newton
+corrector in one call), ``harmonics`` (the Fourier-harmonic tangents).
+
+Every kernel is ``@njit(cache=True)``. numba keys a cached function on its own source file only,
+so a kernel that calls into another file (the corrector calls the assembly) would keep stale
+machine code after that other file changed. :func:`_drop_stale_cache` therefore clears this
+package's numba cache whenever any kernel source changed (a hash of all of them, kept next to the
+cache); it runs once, at import, before any kernel is loaded.
 """
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+
+def _drop_stale_cache() -> None:
+    here = Path(__file__).resolve().parent
+    cache = here / "__pycache__"
+    try:
+        digest = hashlib.sha256()
+        for src in sorted(here.glob("*.py")):
+            digest.update(src.name.encode())
+            digest.update(src.read_bytes())
+        stamp = cache / "kernels.sha256"
+        current = digest.hexdigest()
+        if stamp.is_file() and stamp.read_text().strip() == current:
+            return
+        cache.mkdir(exist_ok=True)
+        for f in list(cache.glob("*.nbi")) + list(cache.glob("*.nbc")):
+            f.unlink(missing_ok=True)
+        stamp.write_text(current + "\n")
+    except OSError:  # a read-only install: numba then uses its own cache location
+        pass
+
+
+_drop_stale_cache()
