@@ -16,6 +16,7 @@ COMMANDS = {
     "curve": "Trace one scene's pressure-volume path and report its snap metrics.",
     "sweep": "Solve a YAML grid of designs in parallel into a parquet file (resumable).",
     "rank": "Apply the jump model to sweep results and rank the designs by jump height.",
+    "optimize": "Search the continuous design space for the highest jump, then confirm it (resumable).",
 }
 
 

@@ -66,6 +66,7 @@ __all__ = [
     "done_keys",
     "consolidate",
     "estimate_seconds",
+    "make_progress",
     "run_sweep",
 ]
 
@@ -141,8 +142,9 @@ def _base_row(point: DesignPoint, key: str, mesh: MeshSettings, stamp: dict[str,
 class _LineProgress:
     """Progress for a log file (stderr not a terminal): one plain line every ``every_s`` seconds."""
 
-    def __init__(self, total: int, initial: int, every_s: float = 30.0) -> None:
-        self.total, self.n, self.every_s = total, initial, every_s
+    def __init__(self, total: int, initial: int, every_s: float = 30.0, desc: str = "sweep",
+                 unit: str = "designs") -> None:
+        self.total, self.n, self.every_s, self.desc, self.unit = total, initial, every_s, desc, unit
         self.t0 = self.last = time.monotonic()
         self.n0 = initial
         self.postfix: dict[str, int] = {}
@@ -155,8 +157,8 @@ class _LineProgress:
             rate = (self.n - self.n0) / max(now - self.t0, 1e-9)
             eta = (self.total - self.n) / rate if rate > 0 else float("nan")
             counts = ", ".join(f"{k}={v}" for k, v in self.postfix.items())
-            sys.stderr.write(f"sweep: {self.n}/{self.total} designs ({100 * self.n / max(self.total, 1):.0f} %), "
-                             f"{rate:.2f} designs/s" + (f", ~{_fmt_duration(eta)} left" if math.isfinite(eta) else "")
+            sys.stderr.write(f"{self.desc}: {self.n}/{self.total} {self.unit} ({100 * self.n / max(self.total, 1):.0f} %), "
+                             f"{rate:.2f} {self.unit}/s" + (f", ~{_fmt_duration(eta)} left" if math.isfinite(eta) else "")
                              + (f"; {counts}" if counts else "") + "\n")
             sys.stderr.flush()
 
@@ -167,16 +169,18 @@ class _LineProgress:
         pass
 
 
-def _make_progress(total: int, initial: int, stack: ExitStack) -> Any:
+def make_progress(total: int, initial: int, stack: ExitStack, desc: str = "sweep", unit: str = "design") -> Any:
+    """Progress on stderr: a tqdm bar on a terminal, else a plain line every 30 s (log files get no
+    carriage returns). The caller closes it; ``stack`` holds the log redirection of the bar."""
     if sys.stderr.isatty():
         from tqdm import tqdm
         from tqdm.contrib.logging import logging_redirect_tqdm
 
-        bar = tqdm(total=total, initial=initial, file=sys.stderr, unit="design", dynamic_ncols=True,
-                   desc="sweep", smoothing=0.05)
+        bar = tqdm(total=total, initial=initial, file=sys.stderr, unit=unit, dynamic_ncols=True,
+                   desc=desc, smoothing=0.05)
         stack.enter_context(logging_redirect_tqdm())  # log lines above the bar, not through it
         return bar
-    return _LineProgress(total, initial)
+    return _LineProgress(total, initial, desc=desc, unit=unit + "s")
 
 
 def run_sweep(
@@ -386,7 +390,7 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
     bar = None
     stack = ExitStack()
     if progress:
-        bar = _make_progress(len(points), n_resumed, stack)
+        bar = make_progress(len(points), n_resumed, stack)
 
     def record(row: dict[str, Any]) -> None:
         counts[row["status"]] = counts.get(row["status"], 0) + 1

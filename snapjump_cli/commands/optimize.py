@@ -1,0 +1,226 @@
+"""``snapjump optimize SPEC.yaml``: search the continuous design space for the highest jump."""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import signal
+import sys
+import threading
+from contextlib import ExitStack
+from pathlib import Path
+from typing import Any, Sequence
+
+import click
+
+from snapjump_cli.cli import is_quiet, verbosity_options
+from snapjump_cli.errors import BadInput
+
+__all__ = ["command", "main"]
+
+log = logging.getLogger(__name__)
+
+_HELP = """Search the box of SPEC.yaml for the design with the highest jump, then confirm it.
+
+\b
+SPEC.yaml: `bounds:` for eta_i, theta_i (deg), eta_o, theta_o (deg) and mu_ratio, each
+[lo, hi] or a fixed value; optional objective (y_jump_m, default, or dE_J), budget
+(number of solves), seed, method (pattern, default, or differential_evolution),
+search {starts, init, step, min_step, spread, popsize}, confirm {tolerance, candidates}
+(or false), jump {rho, c_d, alpha}, and the sweep's R_i, materials, ring, mesh, solver,
+output, n_jobs, chunk_size (see configs/optimize.yaml and docs/optimize.md).
+
+The search (parallel pattern search from the best rows of --from inside the box, or from a
+seeded sample) solves its designs in batches with the sweep's executor into
+<OUTPUT stem>.evals.parquet, so running the same command again resumes: designs already
+solved are not solved again, and the same seed gives the same answer. Designs with invalid
+geometry, no snap, a failed solve or the mesh_sensitive flag are never chosen.
+
+The best designs are then re-solved on a finer mesh (nt + 1, elements half as long along
+the arcs) into <OUTPUT stem>.confirm.parquet until one holds its objective within the
+tolerance (2 %). OUTPUT gets every evaluation (the sweep's columns plus iteration and
+stage); the plots <OUTPUT stem>.progress.png and .path.png go next to it.
+
+Exit codes: 0 done, 1 no design could be confirmed (or none is feasible) or the run failed,
+2 bad input (spec errors name the file and the key path), 130 interrupted.
+"""
+
+
+class _Interrupted(click.ClickException):
+    """Ctrl-C / SIGTERM: one line, exit code 130."""
+
+    exit_code = 130
+
+    def show(self, file=None) -> None:
+        click.echo(self.format_message(), err=True)
+
+
+def _fmt(x: Any, scale: float = 1.0, digits: int = 1) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return f"{x * scale:.{digits}f}"
+
+
+def _design(d: dict | tuple | None) -> str:
+    if d is None:
+        return "-"
+    if not isinstance(d, dict):
+        from snapjump_cli.optimize import PARAMETERS
+
+        d = dict(zip(PARAMETERS, d))
+    return ", ".join(f"{k} {v:.4g}" for k, v in d.items())
+
+
+def _text(summary: dict, result: Any, output: Path, files: list[Path], from_path: Path | None) -> str:
+    s = summary
+    lines = [
+        f"optimize {result.spec.source}: method {s['method']}, objective {s['objective']}, seed {s['seed']}: "
+        f"{s['n_evaluations']} solves of {s['budget']} ({s['n_resumed']} found in the cache, "
+        f"{s['n_invalid_geometry']} invalid geometries skipped), {s['iterations']} iterations, "
+        f"{result.wall_s:.0f} s",
+    ]
+    if s["best"] is None:
+        lines.append("best: none (no feasible design" + (" held on the finer mesh)" if s["confirm_tried"] else ")"))
+    else:
+        lines.append(f"best: {_design(s['best'])}")
+        conf = ""
+        if s["y_jump_confirmed_m"] is not None and s["y_jump_m"]:
+            m = s["confirm_mesh"]
+            rel = (s["y_jump_confirmed_m"] / s["y_jump_m"] - 1) * 100
+            conf = (f" (confirmed {_fmt(s['y_jump_confirmed_m'], 1e3)} mm on mesh order {m['order']}, nt {m['nt']}, "
+                    f"aspect {m['aspect']:.3g}: {rel:+.2f} %)")
+        lines.append(f"  y_jump {_fmt(s['y_jump_m'], 1e3)} mm{conf}; dE {_fmt(s['dE_J'], 1e3)} mJ, "
+                     f"dy_pole {_fmt(s['dy_pole_m'], 1e3, 2)} mm, h_imp {_fmt(s['h_imp_m'], 1e3, 2)} mm"
+                     + ("; search converged there" if s["converged"] else ""))
+    base = s["baseline_y_jump_m"]
+    if base is not None:
+        where = f"--from {from_path} inside the box" if from_path is not None and s["baseline_design"] else "the start points"
+        gain = ""
+        ref = s["y_jump_confirmed_m"] if s["y_jump_confirmed_m"] is not None else s["y_jump_m"]
+        if ref is not None and base > 0:
+            gain = f"; best {'(confirmed) ' if s['y_jump_confirmed_m'] is not None else ''}{(ref / base - 1) * 100:+.1f} %"
+        lines.append(f"baseline (best of {where}): {_fmt(base, 1e3)} mm at {_design(s['baseline_design'])}{gain}")
+    if len(s["confirm_tried"]) > 1 or (s["confirm_tried"] and not s["confirmed"]):
+        for c in s["confirm_tried"]:
+            lines.append(f"  confirmation of {_design(c['design'])}: {_fmt(c['search'], 1e3)} -> "
+                         f"{_fmt(c['finer'], 1e3)} ({'holds' if c['held'] else 'does not hold'})")
+    sens = s["sensitivity"]
+    if sens:
+        h = sens["h"]
+        parts = [f"{k} {_fmt(v, 1e3) if v is not None else 'infeasible'}" for k, v in sens.items() if k not in ("h", "f")]
+        lines.append(f"last poll around it (step {h:.4g} of the box; {_fmt(sens['f'], 1e3)} at the centre): "
+                     + ", ".join(parts))
+    lines.append(f"wrote {output}")
+    lines += [f"wrote {f}" for f in files]
+    return "\n".join(lines)
+
+
+@click.command("optimize", help=_HELP, short_help="Search the design space for the highest jump (resumable).")
+@click.argument("spec", metavar="SPEC.yaml", type=click.Path(dir_okay=True, path_type=Path))
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Result parquet file (every evaluation). [default: `output` of the spec, else "
+                   "results/<SPEC stem>.parquet]")
+@click.option("-j", "--jobs", "n_jobs", type=int, default=None, metavar="N",
+              help="Worker processes (joblib n_jobs: -1 = every core). [default: `n_jobs` of the spec, else -1]")
+@click.option("--budget", type=click.IntRange(min=1), default=None, metavar="N",
+              help="Number of solves (overrides `budget:` of the spec).")
+@click.option("--from", "from_path", type=click.Path(path_type=Path), default=None, metavar="RESULTS.parquet",
+              help="Sweep results whose best rows inside the box seed the search (a parquet file, or the "
+                   ".parts folder of an unfinished sweep).")
+@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True,
+              help="Summary format on stdout.")
+@click.option("--plots/--no-plots", default=True, show_default=True,
+              help="Write <OUTPUT stem>.progress.png and <OUTPUT stem>.path.png (needs matplotlib).")
+@click.option("--progress/--no-progress", default=True, show_default=True,
+              help="Progress on stderr: a bar on a terminal, a plain line every 30 s otherwise. -q hides it.")
+@verbosity_options
+def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | None, from_path: Path | None,
+            fmt: str, plots: bool, progress: bool) -> None:
+    from snapjump_cli.config import ConfigError
+    from snapjump_cli.optimize import (OptimizeInputError, cache_paths, load_spec, make_plots, read_from,
+                                       run_optimize, write_result)
+    from snapjump_cli.sweep import SweepError, SweepInputError
+
+    try:
+        sp = load_spec(spec)
+    except ConfigError as e:
+        raise BadInput(str(e)) from None
+    if n_jobs == 0:
+        raise BadInput("-j/--jobs: expected a non-zero integer (-1 = every core), got 0")
+    out = output if output is not None else sp.output
+    if out.exists() and out.is_dir():
+        raise BadInput(f"-o/--output: {out} is a directory, expected a parquet file path")
+    from_df = None
+    if from_path is not None:
+        if from_path.resolve() in {p.resolve() for p in (out, *cache_paths(out))}:
+            raise BadInput(f"--from: {from_path} is this run's own output")
+        try:
+            from_df = read_from(from_path)
+        except OptimizeInputError as e:
+            raise BadInput(str(e)) from None
+
+    bar = None
+    stack = ExitStack()
+    if progress and not is_quiet():
+        from snapjump_cli.sweep import make_progress
+
+        bar = make_progress(budget if budget is not None else sp.budget, 0, stack, desc="optimize", unit="solve")
+
+    def on_batch(n: int, total: int, best: float) -> None:
+        if bar is None:
+            return
+        bar.update(max(0, n - bar.n))
+        if math.isfinite(best):
+            unit = " mm" if sp.objective == "y_jump_m" else " mJ"
+            bar.set_postfix({"best": f"{best * 1e3:.1f}{unit}"}, refresh=False)
+
+    restore = None
+    if threading.current_thread() is threading.main_thread():
+        def _on_term(signum, frame):  # SIGTERM -> same clean stop as Ctrl-C (finished solves kept)
+            raise KeyboardInterrupt
+
+        restore = signal.signal(signal.SIGTERM, _on_term)
+    try:
+        result = run_optimize(sp, output=out, n_jobs=n_jobs, budget=budget, from_df=from_df, on_batch=on_batch)
+    except (SweepInputError, OptimizeInputError) as e:
+        raise BadInput(str(e)) from None
+    except SweepError as e:
+        raise click.ClickException(str(e)) from None
+    except KeyboardInterrupt:
+        raise _Interrupted(f"interrupted: finished solves are kept in {cache_paths(out)[0]} (and its .parts); "
+                           f"run the same command again to resume") from None
+    finally:
+        if restore is not None:
+            signal.signal(signal.SIGTERM, restore)
+        if bar is not None:
+            bar.close()
+        stack.close()
+
+    write_result(result, out, {"from": None if from_path is None else str(from_path), "output": str(out)})
+    files: list[Path] = []
+    if plots:
+        try:
+            files = make_plots(result, out)
+        except ImportError as e:
+            log.warning("no plots: they need matplotlib (pip install 'snapjump[plots]'): %s", e)
+    summary = result.summary()
+    if fmt == "json":
+        summary.update(output=str(out), plots=[str(f) for f in files])
+        click.echo(json.dumps(summary, indent=2))
+    else:
+        click.echo(_text(summary, result, out, files, from_path))
+    if result.best is None:
+        why = ("no candidate held its objective on the finer mesh" if result.confirm_tried
+               else "no feasible design was found")
+        raise click.ClickException(f"{why}; every evaluation is in {out}")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``snapjump optimize`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    from snapjump_cli.cli import main as cli_main
+
+    return cli_main(["optimize", *(sys.argv[1:] if argv is None else argv)])
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
