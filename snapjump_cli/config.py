@@ -60,6 +60,7 @@ __all__ = [
     "SweepConfig",
     "DesignPoint",
     "load_config",
+    "read_yaml",
     "parse_config",
 ]
 
@@ -284,9 +285,8 @@ class _Ctx:
 
 
 # ---- schema ----------------------------------------------------------------------------------
-_TOP_KEYS: dict[str, str] = {
-    "grid": "a mapping with keys " + ", ".join(GRID_AXES),
-    "points": "a list of designs {" + ", ".join(GRID_AXES) + "} or a CSV/parquet file of them",
+#: The keys a sweep config shares with an optimisation spec (:mod:`snapjump_cli.optimize_spec`).
+_COMMON_KEYS: dict[str, str] = {
     "R_i": "the inner-cap radius in metres (> 0)",
     "materials": "a mapping {mu_i, J_m}",
     "ring": "a mapping {t_ring_frac, w_ring_frac}",
@@ -295,6 +295,11 @@ _TOP_KEYS: dict[str, str] = {
     "output": "the result file path",
     "n_jobs": "the number of parallel jobs",
     "chunk_size": "the number of results per part file",
+}
+_TOP_KEYS: dict[str, str] = {
+    "grid": "a mapping with keys " + ", ".join(GRID_AXES),
+    "points": "a list of designs {" + ", ".join(GRID_AXES) + "} or a CSV/parquet file of them",
+    **_COMMON_KEYS,
 }
 _GRID_KEYS: dict[str, str] = {a: _AXIS_EXPECTED for a in GRID_AXES}
 _RANGE_KEYS: dict[str, str] = {"start": "a number", "stop": "a number", "num": "an integer >= 1"}
@@ -516,6 +521,28 @@ def load_config(path: str | Path) -> SweepConfig:
         The file is missing or unreadable, is not valid YAML, or does not match the schema.
     """
     source = str(path)
+    return parse_config(read_yaml(path), source)
+
+
+def read_yaml(path: str | Path) -> Any:
+    """Read a YAML file (a sweep config or an optimisation spec) into plain data.
+
+    Parameters
+    ----------
+    path
+        The file; its name (``str(path)``) is the source named in error messages.
+
+    Returns
+    -------
+    Any
+        The object returned by :func:`yaml.safe_load` (``None`` for an empty file).
+
+    Raises
+    ------
+    ConfigError
+        The file is missing, a directory or unreadable, or not valid YAML.
+    """
+    source = str(path)
     try:
         text = Path(path).read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -525,10 +552,9 @@ def load_config(path: str | Path) -> SweepConfig:
     except (OSError, UnicodeDecodeError) as e:
         raise ConfigError(source, "", f"cannot read the file ({e})") from None
     try:
-        doc = yaml.safe_load(text)
+        return yaml.safe_load(text)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
         problem = getattr(e, "problem", None) or str(e).splitlines()[0]
         raise ConfigError(source, "", f"YAML syntax error{where}: {problem}") from None
-    return parse_config(doc, source)

@@ -4,9 +4,7 @@ from __future__ import annotations
 import json
 import logging
 import math
-import signal
 import sys
-import threading
 from contextlib import ExitStack
 from pathlib import Path
 from typing import Any, Sequence
@@ -14,6 +12,7 @@ from typing import Any, Sequence
 import click
 
 from snapjump_cli.cli import is_quiet, verbosity_options
+from snapjump_cli.commands._stop import sigterm_as_interrupt
 from snapjump_cli.errors import BadInput
 
 __all__ = ["command", "main"]
@@ -44,15 +43,6 @@ stage); the plots <OUTPUT stem>.progress.png and .path.png go next to it.
 Exit codes: 0 done, 1 no design could be confirmed (or none is feasible) or the run failed,
 2 bad input (spec errors name the file and the key path), 130 interrupted.
 """
-
-
-class _Interrupted(click.ClickException):
-    """Ctrl-C / SIGTERM: one line, exit code 130."""
-
-    exit_code = 130
-
-    def show(self, file=None) -> None:
-        click.echo(self.format_message(), err=True)
 
 
 def _fmt(x: Any, scale: float = 1.0, digits: int = 1) -> str:
@@ -174,27 +164,19 @@ def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | N
             unit = " mm" if sp.objective == "y_jump_m" else " mJ"
             bar.set_postfix({"best": f"{best * 1e3:.1f}{unit}"}, refresh=False)
 
-    restore = None
-    if threading.current_thread() is threading.main_thread():
-        def _on_term(signum, frame):  # SIGTERM -> same clean stop as Ctrl-C (finished solves kept)
-            raise KeyboardInterrupt
-
-        restore = signal.signal(signal.SIGTERM, _on_term)
-    try:
-        result = run_optimize(sp, output=out, n_jobs=n_jobs, budget=budget, from_df=from_df, on_batch=on_batch)
-    except (SweepInputError, OptimizeInputError) as e:
-        raise BadInput(str(e)) from None
-    except SweepError as e:
-        raise click.ClickException(str(e)) from None
-    except KeyboardInterrupt:
-        raise _Interrupted(f"interrupted: finished solves are kept in {cache_paths(out)[0]} (and its .parts); "
-                           f"run the same command again to resume") from None
-    finally:
-        if restore is not None:
-            signal.signal(signal.SIGTERM, restore)
-        if bar is not None:
-            bar.close()
-        stack.close()
+    stopped = (f"interrupted: finished solves are kept in {cache_paths(out)[0]} (and its .parts); "
+               f"run the same command again to resume")
+    with sigterm_as_interrupt(stopped):  # SIGTERM -> same clean stop as Ctrl-C (finished solves kept)
+        try:
+            result = run_optimize(sp, output=out, n_jobs=n_jobs, budget=budget, from_df=from_df, on_batch=on_batch)
+        except (SweepInputError, OptimizeInputError) as e:
+            raise BadInput(str(e)) from None
+        except SweepError as e:
+            raise click.ClickException(str(e)) from None
+        finally:
+            if bar is not None:
+                bar.close()
+            stack.close()
 
     write_result(result, out, {"from": None if from_path is None else str(from_path), "output": str(out)})
     files: list[Path] = []

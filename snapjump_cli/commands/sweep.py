@@ -2,15 +2,14 @@
 from __future__ import annotations
 
 import logging
-import signal
 import sys
-import threading
 from pathlib import Path
 from typing import Sequence
 
 import click
 
 from snapjump_cli.cli import injected, is_quiet, verbosity_options
+from snapjump_cli.commands._stop import sigterm_as_interrupt
 from snapjump_cli.errors import BadInput
 
 __all__ = ["command", "main"]
@@ -42,15 +41,6 @@ records its code version, commit, mesh and solver settings.
 Exit codes: 0 done (even if some designs failed), 1 the sweep could not run,
 2 bad input (config errors name the file and the key path), 130 interrupted.
 """
-
-
-class _Interrupted(click.ClickException):
-    """Ctrl-C / SIGTERM: one line, exit code 130."""
-
-    exit_code = 130
-
-    def show(self, file=None) -> None:
-        click.echo(self.format_message(), err=True)
 
 
 @click.command("sweep", help=_HELP, short_help="Solve a YAML grid of designs into a parquet file.")
@@ -89,29 +79,20 @@ def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str 
         raise BadInput("-j/--jobs: expected a non-zero integer (-1 = every core), got 0")
     out = output if output is not None else config.output
 
-    restore = None
-    if threading.current_thread() is threading.main_thread():
-        def _on_term(signum, frame):  # SIGTERM -> same clean stop as Ctrl-C (finished rows kept)
-            raise KeyboardInterrupt
-
-        restore = signal.signal(signal.SIGTERM, _on_term)
-    try:
-        quiet = is_quiet()
-        summary = run_sweep(config, output=out, n_jobs=n_jobs, scheduler=scheduler, progress=progress and not quiet,
-                            retry_failed=retry_failed, chunk_size=chunk_size, append=append,
-                            max_designs=max_designs or MAX_DESIGNS,
-                            solve_fn=injected("solve_fn"), warm_up_fn=injected("warm_up_fn"),
-                            announce=None if quiet else (lambda line: click.echo(line, err=True)))
-    except SweepInputError as e:
-        raise BadInput(str(e)) from None
-    except SweepError as e:
-        raise click.ClickException(str(e)) from None
-    except KeyboardInterrupt:
-        raise _Interrupted(f"interrupted: finished designs are kept in {parts_dir(out)}; "
-                           f"run the same command again to resume") from None
-    finally:
-        if restore is not None:
-            signal.signal(signal.SIGTERM, restore)
+    stopped = (f"interrupted: finished designs are kept in {parts_dir(out)}; "
+               f"run the same command again to resume")
+    with sigterm_as_interrupt(stopped):  # SIGTERM -> same clean stop as Ctrl-C (finished rows kept)
+        try:
+            quiet = is_quiet()
+            summary = run_sweep(config, output=out, n_jobs=n_jobs, scheduler=scheduler,
+                                progress=progress and not quiet, retry_failed=retry_failed, chunk_size=chunk_size,
+                                append=append, max_designs=max_designs or MAX_DESIGNS,
+                                solve_fn=injected("solve_fn"), warm_up_fn=injected("warm_up_fn"),
+                                announce=None if quiet else (lambda line: click.echo(line, err=True)))
+        except SweepInputError as e:
+            raise BadInput(str(e)) from None
+        except SweepError as e:
+            raise click.ClickException(str(e)) from None
     c = summary.counts
     click.echo(
         f"{summary.output}: {summary.n_designs} designs ({summary.n_resumed} resumed, {summary.n_solved} solved "
