@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from snapjump_kernels.cavity import _edge_shape
 from snapjump_kernels.gent import gent_iso
 
 _GP = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
@@ -254,22 +255,6 @@ def harmonic_element_matrices(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, 
                 Ke[e, i, j] = K[i, j]
                 Ke[e, j, i] = K[i, j]
     return Ke, True
-
-
-@njit(cache=True)
-def _edge_shape(s, nen, N, dN):
-    if nen == 2:
-        N[0] = 0.5 * (1.0 - s)
-        N[1] = 0.5 * (1.0 + s)
-        dN[0] = -0.5
-        dN[1] = 0.5
-    else:  # start, end, mid
-        N[0] = 0.5 * s * (s - 1.0)
-        N[1] = 0.5 * s * (s + 1.0)
-        N[2] = 1.0 - s * s
-        dN[0] = s - 0.5
-        dN[1] = s + 0.5
-        dN[2] = -2.0 * s
 
 
 @njit(cache=True)

@@ -106,23 +106,14 @@ def write_table_atomic(table: pa.Table, path: str | Path) -> Path:
     """
     import pyarrow.parquet as pq
 
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        os.chmod(tmp, 0o666 & ~current_umask())  # mkstemp makes 0600: give the file the usual mode
+    def write(tmp: Path) -> None:
         pq.write_table(table, tmp)
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return replace_atomic(write, path)
 
 
 def check_writable(path: str | Path, error: type[Exception] = OSError, what: str = "",

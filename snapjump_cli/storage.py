@@ -337,7 +337,7 @@ def consolidate(output: str | Path, meta: Mapping[str, Any], order: Mapping[str,
             f.unlink(missing_ok=True)
     if parts.is_dir():
         shutil.rmtree(parts / "running", ignore_errors=True)
-        for tmp in parts.glob(".part-*.tmp"):  # half-written parts of a killed run (never read)
+        for tmp in parts.glob(".part-*.tmp*"):  # half-written parts of a killed run (never read)
             tmp.unlink(missing_ok=True)
         try:
             parts.rmdir()
