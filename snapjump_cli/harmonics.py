@@ -48,6 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from snapjump_cli.meshdata import number_dofs
 from snapjump_kernels.banded import band_ldlt, envelope_extents
 from snapjump_kernels.harmonics import harmonic_cavity_matrices, harmonic_element_matrices, scatter_band
 
@@ -158,17 +159,10 @@ class HarmonicOperator:
         # number the amplitudes node by node, in the order of the model's free dofs (banded)
         key = np.where(model.dofmap >= 0, model.dofmap, np.iinfo(np.int64).max).min(axis=1)
         order = np.argsort(key, kind="stable")
-        dofmap = -np.ones((nn, 3), np.int64)
+        dofmap, k = number_dofs(order, fixed)
         coef = np.ones((nn, 3))
-        k = 0
-        for v in order:
-            for c in range(3):
-                if not fixed[v, c]:
-                    dofmap[v, c] = k
-                    k += 1
-            if tied[v]:
-                dofmap[v, 2] = dofmap[v, 0]
-                coef[v, 2] = -1.0
+        dofmap[tied, 2] = dofmap[tied, 0]  # n = 1 on the axis: c = -a, one dof
+        coef[tied, 2] = -1.0
         ndof = k
         conn, edges = model.conn, model.edges
         edofs = np.ascontiguousarray(dofmap[conn].reshape(conn.shape[0], -1))

@@ -51,6 +51,7 @@ __all__ = [
     "cuthill_mckee",
     "node_order",
     "fixed_dofs",
+    "number_dofs",
     "envelope_cost",
     "jacobian_dets",
     "element_volumes",
@@ -191,6 +192,29 @@ def fixed_dofs(n_nodes: int, node_sets: dict[str, np.ndarray]) -> np.ndarray:
     fixed[node_sets.get("dirichlet_x", np.zeros(0, int)), 0] = True
     fixed[node_sets.get("dirichlet_y", np.zeros(0, int)), 1] = True
     return fixed
+
+
+def number_dofs(order: np.ndarray, fixed: np.ndarray) -> tuple[np.ndarray, int]:
+    """Number the free dofs node by node in ``order`` (components in their order at each node).
+
+    Parameters
+    ----------
+    order : node order (a permutation of the nodes)
+    fixed : (n_nodes, n_components) bool, the constrained dofs
+
+    Returns
+    -------
+    (dofmap, n)
+        dofmap (n_nodes, n_components): the dof number, -1 where fixed; n the number of free dofs.
+    """
+    dofmap = -np.ones(fixed.shape, np.int64)
+    k = 0
+    for v in order:
+        for c in range(fixed.shape[1]):
+            if not fixed[v, c]:
+                dofmap[v, c] = k
+                k += 1
+    return dofmap, k
 
 
 def envelope_cost(order: np.ndarray, conn: np.ndarray, fixed: np.ndarray) -> float:

@@ -30,7 +30,7 @@ import time
 
 import numpy as np
 
-from snapjump_cli.meshdata import Mesh, cuthill_mckee, fixed_dofs
+from snapjump_cli.meshdata import Mesh, cuthill_mckee, fixed_dofs, number_dofs
 from snapjump_kernels.assembly import assemble, evaluate, pressure_mass_inverse, quadrature_jacobians, reference_geometry
 from snapjump_kernels.banded import bordered_factor, bordered_solve, envelope_extents
 from snapjump_kernels.cavity import cavity_assemble
@@ -176,13 +176,7 @@ class Model:
         self.fixed = fixed
         start = int(np.atleast_1d(node_sets.get("pole_lower", [pole_node]))[0])
         order = cuthill_mckee(nn, self.conn, start)  # the identity on a mesh from mesh_scene
-        dofmap = -np.ones((nn, 2), np.int64)
-        k = 0
-        for v in order:
-            for c in range(2):
-                if not fixed[v, c]:
-                    dofmap[v, c] = k
-                    k += 1
+        dofmap, k = number_dofs(order, fixed)
         self.dofmap = dofmap
         self.n = k
         free = ~fixed.ravel()

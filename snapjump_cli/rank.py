@@ -127,10 +127,10 @@ def rank_results(
     rho = float(getattr(params, "rho", 1000.0))
     out = _jump_columns(df, params, jump_fn, masses_fn, rho)
     if exclude_asymmetric and "asym_first" in df.columns:
-        for j, (first, n) in enumerate(zip(df["asym_first"], df.get("asym_n", [None] * len(df)))):
-            if first is True or (first is not None and first is not pd.NA and bool(first)):
-                out["y_jump_m"][j] = math.nan
-                out["jump_reason"][j] = f"excluded: harmonic n = {n} loses stability before V* (asymmetric mode)"
+        n_first = df["asym_n"] if "asym_n" in df.columns else pd.Series(pd.NA, index=df.index)
+        for j in np.flatnonzero(df["asym_first"].astype("boolean").fillna(False).to_numpy(bool)):
+            out["y_jump_m"][j] = math.nan
+            out["jump_reason"][j] = f"excluded: harmonic n = {n_first.iloc[j]} loses stability before V* (asymmetric mode)"
     return _ranked(df, out)
 
 

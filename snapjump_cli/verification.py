@@ -39,15 +39,18 @@ def sphere_pressure(a: float, A: float, B: float, mu: float, J_m: float) -> floa
     return val
 
 
-def sphere_mesh(A: float, B: float, nt: int, n_arc: int, order: int = 2) -> Mesh:
+def sphere_mesh(A: float, B: float, nt: int, n_arc: int, order: int = 2, full: bool = False) -> Mesh:
     """Structured quarter-annulus mesh of the hollow sphere (exact arcs; Q4 or Q9).
 
     ``edge_sets["cavity"]`` runs along the inner surface from the equator to the pole, so the
-    cavity volume is that of the upper half sphere, ``2/3 pi a^3``.
+    cavity volume is that of the upper half sphere, ``2/3 pi a^3``. With ``full`` the mesh is the
+    half annulus from the south to the north pole (the complete sphere, ``n_arc`` elements over
+    180 deg), free: both poles are on the axis and one node on the outer equator carries
+    ``u_y = 0`` only to remove the vertical translation of the axisymmetric problem.
     """
     nr, na = order * nt + 1, order * n_arc + 1
     rho = np.linspace(A, B, nr)
-    phi = np.linspace(0.5 * math.pi, 0.0, na)  # equator -> pole
+    phi = np.linspace(math.pi if full else 0.5 * math.pi, 0.0, na)  # (south pole or) equator -> pole
     P, F = np.meshgrid(rho, phi, indexing="ij")
     nodes = np.stack([P * np.sin(F), P * np.cos(F)], axis=-1).reshape(-1, 2)
     nodes[np.abs(nodes[:, 0]) < 1e-14 * B, 0] = 0.0
@@ -74,8 +77,8 @@ def sphere_mesh(A: float, B: float, nt: int, n_arc: int, order: int = 2) -> Mesh
     for j in range(0, na - 1, order):
         edges.append([idx[0, j], idx[0, j + order]] + ([idx[0, j + 1]] if order == 2 else []))
     node_sets = {
-        "axis": idx[:, -1].copy(),
-        "dirichlet_y": idx[:, 0].copy(),
+        "axis": np.concatenate([idx[:, 0], idx[:, -1]]) if full else idx[:, -1].copy(),
+        "dirichlet_y": np.array([idx[-1, (na - 1) // 2]]) if full else idx[:, 0].copy(),
         "dirichlet_x": np.zeros(0, np.int64),
         "pole_upper": np.array([idx[0, -1]]),
         "pole_lower": np.array([idx[-1, -1]]),
@@ -90,6 +93,6 @@ def sphere_mesh(A: float, B: float, nt: int, n_arc: int, order: int = 2) -> Mesh
         node_sets=node_sets,
         edge_sets={"cavity": np.array(edges, dtype=np.int64)},
         cavity_volume_offset=0.0,
-        scene="sphere",
+        scene="sphere-full" if full else "sphere",
         info={"A": A, "B": B, "nt": nt, "n_arc": n_arc},
     )

@@ -20,47 +20,18 @@ import scipy.linalg as sl
 from snapjump_cli.continuation import ContinuationSettings, Tracer, trace
 from snapjump_cli.geometry import CapScene
 from snapjump_cli.harmonics import check_harmonics, harmonic_inertia, harmonic_operator, rigid_modes
-from snapjump_cli.meshdata import Mesh, REGION_INNER_CAP
+from snapjump_cli.meshdata import Mesh
 from snapjump_cli.model import Model
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.solve import solve_scene
+from snapjump_cli.verification import sphere_mesh
 
 MU, JM = 1.0, 24.0
 
 
-def full_sphere_mesh(A: float, B: float, nt: int, n_arc: int, order: int = 2) -> Mesh:
-    """A complete hollow sphere (half annulus from pole to pole, Q9), free: one node on the outer
-    equator carries ``u_y = 0`` only to remove the vertical translation of the axisymmetric problem."""
-    nr, na = order * nt + 1, order * n_arc + 1
-    rho = np.linspace(A, B, nr)
-    th = np.linspace(math.pi, 0.0, na)  # south pole -> north pole
-    P, T = np.meshgrid(rho, th, indexing="ij")
-    nodes = np.stack([P * np.sin(T), P * np.cos(T)], axis=-1).reshape(-1, 2)
-    nodes[np.abs(nodes[:, 0]) < 1e-14 * B, 0] = 0.0
-    nodes[np.abs(nodes[:, 1]) < 1e-14 * B, 1] = 0.0
-    idx = np.arange(nr * na).reshape(nr, na)
-    els = []
-    for i in range(0, nr - 1, order):
-        for j in range(0, na - 1, order):
-            els.append([idx[i, j], idx[i + 2, j], idx[i + 2, j + 2], idx[i, j + 2], idx[i + 1, j],
-                        idx[i + 2, j + 1], idx[i + 1, j + 2], idx[i, j + 1], idx[i + 1, j + 1]])
-    els = np.array(els, dtype=np.int64)
-    c = nodes[els[:, :4]]
-    area = 0.5 * np.sum(c[:, :, 0] * np.roll(c[:, :, 1], -1, 1) - np.roll(c[:, :, 0], -1, 1) * c[:, :, 1], axis=1)
-    if np.any(area < 0):
-        els = els[:, [0, 3, 2, 1, 7, 6, 5, 4, 8]]
-    edges = [[idx[0, j], idx[0, j + 2], idx[0, j + 1]] for j in range(0, na - 1, 2)]  # along the inner surface
-    node_sets = {
-        "axis": np.concatenate([idx[:, 0], idx[:, -1]]),
-        "dirichlet_y": np.array([idx[-1, (na - 1) // 2]]),
-        "dirichlet_x": np.zeros(0, np.int64),
-        "pole_upper": np.array([idx[0, -1]]),
-        "pole_lower": np.array([idx[-1, -1]]),
-    }
-    ne = len(els)
-    return Mesh(nodes=nodes, elements=els, order=order, region=np.full(ne, REGION_INNER_CAP, np.int8),
-                material=np.zeros(ne, np.int8), node_sets=node_sets, edge_sets={"cavity": np.array(edges, np.int64)},
-                scene="sphere-full")
+def full_sphere_mesh(A: float, B: float, nt: int, n_arc: int) -> Mesh:
+    """A complete hollow sphere, free (Q9; :func:`snapjump_cli.verification.sphere_mesh`)."""
+    return sphere_mesh(A, B, nt, n_arc, order=2, full=True)
 
 
 def _pencil(op, u, p, lowest: int | None = None):
