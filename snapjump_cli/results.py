@@ -118,10 +118,11 @@ def write_table_atomic(table: pa.Table, path: str | Path) -> Path:
 
 def check_writable(path: str | Path, error: type[Exception] = OSError, what: str = "",
                    overwrite: bool = True) -> Path:
-    """Make sure a file can be created at ``path``: its folder exists (created if needed) and is
-    writable, and (``overwrite=False``) no file is there already. Raises ``error`` with one line
-    naming the path otherwise (an ancestor that is a regular file, a read-only folder, an existing
-    file without ``--overwrite``, ...). Nothing else is written."""
+    """Make sure a file can be created at ``path``, without writing anything: its folder, or the
+    nearest existing folder above it (the writer creates the rest), is a writable folder, and
+    (``overwrite=False``) no file is there already. Raises ``error`` with one line naming the path
+    otherwise (an ancestor that is a regular file, a read-only folder, an existing file without
+    ``--overwrite``, ...)."""
     path = Path(path)
     if not overwrite and what != "folder" and path.is_file():
         raise error(f"{path}: exists; pass --overwrite to replace it")
@@ -131,16 +132,12 @@ def check_writable(path: str | Path, error: type[Exception] = OSError, what: str
         anc = anc.parent
     if anc.exists() and not anc.is_dir():
         raise error(f"{path}: cannot write here, {anc} is a file, not a folder")
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise error(f"{path}: cannot create the folder {folder} ({e.strerror})") from None
     try:  # a real probe: permission bits say nothing to root, nor about read-only file systems
-        fd, probe = tempfile.mkstemp(prefix=".snapjump-probe-", dir=folder)
+        fd, probe = tempfile.mkstemp(prefix=".snapjump-probe-", dir=anc)
         os.close(fd)
         os.unlink(probe)
     except OSError as e:
-        raise error(f"{path}: the folder {folder} is not writable ({e.strerror})") from None
+        raise error(f"{path}: the folder {anc} is not writable ({e.strerror})") from None
     if what != "folder" and path.is_dir():
         raise error(f"{path}: is a directory, expected a file path")
     return path

@@ -263,6 +263,7 @@ def run_sweep(
     if output.exists() and output.is_dir():
         raise SweepInputError(f"{output}: is a directory, expected a parquet file path")
     res.check_writable(output, SweepInputError)
+    output.parent.mkdir(parents=True, exist_ok=True)  # the lock and the parts live beside the output
 
     with OutputLock(output):
         return _run_locked(config, output, parts, n_jobs, scheduler, solve_fn, warm_up_fn, progress, retry_failed,

@@ -156,9 +156,9 @@ def test_right_columns_wrong_types_is_exit_2_naming_the_column(tmp_path, capsys,
     df = res.read_results(results_file)
     bad = tmp_path / "bad.parquet"
     df.assign(dE_J=df["dE_J"].astype(str)).to_parquet(bad)
-    code, _, err = _run(capsys, str(bad), "-o", str(tmp_path / "o.parquet"))
+    code, _, err = _run(capsys, str(bad), "-o", str(tmp_path / "o.parquet"), "--plots", str(tmp_path / "plots"))
     assert code == 2 and "column 'dE_J' has type" in err and "expected numbers" in err
-    assert not (tmp_path / "o.parquet").exists()
+    assert not (tmp_path / "o.parquet").exists() and not (tmp_path / "plots").exists()  # no folder either
 
 
 def test_rank_says_when_a_file_mixes_settings(tmp_path, capsys, results_file):
