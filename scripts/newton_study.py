@@ -1,0 +1,158 @@
+"""Reproduce the iteration-count study of the speed work (docs/performance.md, issue 10 notes).
+
+    .venv/bin/python scripts/newton_study.py variants --n 20            # counts per continuation variant
+    .venv/bin/python scripts/newton_study.py history --design D         # Newton residuals per step
+    .venv/bin/python scripts/newton_study.py perturb --design D         # Newton from perturbed states
+    .venv/bin/python scripts/newton_study.py recheck results/paper_grid.parquet   # nt 2 vs nt 3 re-check
+
+``variants`` solves the first N valid, snapping designs of the seeded benchmark sample (the grid
+rows of bench/regression/baseline.json) as the sweep does and prints the assemblies, steps and
+Newton iterations (deterministic, so comparable on a loaded machine) and the largest change of dE,
+dy_pole, h_imp and of the flags against the baseline, for the current settings, tol_path 1e-5,
+1e-4, 1e-3 and n_opt 3 and 6. ``history`` prints the relative residual of every Newton iteration of
+every corrector call (the Python corrector). ``perturb`` runs a pressure-controlled Newton from
+states between two path points. ``recheck`` reads a result file and prints how far the nt = 3
+re-check moved dE and dy_pole on the rows whose lower state is off the path.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import sys
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))  # bench/ (the baseline and the sample's scenes)
+
+
+def _variants(a: argparse.Namespace) -> None:
+    from bench.regression import BASELINE, scenes
+    from snapjump_cli import continuation as C
+    from snapjump_cli.config import load_config
+    from snapjump_cli.geometry import Design
+    from snapjump_cli.solve import solve_design
+
+    base = {r["id"]: r for r in json.loads(Path(BASELINE).read_text())["rows"]}
+    cfg = load_config(REPO / "configs" / "paper_grid.yaml")
+    sample = [s for s in scenes(240, 10) if s["kind"] == "grid" and base[s["id"]]["status"] == "ok"][: a.n]
+    orig_init = C.ContinuationSettings.__init__
+    for label, tol_path, n_opt in (("current", None, None), ("tol_path 1e-5", 1e-5, None),
+                                   ("tol_path 1e-4", 1e-4, None), ("tol_path 1e-3", 1e-3, None),
+                                   ("n_opt 3", None, 3), ("n_opt 6", None, 6)):
+        solver = dataclasses.replace(cfg.solver, tol_path=tol_path) if tol_path else cfg.solver
+        C.ContinuationSettings.__init__ = (
+            (lambda self, *x, _n=n_opt, **k: orig_init(self, *x, **{**k, "n_opt": _n})) if n_opt else orig_init)
+        tot = Counter()
+        worst, flags = 0.0, []
+        for s in sample:
+            m = solve_design(Design(**s["params"]), cfg.mesh, solver)
+            tot.update({k: m.get(k) or 0 for k in ("n_assemblies", "n_steps", "n_newton")})
+            b = base[s["id"]]
+            flags += [(s["id"], k) for k in ("snaps", "self_crossing", "mesh_sensitive") if bool(m[k]) != bool(b[k])]
+            worst = max([worst] + [abs(m[k] - b[k]) / abs(b[k]) for k in ("dE_J", "dy_pole_m", "h_imp_m") if b.get(k)])
+        C.ContinuationSettings.__init__ = orig_init
+        print(json.dumps({"variant": label, **tot, "worst_rel_change": f"{worst:.2e}", "flag_changes": flags}),
+              flush=True)
+
+
+def _design(name: str):
+    from snapjump_cli.designs import get_design
+    from snapjump_cli.geometry import Design
+
+    if "," in name:
+        keys = ("eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio")
+        return Design(**dict(zip(keys, map(float, name.split(",")))))
+    return get_design(name)
+
+
+def _history(a: argparse.Namespace) -> None:
+    os.environ["SNAPJUMP_PROFILE_PHASES"] = "1"  # the Python corrector, whose iterations are visible
+    from snapjump_cli import continuation as C
+    from snapjump_cli.config import load_config
+    from snapjump_cli.solve import solve_scene
+
+    hist: list[list] = []
+    orig_scale, orig_correct = C.Tracer.residual_scale, C.Tracer.correct
+
+    def residual_scale(self, lin, dz_du, p):
+        ref = orig_scale(self, lin, dz_du, p)
+        hist[-1].append(float(np.linalg.norm(lin.R)) / ref)
+        return ref
+
+    def correct(self, *x, **k):
+        hist.append([])
+        r = orig_correct(self, *x, **k)
+        hist[-1].append("ok" if r is not None else "FAIL")
+        return r
+
+    C.Tracer.residual_scale, C.Tracer.correct = residual_scale, correct
+    cfg = load_config(REPO / "configs" / "paper_grid.yaml")
+    m = solve_scene(_design(a.design), cfg.mesh, cfg.solver).metrics
+    print(f"{a.design}: steps {m['n_steps']}, Newton {m['n_newton']}, rejected {m['n_rejected']}")
+    print("solves per corrector call:", dict(sorted(Counter(len(h) - 1 for h in hist).items())))
+    for h in hist[a.skip: a.skip + a.show]:
+        print(" ".join(f"{x:.1e}" if isinstance(x, float) else x for x in h))
+
+
+def _perturb(a: argparse.Namespace) -> None:
+    from snapjump_cli.config import load_config
+    from snapjump_cli.solve import solve_scene
+
+    cfg = load_config(REPO / "configs" / "paper_grid.yaml")
+    r = solve_scene(_design(a.design), cfg.mesh, cfg.solver)
+    model, pts = r.model, r.path.points
+    for k in (10, 40, 80):
+        for eps in (1.0, 0.3, 0.1, 0.01):  # the state eps of the way to the next path point, at p_k
+            u, p, seq = pts[k].u + eps * (pts[k + 1].u - pts[k].u), pts[k].p, []
+            for _ in range(7):
+                lin = model.linearize(u, p)
+                if lin is None:
+                    seq.append(float("nan"))
+                    break
+                seq.append(float(np.linalg.norm(lin.R) / (np.linalg.norm(lin.g) * abs(p))))
+                x = lin.factor(np.zeros(model.n), 1.0).solve(np.concatenate([-lin.R, [0.0]]))
+                u = u + x[:-1]
+            print(k, eps, " ".join(f"{s:.1e}" for s in seq))
+
+
+def _recheck(a: argparse.Namespace) -> None:
+    import pandas as pd
+
+    from snapjump_cli.results import read_results
+
+    if a.results.is_dir():  # the part files of an unfinished sweep
+        df = pd.concat([read_results(f) for f in sorted(a.results.glob("part-*.parquet"))]).drop_duplicates("key")
+    else:
+        df = read_results(a.results)
+    d = df[(df["status"] == "ok") & (df["lower_state_method"] == "descent")]
+    for col, coarse in (("dE_J", "dE_J_coarse"), ("dy_pole_m", "dy_pole_m_coarse")):
+        rel = ((d[col] - d[coarse]).abs() / d[col]).dropna()
+        print(f"{col}: {len(rel)} rows re-checked at nt = 3; change median {rel.median():.2%}, "
+              f"90 % {rel.quantile(0.9):.2%}, max {rel.max():.2%}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="what", required=True)
+    v = sub.add_parser("variants")
+    v.add_argument("--n", type=int, default=20)
+    h = sub.add_parser("history")
+    h.add_argument("--design", default="D", help="a named design or eta_i,theta_i,eta_o,theta_o,mu_ratio")
+    h.add_argument("--skip", type=int, default=5)
+    h.add_argument("--show", type=int, default=35)
+    p = sub.add_parser("perturb")
+    p.add_argument("--design", default="D")
+    r = sub.add_parser("recheck")
+    r.add_argument("results", type=Path, help="a result file, or the .parts folder of an unfinished sweep")
+    a = ap.parse_args(argv)
+    {"variants": _variants, "history": _history, "perturb": _perturb, "recheck": _recheck}[a.what](a)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
