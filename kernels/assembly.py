@@ -9,7 +9,15 @@ volumetric energy ``kappa/2 (theta - 1)^2`` gives the reduced element energy::
     g_k = sum_q W_q Np_qk (J_q - 1),   M_kl = sum_q W_q Np_qk Np_ql,
 
 whose gradient and Hessian are exact (the element pressure is ``p = kappa M^-1 g`` evaluated at
-the quadrature points). ``kappa = bulk_ratio * mu`` makes the rubber incompressible to
+the quadrature points).
+
+Mixed linearisation (optional, ``p_geo``): the tangent may take the element pressure from an
+outside estimate instead of ``kappa M^-1 g(u)`` in its geometric term ``p d2J``. This is the
+Newton matrix of the three-field problem with the pressure as an unknown (its right-hand side,
+with the dilatation and pressure eliminated, is the same residual). At a predicted state the
+pressure ``kappa M^-1 g(u)`` carries ``kappa`` times the predictor's volume error (hundreds of
+times the true pressure), and a tangent built on it costs a Newton iteration; the pressure carried
+along the path does not (docs/numerics.md, "Newton on the mixed element"). ``kappa = bulk_ratio * mu`` makes the rubber incompressible to
 ``|J - 1| ~ p / kappa``; the constraint is imposed on the projected dilatation only, so the
 element does not lock. ``W_q = w_q det(J0) 2 pi R_q`` carries the axisymmetric weighting: it is
 formed in :func:`reference_geometry` and nowhere else.
@@ -115,7 +123,8 @@ def _bt_vec(dNdX_eq, N_q, R_q, v, out, scale):
 
 
 @njit(cache=True)
-def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, epos, want, f_out, data_out):
+def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, epos, want, f_out, data_out,
+             p_geo, pb_out, H_out):
     """Strain energy, and for ``want >= 1`` the internal force, for ``want >= 2`` the tangent.
 
     Parameters
@@ -128,6 +137,11 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
         stored (constrained, or the upper triangle of a symmetric band storage)
     want : 0 energy, 1 + residual, 2 + tangent
     f_out, data_out : accumulated into (zero them before the call)
+    p_geo : (ne, np) element pressures for the tangent's geometric term, or shape (0, np): the
+        element's own ``kappa M^-1 g(u)`` (the exact Hessian of the reduced energy)
+    pb_out : (ne, np) filled with ``kappa M^-1 g(u)`` per element, or shape (0, np): not wanted
+    H_out : (ne, np, 2 nen) filled (``want >= 2``) with ``kappa M^-1 G``, the derivative of the
+        element pressure with respect to the element dofs, or shape (0, np, 2 nen): not wanted
 
     Returns
     -------
@@ -142,6 +156,9 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
     f, dpsi, d2psi, dJq, d2Jq, fe, Ke, G, H, g, pb, DB, D, sv = _work_arrays(nq, npr, nd)
     energy = 0.0
     maxdev = 0.0
+    use_geo = p_geo.shape[0] == ne
+    keep_pb = pb_out.shape[0] == ne
+    keep_H = H_out.shape[0] == ne
     for e in range(ne):
         m_ = mat[e]
         mu_e = mu[m_]
@@ -165,6 +182,8 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
                 s += Minv[e, k, m] * g[m]
             pb[k] = ka * s
             energy += 0.5 * g[k] * pb[k]
+            if keep_pb:
+                pb_out[e, k] = pb[k]
         # projected dilatation theta - 1 = p / kappa at the quadrature points (what is constrained)
         for q in range(nq):
             th = 0.0
@@ -183,8 +202,10 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
         for q in range(nq):
             W = Wq[e, q]
             pq = 0.0
+            pg = 0.0
             for k in range(npr):
                 pq += Np[q, k] * pb[k]
+                pg += Np[q, k] * (p_geo[e, k] if use_geo else pb[k])
             for k in range(5):
                 sv[k] = W * (dpsi[q, k] + pq * dJq[q, k])
             _bt_vec(dNdX[e, q], N_ref[q], Rq[e, q], sv, fe, 1.0)
@@ -193,10 +214,12 @@ def assemble(u, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, 
                     _bt_vec(dNdX[e, q], N_ref[q], Rq[e, q], dJq[q], G[k], W * Np[q, k])
                 for k in range(5):
                     for m in range(5):
-                        D[k, m] = W * (d2psi[q, k, m] + pq * d2Jq[q, k, m])
+                        D[k, m] = W * (d2psi[q, k, m] + pg * d2Jq[q, k, m])
                 _add_btdb_lower(dNdX[e, q], N_ref[q], Rq[e, q], D, DB, Ke)
         if want >= 2:
             _add_volumetric_lower(Minv[e], ka, G, H, Ke)
+            if keep_H:
+                H_out[e] = H
         _scatter(edofs[e], epos[e], fe, Ke, want, f_out, data_out)
     return energy, True, maxdev
 
@@ -301,14 +324,14 @@ def quadrature_jacobians(u, conn, dNdX, N_ref, Rq):
 
 @njit(cache=True)
 def evaluate(u, dofmap, X, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, epos,
-             edges, edge_dofs, edge_pos, p, want, R_out, g_out, data_out):
+             edges, edge_dofs, edge_pos, p, want, R_out, g_out, data_out, p_geo, pb_out, H_out):
     """One evaluation of the pressurised solid at the free-dof displacement ``u`` (one call).
 
     Scatters ``u`` to the nodes (``dofmap[node, component]``: free dof or -1), assembles the
     element energy, force and (``want >= 2``) stiffness (:func:`assemble`), then the cavity volume,
     its gradient ``g = dV/du`` and (``want >= 2``) the load stiffness ``-p d2V/du2``
     (:func:`snapjump_kernels.cavity.cavity_assemble`). Fills ``R_out = f_int - p g``, ``g_out``
-    and ``data_out`` (zeroed by the caller).
+    and ``data_out`` (zeroed by the caller); ``p_geo``, ``pb_out``, ``H_out`` as in :func:`assemble`.
 
     Returns
     -------
@@ -323,8 +346,23 @@ def evaluate(u, dofmap, X, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Mi
             if k >= 0:
                 U[a, c] = u[k]
     E, ok, _ = assemble(U, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, epos, want, R_out,
-                        data_out)
+                        data_out, p_geo, pb_out, H_out)
     V = cavity_assemble(X + U, edges, edge_dofs, edge_pos, -p, max(want, 1), g_out, data_out)
     for i in range(R_out.shape[0]):
         R_out[i] -= p * g_out[i]
     return E, ok, V
+
+
+@njit(cache=True)
+def cavity_state(u, dofmap, X, edges, edge_dofs, edge_pos, g_out):
+    """Cavity volume (without any offset) at the free-dof displacement ``u``; fills ``g_out`` with
+    ``dV/du`` (zeroed here). The cavity part of :func:`evaluate` alone (no element pass)."""
+    nn = dofmap.shape[0]
+    U = np.zeros((nn, 2))
+    for a in range(nn):
+        for c in range(2):
+            k = dofmap[a, c]
+            if k >= 0:
+                U[a, c] = u[k]
+    g_out[:] = 0.0
+    return cavity_assemble(X + U, edges, edge_dofs, edge_pos, 0.0, 1, g_out, np.zeros(1))

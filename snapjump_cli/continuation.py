@@ -13,6 +13,12 @@ regular at limit points in pressure and in volume. The tangent at a converged po
 same system with right-hand side ``[0, 1]``; its orientation follows the previous tangent
 automatically (``t_prev . t_new > 0``).
 
+Path points are accepted by an error test (the Newton correction at the iterate, in the
+arc-length metric, below ``tol_path``), their tangent solved with the same factorisation; the
+snap states and limit points by the residual test (``tol``). A problem may also carry an
+auxiliary field along the path (``aux``: the element pressures of the mixed element), which the
+predictor extrapolates and the problem's Newton uses in its tangent (docs/numerics.md).
+
 Bifurcations: the sign of the bordered Jacobian's determinant (from the LDL^T inertia and the
 Schur complement) flips at a simple bifurcation point but not at limit points; a step that
 crosses one is redone with a short step so that the corrector stays on the branch it follows,
@@ -43,13 +49,18 @@ class Problem(Protocol):
 
     n: int
 
-    # optional: ``newton(u, p, scales, tol, max_newton, target=None, riks=None)``, the corrector
-    # of :meth:`Tracer.correct` compiled for this problem (see :meth:`snapjump_cli.model.Model.newton`)
+    # optional: ``newton(u, p, scales, tol, max_newton, target=None, riks=None, aux=None, tol_inc=0.0)``,
+    # the corrector of :meth:`Tracer.correct` compiled for this problem (see
+    # :meth:`snapjump_cli.model.Model.newton`)
 
     def linearize(self, u: np.ndarray, p: float, stiffness: bool = True):
         """Object with ``.R`` (residual) and ``.factor(c_u, c_p)`` -> solver with ``.solve(rhs)``
         for the bordered matrix ``[[dR/du, dR/dp], [c_u^T, c_p]]``; ``None`` for a failed iterate.
-        With ``stiffness=False`` only ``.R`` is needed (no ``factor``)."""
+        With ``stiffness=False`` only ``.R`` is needed (no ``factor``).
+
+        Optional auxiliary field: a problem that accepts ``linearize(u, p, aux=a)`` builds the
+        tangent with ``a`` and gives ``.aux`` (the field at ``u``) and ``.aux_step(x)`` (its
+        linearised change for a correction ``x``) on the result."""
         ...
 
     def measures(self, u: np.ndarray, p: float, lin=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -92,6 +103,7 @@ class ContinuationSettings:
     ds_bifurcation : step that crosses a bifurcation point
     tol_path : Newton tolerance of ordinary path points (``None``: ``tol``)
     fused : use the problem's compiled corrector (``problem.newton``) if it has one
+    error_test : accept ordinary path points by the error test (else by the residual test)
     """
 
     scales: tuple[float, float, float]
@@ -108,6 +120,7 @@ class ContinuationSettings:
     ds_bifurcation: float = 1e-3
     tol_path: float | None = _USER_DEFAULTS.tol_path
     fused: bool = True
+    error_test: bool = True
 
     @classmethod
     def from_solver(cls, solver: SolverSettings, scales: tuple[float, float, float], u_unit: float = 1.0,
@@ -141,6 +154,8 @@ class PathPoint:
     newton: int = 0
     det_sign: int = 0  # sign of det of the bordered Jacobian (0: unknown); flips at bifurcations
     n_neg: int = -1  # negative eigenvalues of K_T (unstable modes under pressure control; -1: unknown)
+    aux: np.ndarray | None = None  # the problem's auxiliary field (element pressures), if it has one
+    daux_ds: np.ndarray | None = None  # its derivative along the path
 
 
 @dataclass
@@ -150,6 +165,19 @@ class Path:
     n_rejected: int = 0
     n_bifurcations: int = 0
     stop_reason: str = ""
+
+
+@dataclass
+class _Corrected:
+    """A Riks state accepted by the error test: the last iterate plus its correction (not
+    evaluated), with the iterate's factorisation for the tangent and the auxiliary field's
+    linearised update."""
+
+    u: np.ndarray
+    p: float
+    tangent_solver: object
+    aux_next: np.ndarray | None = None
+    aux_dir: Callable | None = None
 
 
 class Tracer:
@@ -199,42 +227,89 @@ class Tracer:
             raise ContinuationFailed("singular bordered matrix at a converged state")
         rhs = np.zeros(self.pb.n + 1)
         rhs[-1] = 1.0
-        x = solver.solve(rhs)
+        t, v, q, z, _ = self._unit_tangent(lin, solver.solve(rhs))
+        self.last_det_sign = _det_sign(solver)
+        self.last_n_neg = int(getattr(solver, "n_negative", -1))
+        return t, v, q, z
+
+    def _unit_tangent(self, lin, x: np.ndarray):
+        """``(t, v, q, zeta, norm)``: the solution ``x = [v; q]`` of the tangent system at ``lin``
+        scaled to unit length in the arc-length metric."""
+        evaluated = getattr(lin, "g", None) is not None
+        z, dz_du, dz_dp = self.zeta(lin.u, lin.p, lin if evaluated else None)
         v, q = x[:-1], x[-1]
         dz = dz_du @ v + dz_dp * q
+        a = self.alpha
         nrm = math.sqrt(float(dz @ dz) + a * a * float(v @ v))
         if not np.isfinite(nrm) or nrm == 0.0:
             raise ContinuationFailed("degenerate tangent (no change of volume, pressure or pole)")
-        self.last_det_sign = _det_sign(solver)
-        self.last_n_neg = int(getattr(solver, "n_negative", -1))
-        return dz / nrm, v / nrm, q / nrm, z
+        return dz / nrm, v / nrm, q / nrm, z, nrm
 
-    def correct(self, u, p, z0, t, ds, target=None, tol=None):
+    def _tangent_at(self, lin, t_prev: np.ndarray):
+        """The unit tangent at an accepted Riks iterate, with the auxiliary field and its
+        derivative: from the corrector's last factorisation if it kept it, else
+        :meth:`tangent` (a new one). Returns ``(t, v, q, zeta, aux, daux_ds)``."""
+        x = getattr(lin, "tangent_x", None)
+        solver = getattr(lin, "tangent_solver", None)
+        if x is None and solver is not None:
+            rhs = np.zeros(self.pb.n + 1)
+            rhs[-1] = 1.0
+            x = solver.solve(rhs)
+        if x is None:
+            t, v, q, z = self.tangent(lin, t_prev)
+            aux = getattr(lin, "aux", None)
+            return t, v, q, z, aux, None
+        t, v, q, z, nrm = self._unit_tangent(lin, x)
+        if solver is not None:
+            self.last_det_sign = _det_sign(solver)
+            self.last_n_neg = int(getattr(solver, "n_negative", -1))
+        else:
+            n_neg, schur = lin.tangent_inertia
+            self.last_n_neg = int(n_neg)
+            self.last_det_sign = (-1) ** int(n_neg) * (1 if schur > 0 else -1)
+        aux = getattr(lin, "aux_next", None)
+        if aux is None:
+            aux = getattr(lin, "aux", None)
+        daux = getattr(lin, "daux_x", None)
+        if daux is None and aux is not None and getattr(lin, "aux_dir", None) is not None:
+            daux = lin.aux_dir(x[:-1])
+        return t, v, q, z, aux, (daux / nrm if daux is not None else None)
+
+    def correct(self, u, p, z0, t, ds, target=None, tol=None, aux=None, error_test=False):
         """Newton on ``R = 0`` and one linear constraint in measure space.
 
         With ``target=None`` the constraint is the Riks hyperplane ``t . (zeta - z0) = ds``;
         with ``target=(k, value)`` it fixes one scaled measure, ``zeta_k = value``.
 
         Returns ``(linearisation at the converged state, iterations)`` or ``None`` on failure.
-        Converged: the residual below ``tol`` times the pressure load ``|p| |dV/du|`` (floored at
-        1e-3 of the pressure scale), or at its round-off floor after a negligible correction.
+        Converged (residual test): the residual below ``tol`` times the pressure load
+        ``|p| |dV/du|`` (floored at 1e-3 of the pressure scale), or at its round-off floor after a
+        negligible correction. With ``error_test`` (Riks only) an iterate is also accepted when the
+        Newton correction computed there, in the arc-length metric, is below ``tol`` and smaller
+        than the one before (it estimates the iterate's error); the state returned is then the
+        iterate plus that correction, not evaluated (its error is of the order of the correction
+        squared). A Riks result keeps the last factorisation for the tangent (``tangent_solver``
+        or, compiled, ``tangent_x``). ``aux``: the auxiliary field to linearise with (the
+        problem's mixed pressures), if any.
         """
         cfg = self.cfg
         tol = cfg.tol if tol is None else tol
+        tol_inc = tol if (error_test and target is None) else 0.0
         fused = getattr(self.pb, "newton", None) if cfg.fused else None
         if fused is not None:  # the same iteration, compiled (snapjump_kernels.corrector)
             riks = None
             if target is None:
                 t_z, t_u, u_0 = t
                 riks = (z0, t_z, t_u, u_0, ds, self.alpha**2)
-            res = fused(u, p, self.sc, tol, cfg.max_newton, target=target, riks=riks)
+            res = fused(u, p, self.sc, tol, cfg.max_newton, target=target, riks=riks, aux=aux, tol_inc=tol_inc)
             if res is not None:
                 self.n_newton += res[1]
             return res
         u = u.copy()
         step_small = False
+        inc_prev = math.inf
         for it in range(0, cfg.max_newton + 1):
-            lin = self.pb.linearize(u, p)
+            lin = self.pb.linearize(u, p) if aux is None else self.pb.linearize(u, p, aux=aux)
             if lin is None:
                 return None
             R = lin.R
@@ -251,30 +326,49 @@ class Tracer:
                 c_p = float(dz_dp[k])
             ref = self.residual_scale(lin, dz_du, p)
             rn = float(np.linalg.norm(R)) / ref
-            if it > 0 and abs(h) < tol * max(1.0, abs(ds)):
-                if rn < tol or (step_small and rn < 100.0 * tol):
-                    self.n_newton += it
-                    return lin, it
-            if it == cfg.max_newton or not np.isfinite(rn):
+            converged = it > 0 and abs(h) < tol * max(1.0, abs(ds)) and (
+                rn < tol or (step_small and rn < 100.0 * tol))
+            if converged and target is not None:
+                self.n_newton += it
+                return lin, it
+            if not converged and (it == cfg.max_newton or not np.isfinite(rn)):
                 return None
             solver = lin.factor(c_u, c_p)
             if solver is None:
                 return None
+            if converged:  # Riks: keep the factorisation for the tangent
+                lin.tangent_solver = solver
+                self.n_newton += it
+                return lin, it
             x = solver.solve(np.concatenate([-R, [-h]]))
             du, dp = x[:-1], x[-1]
             if not (np.all(np.isfinite(du)) and np.isfinite(dp)):
                 return None
+            dz = dz_du @ du + dz_dp * dp
+            inc = math.sqrt(float(dz @ dz) + self.alpha**2 * float(du @ du))
+            if tol_inc > 0.0 and it > 0 and inc < tol_inc and inc < inc_prev:
+                aux_dir = getattr(lin, "aux_dir", None)
+                aux_next = lin.aux + aux_dir(du) if aux_dir is not None else None
+                self.n_newton += it
+                return _Corrected(u + du, p + dp, solver, aux_next, aux_dir), it
+            inc_prev = inc
+            if aux is not None:  # the mixed Newton's update of the auxiliary field
+                aux = lin.aux + lin.aux_dir(du)
             u = u + du
             p = p + dp
-            step_small = float(np.linalg.norm(dz_du @ du + dz_dp * dp)) < 1e-12
+            step_small = float(np.linalg.norm(dz)) < 1e-12
         return None
 
-    def step(self, pt: PathPoint, ds: float, prev: PathPoint | None = None, tol: float | None = None):
+    def step(self, pt: PathPoint, ds: float, prev: PathPoint | None = None, tol: float | None = None,
+             error_test: bool = False):
         """One predictor-corrector step of length ``ds`` from ``pt``; ``PathPoint`` or ``None``.
 
         The predictor is the tangent line, or with ``prev`` (the point before ``pt``) the cubic
         Hermite extrapolation through both points and their tangents (fewer steps than the
         quadratic through ``prev`` tangent at ``pt``: scripts/profile_designs.py, docs/performance.md).
+        The auxiliary field, if the points carry one, is extrapolated along its tangent.
+        ``error_test``: accept the state by the error test (ordinary path points), else by the
+        residual test (snap states, roots).
         """
         u0 = pt.u + ds * pt.du_ds
         p0 = pt.p + ds * pt.dp_ds
@@ -289,15 +383,19 @@ class Tracer:
                 Bp = h * (prev.dp_ds - pt.dp_ds)
                 u0 = u0 + (3 * Au + Bu) * sg**2 + (2 * Au + Bu) * sg**3
                 p0 = p0 + (3 * Ap + Bp) * sg**2 + (2 * Ap + Bp) * sg**3
-        res = self.correct(u0, p0, pt.zeta, (pt.tangent, pt.du_ds, pt.u), ds, tol=tol)
+        aux0 = None
+        if pt.aux is not None:
+            aux0 = pt.aux + ds * pt.daux_ds if pt.daux_ds is not None else pt.aux
+        res = self.correct(u0, p0, pt.zeta, (pt.tangent, pt.du_ds, pt.u), ds, tol=tol, aux=aux0,
+                           error_test=error_test)
         if res is None:
             return None
         lin, it = res
         try:
-            t, v, q, z = self.tangent(lin, (pt.tangent, self.alpha * pt.du_ds))
+            t, v, q, z, aux, daux = self._tangent_at(lin, (pt.tangent, self.alpha * pt.du_ds))
         except ContinuationFailed:
             return None
-        return PathPoint(lin.u, lin.p, z, t, v, q, pt.s + ds, it, self.last_det_sign, self.last_n_neg)
+        return PathPoint(lin.u, lin.p, z, t, v, q, pt.s + ds, it, self.last_det_sign, self.last_n_neg, aux, daux)
 
 
 def _det_sign(solver) -> int:
@@ -382,7 +480,7 @@ def trace(
             break
         pt = path.points[-1]
         prev = path.points[-2] if (cfg.hermite_predictor and len(path.points) > 1) else None
-        new = tr.step(pt, ds, prev, tol=cfg.tol_path)
+        new = tr.step(pt, ds, prev, tol=cfg.tol_path, error_test=cfg.error_test)
         if new is not None:
             ang = max(turn_angle(pt, new, tr.alpha), chord_angle(pt, new, tr.alpha))
             crossed = pt.det_sign * new.det_sign < 0  # a bifurcation point lies inside the step

@@ -49,9 +49,16 @@ class Linearization:
     evaluated without its stiffness (``Model.linearize(..., stiffness=False)``).
     """
 
-    def __init__(self, model: "Model", u, p, R, g, data, V=float("nan"), E=float("nan")):
+    def __init__(self, model: "Model", u, p, R, g, data, V=float("nan"), E=float("nan"), aux=None, H=None):
         self.model, self.u, self.p, self.R, self.g, self.data, self.V = model, u, p, R, g, data, V
         self.E = E  # strain energy
+        self.aux = aux  # element pressures kappa M^-1 g(u), (ne, np), when evaluated with them
+        self._H = H  # their derivative with respect to the element dofs, (ne, np, 2 nen)
+
+    def aux_dir(self, x: np.ndarray) -> np.ndarray:
+        """Linearised change of the element pressures for a displacement change ``x`` (free dofs)."""
+        xe = np.where(self.model.edofs >= 0, x[np.maximum(self.model.edofs, 0)], 0.0)
+        return np.einsum("ekj,ej->ek", self._H, xe)
 
     def factor(self, c_u: np.ndarray, c_p: float, shift: "float | np.ndarray" = 0.0) -> "BorderedSolver | None":
         """Factorise ``[[K_T + diag(shift), -dV/du], [c_u^T, c_p]]``; ``None`` if it is singular.
@@ -253,16 +260,23 @@ class Model:
         return self.X + self.full_displacement(u)
 
     # ---- evaluations ---------------------------------------------------------------------------
-    def _evaluate(self, u, p, want):
+    def _no_aux(self):
+        """Empty element-pressure arrays: the reduced linearisation, nothing kept."""
+        npr, nd = self.Np.shape[1], self.edofs.shape[1]
+        return np.zeros((0, npr)), np.zeros((0, npr)), np.zeros((0, npr, nd))
+
+    def _evaluate(self, u, p, want, aux_arrays=None):
         """One pass of :func:`snapjump_kernels.assembly.evaluate` (``want`` 0 energy, 1 residual,
-        2 stiffness): ``(E, ok, R, g, V, data)`` with ``V`` including the offset."""
+        2 stiffness): ``(E, ok, R, g, V, data)`` with ``V`` including the offset; ``aux_arrays``:
+        ``(p_geo, pb_out, H_out)`` of the mixed linearisation (default: none)."""
         t0 = time.perf_counter()
         data = np.zeros(self.ndata if want >= 2 else 1)
         R = np.zeros(self.n)
         g = np.zeros(self.n)
+        p_geo, pb_out, H_out = aux_arrays if aux_arrays is not None else self._no_aux()
         E, ok, V = evaluate(u, self.dofmap, self.X, self.conn, self.mat, self.mu, self.jm, self.kappa, self.dNdX,
                             self.N_ref, self.Rq, self.Wq, self.Np, self.Minv, self.edofs, self.epos, self.edges,
-                            self.edge_dofs, self.edge_pos, p, want, R, g, data)
+                            self.edge_dofs, self.edge_pos, p, want, R, g, data, p_geo, pb_out, H_out)
         if want >= 2:
             self.n_assemblies += 1
             self.t_assembly += time.perf_counter() - t0
@@ -290,24 +304,39 @@ class Model:
         E, ok, R, g, V, _ = self._evaluate(u, 0.0, 1)
         return (R, g) if ok else None
 
-    def linearize(self, u: np.ndarray, p: float, stiffness: bool = True) -> Linearization | None:
+    def linearize(self, u: np.ndarray, p: float, stiffness: bool = True, aux: np.ndarray | None = None
+                  ) -> Linearization | None:
         """Residual and tangent from one assembly; ``None`` outside the material domain.
 
         ``stiffness=False`` evaluates the residual, ``dV/du`` and ``V`` only (about a fifth of the
-        cost; no ``factor``)."""
-        E, ok, R, g, V, data = self._evaluate(u, p, 2 if stiffness else 1)
+        cost; no ``factor``). ``aux`` (ne, np): element pressures for the tangent's geometric term
+        (the mixed linearisation, :func:`snapjump_kernels.assembly.assemble`); with the stiffness
+        the result also carries the element pressures at ``u`` (``.aux``) and ``.aux_dir``."""
+        arrays = None
+        if stiffness:
+            npr, nd = self.Np.shape[1], self.edofs.shape[1]
+            ne = self.conn.shape[0]
+            p_geo = np.ascontiguousarray(aux, dtype=float) if aux is not None else np.zeros((0, npr))
+            arrays = (p_geo, np.zeros((ne, npr)), np.zeros((ne, npr, nd)))
+        E, ok, R, g, V, data = self._evaluate(u, p, 2 if stiffness else 1, arrays)
         if not ok:
             return None
-        return Linearization(self, u, p, R, g, data if stiffness else None, V, E)
+        if not stiffness:
+            return Linearization(self, u, p, R, g, None, V, E)
+        return Linearization(self, u, p, R, g, data, V, E, aux=arrays[1], H=arrays[2])
 
     def newton(self, u: np.ndarray, p: float, scales: np.ndarray, tol: float, max_newton: int,
-               target: tuple[int, float] | None = None, riks: tuple | None = None) -> tuple[Linearization, int] | None:
+               target: tuple[int, float] | None = None, riks: tuple | None = None, aux: np.ndarray | None = None,
+               tol_inc: float = 0.0) -> tuple[Linearization, int] | None:
         """The continuation's Newton corrector in one compiled call (:mod:`snapjump_kernels.corrector`).
 
         ``scales`` are those of the path measures ``(V, p, w)``; the constraint is ``target =
-        (k, value)`` (``zeta_k = value``) or ``riks = (z0, t_z, t_u, u_ref, ds, alpha2)``. Returns
-        the linearisation at the converged state (its stiffness assembled, not factorised) and the
-        iterations, or ``None`` if Newton failed.
+        (k, value)`` (``zeta_k = value``) or ``riks = (z0, t_z, t_u, u_ref, ds, alpha2)``; ``aux``
+        the element pressures to start the mixed linearisation from; ``tol_inc > 0`` the error
+        test (Riks). Returns the linearisation at the accepted state (its stiffness assembled; with
+        ``riks`` also the tangent system's solution ``tangent_x``, its inertia ``tangent_inertia``
+        and the element pressures' change along it ``daux_x``) and the iterations, or ``None`` if
+        Newton failed.
         """
         t0 = time.perf_counter()
         if riks is not None:
@@ -318,19 +347,26 @@ class Model:
             z0 = t_z = np.zeros(3)
             t_u = u_ref = np.zeros(self.n)
             ds, alpha2 = 0.0, 0.0
-        ok, it, n_fac, u1, p1, R, g, data, V, E = newton_correct(
+        p_geo = np.ascontiguousarray(aux, dtype=float) if aux is not None else np.zeros((0, self.Np.shape[1]))
+        ok, it, n_fac, u1, p1, R, g, data, V, E, p_el, xt, n_neg, schur, dp_el = newton_correct(
             np.ascontiguousarray(u, dtype=float), float(p), int(k), float(val), np.asarray(z0, float),
             np.asarray(t_z, float), np.ascontiguousarray(t_u, dtype=float), np.ascontiguousarray(u_ref, dtype=float),
             float(ds), float(alpha2), np.asarray(scales, float), float(tol), int(max_newton), self.pole_dof,
             float(self.V_offset), self.kl, self.band_ext, self.dofmap, self.X, self.conn, self.mat, self.mu,
             self.jm, self.kappa, self.dNdX, self.N_ref, self.Rq, self.Wq, self.Np, self.Minv, self.edofs, self.epos,
-            self.edges, self.edge_dofs, self.edge_pos)
+            self.edges, self.edge_dofs, self.edge_pos, p_geo, float(tol_inc))
         self.n_assemblies += it + 1
         self.n_factorizations += n_fac
         self.t_newton += time.perf_counter() - t0
         if not ok:
             return None
-        return Linearization(self, u1, p1, R, g, data, V, E), it
+        if np.isnan(E):  # accepted by the error test: the corrected iterate, cavity evaluated only
+            lin = Linearization(self, u1, p1, None, g, None, V, E, aux=p_el)
+        else:
+            lin = Linearization(self, u1, p1, R, g, data, V, E, aux=p_el)
+        if riks is not None:
+            lin.tangent_x, lin.tangent_inertia, lin.daux_x = xt, (n_neg, schur), dp_el
+        return lin, it
 
     def energy_volume(self, u: np.ndarray) -> tuple[float, float] | None:
         """Strain energy and cavity volume (scaled, with the offset) from one energy-only pass;
@@ -394,7 +430,7 @@ class Model:
         U = self.full_displacement(u)
         E, ok, dev = assemble(
             U, self.conn, self.mat, self.mu, self.jm, self.kappa, self.dNdX, self.N_ref, self.Rq, self.Wq,
-            self.Np, self.Minv, self.edofs, self.epos, 0, np.zeros(self.n), np.zeros(1),
+            self.Np, self.Minv, self.edofs, self.epos, 0, np.zeros(self.n), np.zeros(1), *self._no_aux(),
         )
         return dev if ok else float("nan")
 

@@ -81,8 +81,9 @@ class SolverSettings:
     full : trace the whole curve (to 1.5 p_c or the volume bound) instead of stopping once the snap
         is characterised
     bulk_ratio : kappa / mu of the volumetric penalty of the mixed formulation
-    tol_path : Newton tolerance of ordinary path points; the limit point, the lower state and the
-        descent always use ``tol``
+    tol_path : Newton tolerance of ordinary path points (an error test: the last Newton correction,
+        in the arc-length metric); the limit point, the lower state and the descent always use
+        ``tol`` (a residual test)
     harmonics : check the traced states against non-axisymmetric perturbations ``cos n phi``,
         ``n = 1..harmonics`` (:mod:`snapjump_cli.harmonics`; 0 = off, the default)
     u_scale : scale of the RMS displacement in the arc length, in units of the pole-displacement
