@@ -104,6 +104,7 @@ class ContinuationSettings:
     tol_path : Newton tolerance of ordinary path points (``None``: ``tol``)
     fused : use the problem's compiled corrector (``problem.newton``) if it has one
     error_test : accept ordinary path points by the error test (else by the residual test)
+    mixed_tangent : linearise with the auxiliary field carried along the path, if the problem has one
     """
 
     scales: tuple[float, float, float]
@@ -121,6 +122,7 @@ class ContinuationSettings:
     tol_path: float | None = _USER_DEFAULTS.tol_path
     fused: bool = True
     error_test: bool = True
+    mixed_tangent: bool = True
 
     @classmethod
     def from_solver(cls, solver: SolverSettings, scales: tuple[float, float, float], u_unit: float = 1.0,
@@ -384,7 +386,7 @@ class Tracer:
                 u0 = u0 + (3 * Au + Bu) * sg**2 + (2 * Au + Bu) * sg**3
                 p0 = p0 + (3 * Ap + Bp) * sg**2 + (2 * Ap + Bp) * sg**3
         aux0 = None
-        if pt.aux is not None:
+        if pt.aux is not None and self.cfg.mixed_tangent:
             aux0 = pt.aux + ds * pt.daux_ds if pt.daux_ds is not None else pt.aux
         res = self.correct(u0, p0, pt.zeta, (pt.tangent, pt.du_ds, pt.u), ds, tol=tol, aux=aux0,
                            error_test=error_test)
@@ -418,7 +420,9 @@ def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0, t_prev: np.ndar
     if lin is None:
         raise ContinuationFailed("the initial state lies outside the material domain")
     t, v, q, z = tracer.tangent(lin, (t_prev, np.zeros(tracer.pb.n)))
-    return PathPoint(u0.copy(), p0, z, t, v, q, 0.0, 0, tracer.last_det_sign, tracer.last_n_neg)
+    aux = getattr(lin, "aux", None)
+    daux = lin.aux_dir(v) if aux is not None else None
+    return PathPoint(u0.copy(), p0, z, t, v, q, 0.0, 0, tracer.last_det_sign, tracer.last_n_neg, aux, daux)
 
 
 def turn_angle(a: PathPoint, b: PathPoint, alpha: float = 0.0) -> float:

@@ -167,6 +167,11 @@ class _MultiBorderedSolver:
 class _FixedVolumeLinearization:
     def __init__(self, problem: "FixedVolumeProblem", x, F, R, lin):
         self.problem, self.u, self.p, self.R, self.lin = problem, x, F, R, lin
+        self.aux = lin.aux  # the model's element pressures (the mixed linearisation)
+
+    def aux_dir(self, x: np.ndarray) -> np.ndarray:
+        """Linearised change of the element pressures for a change ``x = (du, dp)``."""
+        return self.lin.aux_dir(x[:-1])
 
     def factor(self, c_x: np.ndarray, c_F: float):
         """Factorise ``[[K, -g, -e_w], [c_V g^T, 0, 0], [c_u^T, c_p, c_F]]``; ``None`` if singular."""
@@ -204,8 +209,8 @@ class FixedVolumeProblem:
         self.e = np.ascontiguousarray(e, dtype=float)
         self.n = model.n + 1
 
-    def linearize(self, x: np.ndarray, F: float, stiffness: bool = True):
-        lin = self.model.linearize(x[:-1], float(x[-1]), stiffness)
+    def linearize(self, x: np.ndarray, F: float, stiffness: bool = True, aux: np.ndarray | None = None):
+        lin = self.model.linearize(x[:-1], float(x[-1]), stiffness, aux=aux)
         if lin is None:
             return None
         R = np.empty(self.n)

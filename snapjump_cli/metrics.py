@@ -21,7 +21,7 @@ from snapjump_cli.meshdata import solid_volumes
 from snapjump_cli.model import Model
 from snapjump_cli.snap import SnapStates
 
-__all__ = ["snap_metrics", "scene_curve", "snap_sequence", "hermite_p_dV", "path_self_crosses"]
+__all__ = ["snap_metrics", "scene_curve", "snap_sequence", "hermite_p_dV", "path_self_crosses", "path_derivatives"]
 
 _G3 = np.polynomial.legendre.leggauss(4)
 
@@ -51,28 +51,72 @@ def hermite_p_dV(a: PathPoint, b: PathPoint, h: float, sV: float, sp: float) -> 
     return float(0.5 * np.sum(w * p * Vt))
 
 
-def path_self_crosses(V: np.ndarray, p: np.ndarray) -> bool:
-    """Whether the polyline ``(V, p)`` crosses itself (non-adjacent segments intersect)."""
-    P = np.stack([V, p], axis=1)
+def _orient(a, b, c):
+    return (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0])
+
+
+def _segments_cross(a1, b1, a2, b2) -> np.ndarray:
+    """Whether segments ``a1 b1`` and ``a2 b2`` cross (proper intersection), elementwise."""
+    return (_orient(a1, b1, a2) * _orient(a1, b1, b2) < 0) & (_orient(a2, b2, a1) * _orient(a2, b2, b1) < 0)
+
+
+def path_self_crosses(V: np.ndarray, p: np.ndarray, dV: np.ndarray | None = None, dp: np.ndarray | None = None,
+                      sub: int = 8) -> bool:
+    """Whether the path ``(V, p)`` crosses itself.
+
+    Without derivatives: the polyline through the points (non-adjacent segments intersect). With
+    ``dV``, ``dp`` (shape ``(n - 1, 2)``: for each segment, the derivatives at its start and its end
+    with respect to a parameter running from 0 to 1 along it, i.e. the arc-length derivatives times
+    the segment's arc length; :func:`path_derivatives`): the cubic Hermite curve through the points,
+    each segment drawn as ``sub`` chords. The Hermite curve is what the energy integral
+    ``-integral p dV`` uses too; unlike the polyline it does not depend on where the steps fell (the
+    chord of a long step over a bend can cut a branch that the path itself passes by).
+    """
+    P = np.stack([np.asarray(V, float), np.asarray(p, float)], axis=1)
     n = len(P) - 1
-    if n < 3:
+    if n < 2 or (dV is None and n < 3):
         return False
-    A, B = P[:-1], P[1:]
     scale = np.ptp(P, axis=0)
     scale[scale == 0] = 1.0
-    A = A / scale
-    B = B / scale
+    P = P / scale
+    if dV is None:
+        A, B = P[:-1], P[1:]
+        i, j = np.triu_indices(n, k=2)
+        return bool(np.any(_segments_cross(A[i], B[i], A[j], B[j])))
+    D = np.stack([np.asarray(dV, float), np.asarray(dp, float)], axis=-1) / scale  # (n, 2 ends, 2)
+    # Bezier control points of each segment: the curve lies in their convex hull (a bounding box)
+    C = np.stack([P[:-1], P[:-1] + D[:, 0] / 3.0, P[1:] - D[:, 1] / 3.0, P[1:]], axis=1)  # (n, 4, 2)
+    lo, hi = C.min(axis=1), C.max(axis=1)
+    i, j = np.triu_indices(n, k=1)
+    near = np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1)
+    i, j = i[near], j[near]
+    if len(i) == 0:
+        return False
+    t = np.linspace(0.0, 1.0, sub + 1)[:, None]
+    h00, h10, h01, h11 = 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t, -2 * t**3 + 3 * t**2, t**3 - t**2
 
-    def orient(a, b, c):
-        return (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0])
+    def curve(k):  # (len(k), sub + 1, 2)
+        return (h00 * P[k][:, None] + h10 * D[k][:, None, 0] + h01 * P[k + 1][:, None] + h11 * D[k][:, None, 1])
 
-    i, j = np.triu_indices(n, k=2)
-    a1, b1, a2, b2 = A[i], B[i], A[j], B[j]
-    o1 = orient(a1, b1, a2)
-    o2 = orient(a1, b1, b2)
-    o3 = orient(a2, b2, a1)
-    o4 = orient(a2, b2, b1)
-    return bool(np.any((o1 * o2 < 0) & (o3 * o4 < 0)))
+    Qi, Qj = curve(i), curve(j)
+    a1, b1 = Qi[:, :-1, None], Qi[:, 1:, None]  # (m, sub, 1, 2)
+    a2, b2 = Qj[:, None, :-1], Qj[:, None, 1:]  # (m, 1, sub, 2)
+    hit = _segments_cross(a1, b1, a2, b2)  # (m, sub, sub)
+    adjacent = j == i + 1
+    hit[adjacent, -1, 0] = False  # the two chords that meet at the shared point
+    return bool(hit.any())
+
+
+def path_derivatives(points: list[PathPoint], sV: float, sp: float) -> tuple[np.ndarray, np.ndarray]:
+    """End derivatives of each segment of the path in ``(V, p)`` (scaled units) for
+    :func:`path_self_crosses`: ``d/dt`` with ``t`` in [0, 1] along the segment."""
+    s = np.array([pt.s for pt in points])
+    h = np.diff(s)[:, None]
+    tV = np.array([pt.tangent[0] * sV for pt in points])
+    tp = np.array([pt.tangent[1] * sp for pt in points])
+    dV = np.stack([tV[:-1], tV[1:]], axis=1) * h
+    dp = np.stack([tp[:-1], tp[1:]], axis=1) * h
+    return dV, dp
 
 
 def snap_sequence(path: Path, states: SnapStates) -> list[PathPoint]:
@@ -130,7 +174,7 @@ def snap_metrics(
     metrics["p_max_Pa"] = float(max(pt.p for pt in pts) * S)
     V_curve = np.array([pt.zeta[0] * sV for pt in pts])
     p_curve = np.array([pt.p for pt in pts])
-    metrics["self_crossing"] = path_self_crosses(V_curve, p_curve)
+    metrics["self_crossing"] = path_self_crosses(V_curve, p_curve, *path_derivatives(pts, sV, sp))
     metrics["snaps"] = st.upper is not None
     if lower_solver is not None:
         metrics["lower_state_solver"] = lower_solver
