@@ -97,7 +97,7 @@ def pressure_mass_inverse(Wq, Np):
     return Minv
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _deformation(u, conn_e, dNdX_eq, N_q, R_q, f):
     f[0] = 1.0
     f[1] = 0.0
@@ -114,7 +114,7 @@ def _deformation(u, conn_e, dNdX_eq, N_q, R_q, f):
     f[4] = 1.0 + ur / R_q
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _bt_vec(dNdX_eq, N_q, R_q, v, out, scale):
     """out += scale * B^T v for the 5-component vector ``v`` (B maps element dofs to f)."""
     for a in range(dNdX_eq.shape[0]):
@@ -285,7 +285,7 @@ def _scatter(edofs_e, epos_e, fe, Ke, want, f_out, data_out):
                         data_out[pji] += v
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _add_btdb_lower(dNdX_eq, N_q, R_q, D, DB, Ke):
     """Lower triangle of Ke += B^T D B for one quadrature point (D symmetric; B sparse:
     rows 0, 1, 4 for a u_r dof, rows 2, 3 for a u_z dof)."""

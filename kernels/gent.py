@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def jacobian_derivs(f: np.ndarray, dJ: np.ndarray, d2J: np.ndarray) -> float:
     """``J`` of ``f``; fills its gradient ``dJ`` (5,) and Hessian ``d2J`` (5, 5)."""
     a = f[0] * f[3] - f[1] * f[2]
@@ -38,7 +38,7 @@ def jacobian_derivs(f: np.ndarray, dJ: np.ndarray, d2J: np.ndarray) -> float:
     return J
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def gent_iso(f, mu, jm, want, dpsi, d2psi, dJ, d2J):
     """Isochoric Gent energy density and (for ``want >= 1``/``2``) its first/second derivatives.
 
