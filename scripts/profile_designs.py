@@ -9,6 +9,12 @@ it, with the mesh re-check), warm, the median of ``--repeat`` runs. ``--repo DIR
 checkout (e.g. a git worktree of an older commit, with a ``snapjump_kernels -> kernels`` link).
 Prints a markdown table. With the compiled corrector the per-assembly and per-factorisation times
 need ``SNAPJUMP_PROFILE_PHASES=1`` (the Python corrector, whose timers split the phases).
+
+    .venv/bin/python scripts/profile_designs.py --kernels D
+
+times each kernel of one Newton iteration (CPU time per call, 600 calls) at the middle point of
+the design's path: the element pass with the stiffness, with the residual only and with the
+energy only, the bordered band LDL^T and one refined bordered solve.
 """
 from __future__ import annotations
 
@@ -60,12 +66,58 @@ def startup() -> int:
     return 0
 
 
+def kernels(name: str, calls: int = 600) -> int:
+    """CPU time per call of the kernels of one Newton iteration at a path state of ``name``."""
+    import numpy as np
+
+    from snapjump_cli.config import load_config
+    from snapjump_cli.designs import get_design
+    from snapjump_cli.solve import solve_scene
+    from snapjump_kernels.assembly import evaluate
+    from snapjump_kernels.banded import bordered_factor, bordered_solve
+
+    cfg = load_config(REPO / "configs" / "paper_grid.yaml")
+    r = solve_scene(get_design(name), cfg.mesh, cfg.solver)
+    m = r.model
+    pt = r.path.points[len(r.path.points) // 2]
+
+    def element_pass(want):
+        R, g, data = np.zeros(m.n), np.zeros(m.n), np.zeros(m.ndata)
+        evaluate(pt.u, m.dofmap, m.X, m.conn, m.mat, m.mu, m.jm, m.kappa, m.dNdX, m.N_ref, m.Rq, m.Wq, m.Np,
+                 m.Minv, m.edofs, m.epos, m.edges, m.edge_dofs, m.edge_pos, pt.p, want, R, g, data, *m._no_aux())
+        return g, data
+
+    def per_call(f):
+        f()
+        t0 = time.process_time()
+        for _ in range(calls):
+            f()
+        return 1e3 * (time.process_time() - t0) / calls
+
+    g, data = element_pass(2)
+    K = data.reshape(m.n, m.kl + 1)
+    c = np.random.default_rng(0).random(m.n)
+    fac = bordered_factor(K, m.band_ext, -g, c, 0.1)
+    rhs = np.random.default_rng(1).random(m.n + 1)
+    print(f"{name}: {m.n} dofs, {m.conn.shape[0]} elements, half-bandwidth {m.kl}, mean envelope "
+          f"{float(np.mean(m.band_ext)):.1f}; load average {os.getloadavg()[0]:.2f}; ms (CPU) per call:")
+    for label, f in (("element pass, stiffness", lambda: element_pass(2)),
+                     ("element pass, residual", lambda: element_pass(1)),
+                     ("element pass, energy", lambda: element_pass(0)),
+                     ("bordered band LDL^T", lambda: bordered_factor(K, m.band_ext, -g, c, 0.1)),
+                     ("refined bordered solve",
+                      lambda: bordered_solve(fac[2], K, m.band_ext, -g, c, 0.1, fac[3], fac[4], rhs, True))):
+        print(f"  {label}: {per_call(f):.3f}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--designs", nargs="*", default=["D", "C", "grid-0037", "grid-1543"])
     ap.add_argument("--sweep", action="store_true", help="solve_design (with the mesh re-check)")
     ap.add_argument("--repo", default=str(REPO))
+    ap.add_argument("--kernels", metavar="DESIGN", help="only time the kernels of one iteration at a path state")
     ap.add_argument("--startup", action="store_true",
                     help="only the start-up costs of a fresh process: imports, first and second solve of a cap")
     a = ap.parse_args(argv)
@@ -73,6 +125,8 @@ def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(repo))
     if a.startup:
         return startup()
+    if a.kernels:
+        return kernels(a.kernels)
     from snapjump_cli.config import load_config
     from snapjump_cli.designs import get_design
     from snapjump_cli.geometry import Design
