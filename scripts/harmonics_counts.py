@@ -1,6 +1,7 @@
 """The figures of docs/harmonics.md section 9 from a sweep run with the harmonic check.
 
     .venv/bin/python scripts/harmonics_counts.py results/paper_grid_h4.parquet [--top 20]
+        [--crossing results/paper_grid.parquet]
 
 Prints: the designs by status; among the valid ones, how many lose stability to a harmonic before
 V* and by which n (overall and by stiffness ratio); where (``asym_V_m3 / V_star_m3`` and
@@ -29,17 +30,33 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("results", type=Path)
     ap.add_argument("--top", type=int, default=20)
+    ap.add_argument("--crossing", type=Path, metavar="RESULTS",
+                    help="take self_crossing from this result file of the same designs (e.g. a run of the "
+                         "current code when the checked run mixes code versions)")
     a = ap.parse_args(argv)
     from snapjump_cli.rank import rank_results, top_table
     from snapjump_cli.results import read_results
 
     df = read_results(a.results)
+    if a.crossing is not None:
+        other = read_results(a.crossing)
+        sc_map = dict(zip(_key(other), other["self_crossing"]))
+        keys = _key(df)
+        missing = int((~keys.isin(sc_map.keys())).sum())
+        if missing:
+            print(f"warning: {missing} designs not in {a.crossing}")
+        new = keys.map(sc_map).astype("boolean").fillna(df["self_crossing"].astype("boolean"))
+        ok = (df["status"] == "ok").to_numpy()
+        changed = int((new.fillna(False).to_numpy(bool) != df["self_crossing"].astype("boolean").fillna(False)
+                       .to_numpy(bool))[ok].sum())
+        df["self_crossing"] = new
+        print(f"self_crossing taken from {a.crossing} ({changed} ok rows differ from the checked run's own)")
     print(f"{len(df)} rows: " + ", ".join(f"{k} {v}" for k, v in df["status"].value_counts().items()))
     ok = df[df["status"] == "ok"].copy()
     if ok["asym_first"].isna().any():
         print(f"warning: {int(ok['asym_first'].isna().sum())} ok rows without the harmonic check")
     asym = ok["asym_first"].astype("boolean").fillna(False).to_numpy(bool)
-    sc = ok["self_crossing"].astype(bool).to_numpy()
+    sc = ok["self_crossing"].astype("boolean").fillna(False).to_numpy(bool)
     n = len(ok)
     print(f"\nvalid (ok): {n}; a harmonic unstable before V*: {asym.sum()} ({asym.mean():.1%}), stable up to V*: {(~asym).sum()}")
     print("first harmonic:", ok.loc[asym, "asym_n"].value_counts().sort_index().to_dict())

@@ -270,4 +270,7 @@ def top_table(ranked: pd.DataFrame, n: int = 10) -> str:
     fmt.update({k: (lambda x: "-" if pd.isna(x) else ("yes" if x else "no")) for k in
                 ("jumped", "jump_complete", "self_crossing", "mesh_sensitive")})
     fmt["asym_n"] = lambda x: "-" if pd.isna(x) else f"{int(x)}"
-    return table.to_string(index=False, formatters={k: f for k, f in fmt.items() if k in table.columns}, na_rep="-")
+    # formatted here, not through to_string's formatters: pandas leaves <NA> of nullable columns as is
+    other = lambda x: "-" if pd.isna(x) else str(x)  # noqa: E731
+    shown = pd.DataFrame({k: [fmt.get(k, other)(x) for x in table[k]] for k in table.columns})
+    return shown.to_string(index=False)

@@ -217,5 +217,10 @@ def test_asymmetric_designs_are_flagged_or_excluded(tmp_path, capsys, results_fi
     assert code == 0 and sum(r["rank"] is not None for r in rows) == n_ranked - 1
     ranked = res.read_results(tmp_path / "b.parquet")
     assert ranked["jump_reason"].str.contains("harmonic n = 2 loses stability").sum() == 1
+    code, out, _ = _run(capsys, str(f), "-o", str(tmp_path / "t.parquet"), "--top", "20")
+    assert code == 0 and "<NA>" not in out  # the stable designs' empty asym_n shows as "-"
+    col = out.splitlines()[1].split().index("asym_n")
+    cells = [line.split()[col] for line in out.splitlines()[2:] if len(line.split()) > col]
+    assert cells.count("2") == 1 and set(cells) <= {"2", "-"}
     code, out, _ = _run(capsys, str(results_file), "-o", str(tmp_path / "c.parquet"))
     assert "asym_n" not in out  # no harmonic check in the file: no column
