@@ -4,6 +4,8 @@
     .venv/bin/python scripts/newton_study.py history --design D         # Newton residuals per step
     .venv/bin/python scripts/newton_study.py perturb --design D         # Newton from perturbed states
     .venv/bin/python scripts/newton_study.py recheck results/paper_grid.parquet   # nt 2 vs nt 3 re-check
+    .venv/bin/python scripts/newton_study.py pressure --design D        # element pressure at predictions
+    .venv/bin/python scripts/newton_study.py accepted --design D        # residual of the accepted states
 
 ``variants`` solves the first N valid, snapping designs of the seeded benchmark sample (the grid
 rows of bench/regression/baseline.json) as the sweep does and prints the assemblies, steps and
@@ -12,7 +14,11 @@ dy_pole, h_imp and of the flags against the baseline, for the current settings, 
 1e-4, 1e-3 and n_opt 3 and 6. ``history`` prints the relative residual of every Newton iteration of
 every corrector call (the Python corrector). ``perturb`` runs a pressure-controlled Newton from
 states between two path points. ``recheck`` reads a result file and prints how far the nt = 3
-re-check moved dE and dy_pole on the rows whose lower state is off the path.
+re-check moved dE and dy_pole on the rows whose lower state is off the path. ``pressure`` prints,
+for the path steps, how far the condensed element pressure ``kappa M^-1 g(u)`` of the predicted
+state is from that of the accepted state (relative, whole field): the reason for the mixed
+linearisation (docs/numerics.md). ``accepted`` prints the relative residual of the path states
+that the error test accepted (median, 90th percentile, largest).
 """
 from __future__ import annotations
 
@@ -136,6 +142,59 @@ def _recheck(a: argparse.Namespace) -> None:
               f"90 % {rel.quantile(0.9):.2%}, max {rel.max():.2%}")
 
 
+def _riks_calls(design: str, record):
+    """Solve ``design`` through the Python corrector; ``record(tracer, u_pred, p_pred, result)`` is
+    called after every Riks corrector call that converged with the error test."""
+    os.environ["SNAPJUMP_PROFILE_PHASES"] = "1"
+    from snapjump_cli import continuation as C
+    from snapjump_cli.config import load_config
+    from snapjump_cli.solve import solve_scene
+
+    orig = C.Tracer.correct
+
+    def correct(self, u, p, z0, t, ds, target=None, tol=None, aux=None, error_test=False):
+        res = orig(self, u, p, z0, t, ds, target, tol, aux, error_test)
+        if res is not None and target is None and error_test:
+            record(self, u, p, res[0])
+        return res
+
+    C.Tracer.correct = correct
+    try:
+        cfg = load_config(REPO / "configs" / "paper_grid.yaml")
+        return solve_scene(_design(design), cfg.mesh, cfg.solver).metrics
+    finally:
+        C.Tracer.correct = orig
+
+
+def _pressure(a: argparse.Namespace) -> None:
+    errs = []
+
+    def record(tr, u, p, acc):
+        pred = tr.pb.linearize(u, p).aux
+        final = tr.pb.linearize(acc.u, acc.p).aux
+        errs.append(float(np.linalg.norm(pred - final) / np.linalg.norm(final)))
+
+    m = _riks_calls(a.design, record)
+    e = np.array(errs)
+    print(f"{a.design}: {len(e)} path steps; condensed element pressure of the predicted state against the "
+          f"accepted one (relative): min {e.min():.2g}, median {np.median(e):.2g}, max {e.max():.3g} "
+          f"({m['n_steps']} steps, {m['n_newton']} Newton iterations)")
+
+
+def _accepted(a: argparse.Namespace) -> None:
+    out = []
+
+    def record(tr, u, p, acc):
+        lin = tr.pb.linearize(acc.u, acc.p)
+        ref = np.linalg.norm(lin.g) * max(abs(acc.p), 1e-3 * tr.sc[1])
+        out.append(float(np.linalg.norm(lin.R) / ref))
+
+    _riks_calls(a.design, record)
+    r = np.array(out)
+    print(f"{a.design}: {len(r)} path states accepted by the error test; residual / pressure load: median "
+          f"{np.median(r):.2g}, 90th percentile {np.quantile(r, 0.9):.2g}, largest {r.max():.2g}")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="what", required=True)
@@ -149,8 +208,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--design", default="D")
     r = sub.add_parser("recheck")
     r.add_argument("results", type=Path, help="a result file, or the .parts folder of an unfinished sweep")
+    for name in ("pressure", "accepted"):
+        sub.add_parser(name).add_argument("--design", default="D")
     a = ap.parse_args(argv)
-    {"variants": _variants, "history": _history, "perturb": _perturb, "recheck": _recheck}[a.what](a)
+    {"variants": _variants, "history": _history, "perturb": _perturb, "recheck": _recheck, "pressure": _pressure,
+     "accepted": _accepted}[a.what](a)
     return 0
 
 

@@ -46,8 +46,9 @@ def element_flops(nen: int, nq: int, npr: int) -> float:
     return nq * per_q + vol + 2 * lower  # + scatter
 
 
-def startup() -> int:
-    """Start-up costs of ``snapjump curve`` in this fresh process (the thin clamped cap)."""
+def startup(profile: bool = False) -> int:
+    """Start-up costs of ``snapjump curve`` in this fresh process (the thin clamped cap); with
+    ``profile``, the first solve's largest costs by cProfile (cumulative)."""
     t0 = time.perf_counter()
     import snapjump_cli.commands.curve  # noqa: F401 - what the command imports first
     t1 = time.perf_counter()
@@ -56,7 +57,15 @@ def startup() -> int:
     from snapjump_cli.solve import solve_scene
     t2 = time.perf_counter()
     cap = CapScene(theta_deg=60.0, eta=30.0, bc="clamped")
-    m1 = solve_scene(cap, MeshSettings(), SolverSettings()).metrics
+    if profile:
+        import cProfile
+        import pstats
+
+        prof = cProfile.Profile()
+        m1 = prof.runcall(solve_scene, cap, MeshSettings(), SolverSettings()).metrics
+        pstats.Stats(prof).sort_stats("cumulative").print_stats(25)
+    else:
+        m1 = solve_scene(cap, MeshSettings(), SolverSettings()).metrics
     t3 = time.perf_counter()
     m2 = solve_scene(cap, MeshSettings(), SolverSettings()).metrics
     t4 = time.perf_counter()
@@ -118,13 +127,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sweep", action="store_true", help="solve_design (with the mesh re-check)")
     ap.add_argument("--repo", default=str(REPO))
     ap.add_argument("--kernels", metavar="DESIGN", help="only time the kernels of one iteration at a path state")
+    ap.add_argument("--profile", action="store_true", help="with --startup: cProfile of the first solve")
     ap.add_argument("--startup", action="store_true",
                     help="only the start-up costs of a fresh process: imports, first and second solve of a cap")
     a = ap.parse_args(argv)
     repo = Path(a.repo).resolve()
     sys.path.insert(0, str(repo))
     if a.startup:
-        return startup()
+        return startup(a.profile)
     if a.kernels:
         return kernels(a.kernels)
     from snapjump_cli.config import load_config
