@@ -38,14 +38,27 @@ class SolveFailed(RuntimeError):
 
 @dataclass
 class SceneResult:
-    """Metrics (``metrics``, SI units, the stable keys) and the traced path (``curve``)."""
+    """Metrics (``metrics``, SI units, the stable keys) and the traced path (``curve``, computed
+    when first asked for: the sweep never needs it, and it costs an energy pass per path point)."""
 
     metrics: dict
-    curve: dict = field(default_factory=dict)
     model: Model | None = None
     path: Path | None = None
     states: SnapStates | None = None
     tracer: Tracer | None = None
+    curve_args: tuple | None = field(default=None, repr=False)  # (scales, V0) for :func:`scene_curve`
+    _curve: dict | None = field(default=None, init=False, repr=False)
+
+    @property
+    def curve(self) -> dict:
+        """The traced path in SI units (:func:`snapjump_cli.metrics.scene_curve`); ``{}`` without
+        a path."""
+        if self._curve is None:
+            if self.curve_args is None or self.model is None or self.path is None:
+                self._curve = {}
+            else:
+                self._curve = scene_curve(self.model, self.path, self.states, *self.curve_args)
+        return self._curve
 
 
 def _scales(scene: Design | CapScene) -> dict:
@@ -136,8 +149,7 @@ def solve_scene(
         t_newton_s=model.t_newton, n_factorizations=model.n_factorizations, n_assemblies=model.n_assemblies,
         wall_s=time.perf_counter() - t0,
     )
-    curve = scene_curve(model, path, st, scales, V0)
-    return SceneResult(metrics=metrics, curve=curve, model=model, path=path, states=st, tracer=tracer)
+    return SceneResult(metrics=metrics, model=model, path=path, states=st, tracer=tracer, curve_args=(scales, V0))
 
 
 def _trace(scene: Design | CapScene, model: Model, solver: SolverSettings, V0: float
