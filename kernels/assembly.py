@@ -322,6 +322,20 @@ def quadrature_jacobians(u, conn, dNdX, N_ref, Rq):
     return out
 
 
+@njit(cache=True, inline="always")
+def nodal_displacements(u, dofmap):
+    """The (n_nodes, 2) displacements of the free-dof vector ``u`` (``dofmap[node, component]``:
+    free dof or -1 for a constrained, zero one)."""
+    nn = dofmap.shape[0]
+    U = np.zeros((nn, 2))
+    for a in range(nn):
+        for c in range(2):
+            k = dofmap[a, c]
+            if k >= 0:
+                U[a, c] = u[k]
+    return U
+
+
 @njit(cache=True)
 def evaluate(u, dofmap, X, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, epos,
              edges, edge_dofs, edge_pos, p, want, R_out, g_out, data_out, p_geo, pb_out, H_out):
@@ -338,13 +352,7 @@ def evaluate(u, dofmap, X, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Mi
     (energy, ok, V) : the strain energy, False outside the material domain, the cavity volume
         (without any offset)
     """
-    nn = dofmap.shape[0]
-    U = np.zeros((nn, 2))
-    for a in range(nn):
-        for c in range(2):
-            k = dofmap[a, c]
-            if k >= 0:
-                U[a, c] = u[k]
+    U = nodal_displacements(u, dofmap)
     E, ok, _ = assemble(U, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, epos, want, R_out,
                         data_out, p_geo, pb_out, H_out)
     V = cavity_assemble(X + U, edges, edge_dofs, edge_pos, -p, max(want, 1), g_out, data_out)
@@ -357,12 +365,6 @@ def evaluate(u, dofmap, X, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Mi
 def cavity_state(u, dofmap, X, edges, edge_dofs, edge_pos, g_out):
     """Cavity volume (without any offset) at the free-dof displacement ``u``; fills ``g_out`` with
     ``dV/du`` (zeroed here). The cavity part of :func:`evaluate` alone (no element pass)."""
-    nn = dofmap.shape[0]
-    U = np.zeros((nn, 2))
-    for a in range(nn):
-        for c in range(2):
-            k = dofmap[a, c]
-            if k >= 0:
-                U[a, c] = u[k]
+    U = nodal_displacements(u, dofmap)
     g_out[:] = 0.0
     return cavity_assemble(X + U, edges, edge_dofs, edge_pos, 0.0, 1, g_out, np.zeros(1))
