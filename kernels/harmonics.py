@@ -33,6 +33,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from snapjump_kernels.assembly import _deformation
 from snapjump_kernels.cavity import _edge_shape
 from snapjump_kernels.gent import gent_iso
 
@@ -164,19 +165,7 @@ def harmonic_element_matrices(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, 
         g[:] = 0.0
         for q in range(nq):
             # the axisymmetric deformation gradient f = [F_rR, F_rZ, F_zR, F_zZ, F_phiPhi]
-            f[0] = 1.0
-            f[1] = 0.0
-            f[2] = 0.0
-            f[3] = 1.0
-            ur = 0.0
-            for a in range(nen):
-                nd_ = conn[e, a]
-                f[0] += U[nd_, 0] * dNdX[e, q, a, 0]
-                f[1] += U[nd_, 0] * dNdX[e, q, a, 1]
-                f[2] += U[nd_, 1] * dNdX[e, q, a, 0]
-                f[3] += U[nd_, 1] * dNdX[e, q, a, 1]
-                ur += U[nd_, 0] * N_ref[q, a]
-            f[4] = 1.0 + ur / Rq[e, q]
+            _deformation(U, conn[e], dNdX[e, q], N_ref[q], Rq[e, q], f)
             for k in range(5):
                 fq[q, k] = f[k]
             ok, psi, J = gent_iso(f, mu_e, jm_e, 2, dpsi[q], d2psi[q], dJq[q], d2Jq[q])
