@@ -230,8 +230,8 @@ class Tracer:
         rhs = np.zeros(self.pb.n + 1)
         rhs[-1] = 1.0
         t, v, q, z, _ = self._unit_tangent(lin, solver.solve(rhs))
-        self.last_det_sign = _det_sign(solver)
         self.last_n_neg = int(getattr(solver, "n_negative", -1))
+        self.last_det_sign = _det_sign(self.last_n_neg, getattr(solver, "schur", None))
         return t, v, q, z
 
     def _unit_tangent(self, lin, x: np.ndarray):
@@ -262,13 +262,10 @@ class Tracer:
             aux = getattr(lin, "aux", None)
             return t, v, q, z, aux, None
         t, v, q, z, nrm = self._unit_tangent(lin, x)
-        if solver is not None:
-            self.last_det_sign = _det_sign(solver)
-            self.last_n_neg = int(getattr(solver, "n_negative", -1))
-        else:
-            n_neg, schur = lin.tangent_inertia
-            self.last_n_neg = int(n_neg)
-            self.last_det_sign = (-1) ** int(n_neg) * (1 if schur > 0 else -1)
+        n_neg, schur = ((getattr(solver, "n_negative", -1), getattr(solver, "schur", None)) if solver is not None
+                        else lin.tangent_inertia)
+        self.last_n_neg = int(n_neg)
+        self.last_det_sign = _det_sign(n_neg, schur)
         aux = getattr(lin, "aux_next", None)
         if aux is None:
             aux = getattr(lin, "aux", None)
@@ -400,14 +397,13 @@ class Tracer:
         return PathPoint(lin.u, lin.p, z, t, v, q, pt.s + ds, it, self.last_det_sign, self.last_n_neg, aux, daux)
 
 
-def _det_sign(solver) -> int:
-    """Sign of the determinant of a factorised bordered matrix, if the solver knows its inertia:
-    ``det [[K, b], [c^T, d]] = det K * (d - c^T K^-1 b)``."""
-    nneg = getattr(solver, "n_negative", -1)
-    schur = getattr(solver, "schur", None)
-    if nneg < 0 or schur is None:
+def _det_sign(n_neg: int, schur: float | None) -> int:
+    """Sign of the determinant of a factorised bordered matrix from the inertia of ``K``
+    (``n_neg`` negative pivots, -1 if unknown) and the Schur complement:
+    ``det [[K, b], [c^T, d]] = det K * (d - c^T K^-1 b)``; 0 if unknown."""
+    if n_neg < 0 or schur is None:
         return 0
-    return (-1) ** nneg * (1 if schur > 0 else -1)
+    return (-1) ** int(n_neg) * (1 if schur > 0 else -1)
 
 
 def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0, t_prev: np.ndarray | None = None) -> PathPoint:
