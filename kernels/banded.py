@@ -58,11 +58,12 @@ _NB = 6
 
 
 @njit(fastmath={"reassoc", "contract"}, cache=True)
-def _dot(a: np.ndarray, b: np.ndarray) -> float:
+def dot_any_order(a: np.ndarray, b: np.ndarray) -> float:
     """``a @ b`` of two equally long vectors, summed in any order (so that LLVM vectorises it).
 
     Reassociation and fused multiply-adds only (no assumptions about NaN or infinity), and only
-    here: the result differs from the sequential sum by round-off.
+    here: the result differs from the sequential sum by round-off. Also the element stiffness's
+    products (:mod:`snapjump_kernels.assembly`).
     """
     s = 0.0
     for k in range(a.size):
@@ -181,7 +182,7 @@ def _solve_in_place(fac: np.ndarray, x: np.ndarray, ext: np.ndarray) -> None:
         x[j] = xj / fac[j, 0]
     for j in range(n - 1, -1, -1):  # L^T x = z (row by row: a dot product)
         m = ext[j]
-        x[j] -= _dot(fac[j, 1:m + 1], x[j + 1:j + m + 1])
+        x[j] -= dot_any_order(fac[j, 1:m + 1], x[j + 1:j + m + 1])
 
 
 @njit(cache=True)
@@ -190,7 +191,7 @@ def band_ldlt_solve(fac: np.ndarray, b: np.ndarray, ext: np.ndarray) -> np.ndarr
 
     The forward substitution runs over the columns of ``L`` (contiguous axpys, with the division
     by ``D`` in the same pass), the backward one over the same columns as rows of ``L^T`` (dot
-    products, summed in any order by :func:`_dot`): 1.9-2.2x faster than with sequential sums,
+    products, summed in any order by :func:`dot_any_order`): 1.9-2.2x faster than with sequential sums,
     and equal to them to round-off (1e-14 to 2e-13 relative on D and C).
     """
     x = b.copy()
@@ -210,14 +211,14 @@ def _matvec_into(ab: np.ndarray, x: np.ndarray, ext: np.ndarray, y: np.ndarray) 
         ys = y[j + 1:j + m + 1]
         for k in range(m):  # the lower triangle: column j
             ys[k] += aj[k] * xj
-        y[j] += ab[j, 0] * xj + _dot(aj, x[j + 1:j + m + 1])  # the upper: row j (complete now)
+        y[j] += ab[j, 0] * xj + dot_any_order(aj, x[j + 1:j + m + 1])  # the upper: row j (complete now)
 
 
 @njit(cache=True)
 def sym_band_matvec(ab: np.ndarray, x: np.ndarray, ext: np.ndarray) -> np.ndarray:
     """``A @ x`` for the symmetric matrix whose lower band is ``ab`` (unfactorised).
 
-    Column ``j`` of the lower triangle is an axpy and row ``j`` of the upper one a :func:`_dot`
+    Column ``j`` of the lower triangle is an axpy and row ``j`` of the upper one a :func:`dot_any_order`
     (2-2.5x faster than one loop doing both, which cannot vectorise).
     """
     y = np.empty(ab.shape[0])
