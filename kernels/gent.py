@@ -68,8 +68,8 @@ def gent_iso(f, mu, jm, want, dpsi, d2psi, dJ, d2J):
         if want >= 2:
             b = 0.5 * mu / (jm * arg * arg)  # d2psi/dIb2
             inv_a = 1.0 / a
-            for k in range(5):
-                for m in range(5):
+            for k in range(5):  # symmetric: the upper triangle, mirrored
+                for m in range(k, 5):
                     d2 = (
                         -cJ * (2.0 * f[k] * dJ[m] + 2.0 * f[m] * dJ[k])
                         + (10.0 / 9.0) * c / (J * J) * I1 * dJ[k] * dJ[m]
@@ -78,5 +78,7 @@ def gent_iso(f, mu, jm, want, dpsi, d2psi, dJ, d2J):
                     if k == m:
                         d2 += 2.0 * c
                     # dpsi[k] / a = dIb_k
-                    d2psi[k, m] = a * d2 + b * (dpsi[k] * inv_a) * (dpsi[m] * inv_a)
+                    v = a * d2 + b * (dpsi[k] * inv_a) * (dpsi[m] * inv_a)
+                    d2psi[k, m] = v
+                    d2psi[m, k] = v
     return True, psi, J
