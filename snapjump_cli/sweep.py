@@ -75,9 +75,9 @@ log = logging.getLogger(__name__)
 #: Largest sweep run without being asked explicitly (``max_designs`` / ``--max-designs``).
 MAX_DESIGNS = 100_000
 #: CPU seconds per solved design on the paper grid's mesh (order 2, nt 2, aspect 3; 2-core Xeon
-#: at 2.5 GHz: the mean over the full paper grid of 23 November 2026, docs/performance.md), the
-#: basis of the time estimate printed before a sweep.
-CPU_S_PER_DESIGN = 0.95
+#: at 2.5 GHz: the mean over the full paper grid of 23 November 2026 at commit 745b426,
+#: docs/performance.md), the basis of the time estimate printed before a sweep.
+CPU_S_PER_DESIGN = 0.60
 
 
 @dataclass
