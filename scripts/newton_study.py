@@ -4,6 +4,9 @@
     .venv/bin/python scripts/newton_study.py history --design D         # Newton residuals per step
     .venv/bin/python scripts/newton_study.py perturb --design D         # Newton from perturbed states
     .venv/bin/python scripts/newton_study.py recheck results/paper_grid.parquet   # nt 2 vs nt 3 re-check
+    .venv/bin/python scripts/newton_study.py recheck results/paper_grid.parquet --flags -j 2   # ... and flags
+    .venv/bin/python scripts/newton_study.py predictor --design D       # predictor errors per step
+    .venv/bin/python scripts/newton_study.py turning --design D         # where the path turns
     .venv/bin/python scripts/newton_study.py pressure --design D        # element pressure at predictions
     .venv/bin/python scripts/newton_study.py accepted --design D        # residual of the accepted states
 
@@ -14,7 +17,13 @@ dy_pole, h_imp and of the flags against the baseline, for the current settings, 
 1e-4, 1e-3 and n_opt 3 and 6. ``history`` prints the relative residual of every Newton iteration of
 every corrector call (the Python corrector). ``perturb`` runs a pressure-controlled Newton from
 states between two path points. ``recheck`` reads a result file and prints how far the nt = 3
-re-check moved dE and dy_pole on the rows whose lower state is off the path. ``pressure`` prints,
+re-check moved dE and dy_pole on the rows whose lower state is off the path; with ``--flags`` it
+also solves those designs again at the grid's mesh (nt = 2, no re-check) and compares their
+``self_crossing`` flag and lower-state method with the reported (nt = 3) ones: whether the re-check
+needs its own trace. ``predictor`` measures, on the traced path, how far the tangent, the cubic
+Hermite (the one used) and a quintic Hermite through three points predict each next point
+(relative to the step, in the arc-length metric). ``turning`` prints the median turn per step after
+the snap in each plane of the measures: what limits the steps. ``pressure`` prints,
 for the path steps, how far the condensed element pressure ``kappa M^-1 g(u)`` of the predicted
 state is from that of the accepted state (relative, whole field): the reason for the mixed
 linearisation (docs/numerics.md). ``accepted`` prints the relative residual of the path states
@@ -140,6 +149,103 @@ def _recheck(a: argparse.Namespace) -> None:
         rel = ((d[col] - d[coarse]).abs() / d[col]).dropna()
         print(f"{col}: {len(rel)} rows re-checked at nt = 3; change median {rel.median():.2%}, "
               f"90 % {rel.quantile(0.9):.2%}, max {rel.max():.2%}")
+    if a.flags:
+        from joblib import Parallel, delayed
+
+        params = [tuple(float(r[k]) for k in ("eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio"))
+                  for _, r in d.iterrows()]
+        got = Parallel(n_jobs=a.jobs)(delayed(_coarse_flags)(x) for x in params)
+        sc_nt3 = [bool(v) for v in d["self_crossing"]]
+        same = sum(g[0] == s3 for g, s3 in zip(got, sc_nt3))
+        methods = Counter(g[1] for g in got)
+        print(f"the {len(got)} rows solved again at nt = 2 (no re-check): lower state {dict(methods)}; "
+              f"self_crossing equal to the reported (nt = 3) one on {same}")
+        for g, s3, x in zip(got, sc_nt3, params):
+            if g[0] != s3:
+                print(f"  {x}: nt 2 {g[0]}, nt 3 {s3}")
+
+
+def _coarse_flags(params: tuple) -> tuple:
+    """``(self_crossing, lower_state_method)`` of a grid design solved at the grid's mesh alone."""
+    from snapjump_cli.config import load_config
+    from snapjump_cli.geometry import Design
+    from snapjump_cli.solve import SolveFailed, solve_scene
+
+    cfg = load_config(REPO / "configs" / "paper_grid.yaml")
+    keys = ("eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio")
+    try:
+        m = solve_scene(Design(**dict(zip(keys, params))), cfg.mesh, cfg.solver).metrics
+    except SolveFailed as exc:
+        return None, f"failed: {exc}"[:60]
+    return bool(m["self_crossing"]), m["lower_state_method"]
+
+
+def _grid_solve(name: str):
+    """The scene result of ``name`` solved at the paper grid's mesh (no re-check)."""
+    from snapjump_cli.config import load_config
+    from snapjump_cli.solve import solve_scene
+
+    cfg = load_config(REPO / "configs" / "paper_grid.yaml")
+    return solve_scene(_design(name), cfg.mesh, cfg.solver)
+
+
+def _hermite(nodes, vals, ders, x):
+    """Hermite interpolation of values and first derivatives at ``nodes``, evaluated at ``x``."""
+    z = np.repeat(nodes, 2)
+    prev = [vals[i // 2] for i in range(len(z))]
+    coef = [prev[0]]
+    for j in range(1, len(z)):
+        prev = [ders[i // 2] if z[i + j] == z[i] else (prev[i + 1] - prev[i]) / (z[i + j] - z[i])
+                for i in range(len(z) - j)]
+        coef.append(prev[0])
+    out = coef[-1]
+    for j in range(len(z) - 2, -1, -1):
+        out = coef[j] + (x - z[j]) * out
+    return out
+
+
+def _predictor(a: argparse.Namespace) -> None:
+    r = _grid_solve(a.design)
+    tr, pts = r.tracer, r.path.points
+    al = tr.alpha
+
+    def x(pt):
+        return np.concatenate([pt.u, [pt.p]])
+
+    def dx(pt):
+        return np.concatenate([pt.du_ds, [pt.dp_ds]])
+
+    err = {"tangent": [], "cubic Hermite (used)": [], "quintic Hermite": []}
+    for k in range(3, len(pts) - 1):
+        p0, p1, p2, p3 = pts[k - 2], pts[k - 1], pts[k], pts[k + 1]
+        ds = p3.s - p2.s
+        preds = {"tangent": x(p2) + ds * dx(p2),
+                 "cubic Hermite (used)": _hermite(np.array([p1.s, p2.s]), [x(p1), x(p2)], [dx(p1), dx(p2)], p3.s),
+                 "quintic Hermite": _hermite(np.array([p0.s, p1.s, p2.s]), [x(p0), x(p1), x(p2)],
+                                             [dx(p0), dx(p1), dx(p2)], p3.s)}
+        for name, pr in preds.items():
+            z, _, _ = tr.zeta(pr[:-1], pr[-1])
+            dz, du = z - p3.zeta, al * (pr[:-1] - p3.u)
+            err[name].append(float(np.sqrt(dz @ dz + du @ du)) / ds)
+    for name, e in err.items():
+        print(f"{a.design}, {name}: predictor error / step, 10 / 50 / 90 %: "
+              + " / ".join(f"{v:.2g}" for v in np.percentile(e, [10, 50, 90])))
+
+
+def _turning(a: argparse.Namespace) -> None:
+    r = _grid_solve(a.design)
+    pts, kb = r.path.points, r.states.k_before
+    T = np.array([pt.tangent for pt in pts[kb:]])
+
+    def turn(idx):
+        a_, b_ = T[:-1][:, idx], T[1:][:, idx]
+        c = np.sum(a_ * b_, axis=1) / (np.linalg.norm(a_, axis=1) * np.linalg.norm(b_, axis=1))
+        return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+
+    print(f"{a.design}: {len(T) - 1} steps after the volume limit; median (90 %) turn per step in degrees:")
+    for label, idx in (("(V, p)", [0, 1]), ("(V, w)", [0, 2]), ("(p, w)", [1, 2]), ("(V, p, w)", [0, 1, 2])):
+        t = turn(idx)
+        print(f"  {label}: {np.median(t):.2f} ({np.percentile(t, 90):.2f})")
 
 
 def _riks_calls(design: str, record):
@@ -208,11 +314,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--design", default="D")
     r = sub.add_parser("recheck")
     r.add_argument("results", type=Path, help="a result file, or the .parts folder of an unfinished sweep")
-    for name in ("pressure", "accepted"):
+    r.add_argument("--flags", action="store_true", help="also solve the off-path rows at nt = 2 and compare flags")
+    r.add_argument("-j", "--jobs", type=int, default=2)
+    for name in ("pressure", "accepted", "predictor", "turning"):
         sub.add_parser(name).add_argument("--design", default="D")
     a = ap.parse_args(argv)
     {"variants": _variants, "history": _history, "perturb": _perturb, "recheck": _recheck, "pressure": _pressure,
-     "accepted": _accepted}[a.what](a)
+     "accepted": _accepted, "predictor": _predictor, "turning": _turning}[a.what](a)
     return 0
 
 

@@ -14,11 +14,13 @@ need ``SNAPJUMP_PROFILE_PHASES=1`` (the Python corrector, whose timers split the
 
 times each kernel of one Newton iteration (CPU time per call, 600 calls) at the middle point of
 the design's path: the element pass with the stiffness, with the residual only and with the
-energy only, the bordered band LDL^T and one refined bordered solve.
+energy only, the bordered band LDL^T and one refined bordered solve (``--nt 3``: on the mesh of
+the re-check).
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import statistics
 import sys
@@ -75,8 +77,9 @@ def startup(profile: bool = False) -> int:
     return 0
 
 
-def kernels(name: str, calls: int = 600) -> int:
-    """CPU time per call of the kernels of one Newton iteration at a path state of ``name``."""
+def kernels(name: str, calls: int = 600, nt: int | None = None) -> int:
+    """CPU time per call of the kernels of one Newton iteration at a path state of ``name`` (at the
+    grid's mesh, or with ``nt`` elements through the thickness)."""
     import numpy as np
 
     from snapjump_cli.config import load_config
@@ -86,7 +89,8 @@ def kernels(name: str, calls: int = 600) -> int:
     from snapjump_kernels.banded import bordered_factor, bordered_solve
 
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")
-    r = solve_scene(get_design(name), cfg.mesh, cfg.solver)
+    mesh = cfg.mesh if nt is None else dataclasses.replace(cfg.mesh, nt=nt)
+    r = solve_scene(get_design(name), mesh, cfg.solver)
     m = r.model
     pt = r.path.points[len(r.path.points) // 2]
 
@@ -127,6 +131,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sweep", action="store_true", help="solve_design (with the mesh re-check)")
     ap.add_argument("--repo", default=str(REPO))
     ap.add_argument("--kernels", metavar="DESIGN", help="only time the kernels of one iteration at a path state")
+    ap.add_argument("--nt", type=int, help="with --kernels: elements through the thickness (default: the grid's)")
     ap.add_argument("--profile", action="store_true", help="with --startup: cProfile of the first solve")
     ap.add_argument("--startup", action="store_true",
                     help="only the start-up costs of a fresh process: imports, first and second solve of a cap")
@@ -136,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     if a.startup:
         return startup(a.profile)
     if a.kernels:
-        return kernels(a.kernels)
+        return kernels(a.kernels, nt=a.nt)
     from snapjump_cli.config import load_config
     from snapjump_cli.designs import get_design
     from snapjump_cli.geometry import Design

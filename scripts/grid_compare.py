@@ -1,0 +1,57 @@
+"""Compare two full sweeps of the same grid row by row, and the time per design of the newer one.
+
+    .venv/bin/python scripts/grid_compare.py OLD.parquet NEW.parquet
+
+Prints how many rows changed status, each flag (``self_crossing``, ``lower_state_method``,
+``snaps``, ``mesh_sensitive``) on the rows ok in both, the largest relative change of dE,
+dy_pole, h_imp, V*, p* and p_max (and how many rows moved by more than 0.5 % and 1e-4), and the
+CPU time per valid design of both runs (the ``wall_s`` of each row: mean, p50, p90, max, the
+designs over 3 s, the split by the way the lower state was found). This is the full-grid answer
+check of the speed work (docs/performance.md, "Full paper-grid runs").
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("old", type=Path)
+    ap.add_argument("new", type=Path)
+    a = ap.parse_args(argv)
+    sys.path.insert(0, str(REPO))
+    from snapjump_cli.results import read_results
+
+    old = read_results(a.old).set_index("key")
+    new = read_results(a.new).set_index("key")
+    common = old.index.intersection(new.index)
+    print(f"rows: {len(old)} old, {len(new)} new, {len(common)} in both")
+    old, new = old.loc[common], new.loc[common]
+    print(f"status changed: {int((old['status'] != new['status']).sum())}")
+    ok = (old["status"] == "ok") & (new["status"] == "ok")
+    for f in ("self_crossing", "lower_state_method", "snaps", "mesh_sensitive"):
+        changed = old.loc[ok, f].astype(str) != new.loc[ok, f].astype(str)
+        print(f"{f} changed on {int(changed.sum())} of {int(ok.sum())} rows ok in both"
+              + (f": {list(changed[changed].index[:5])}" if changed.any() else ""))
+    for f in ("dE_J", "dy_pole_m", "h_imp_m", "V_star_m3", "p_star_Pa", "p_max_Pa"):
+        rel = ((new.loc[ok, f] - old.loc[ok, f]).abs() / old.loc[ok, f].abs()).astype(float)
+        print(f"{f}: largest relative change {rel.max():.2e}; rows over 0.5 %: {int((rel > 0.005).sum())}, "
+              f"over 1e-4: {int((rel > 1e-4).sum())}")
+    for label, df in (("old", old), ("new", new)):
+        v = df[df["status"] == "ok"]
+        w = v["wall_s"].astype(float)
+        line = (f"{label}: CPU per valid design mean {w.mean():.3f} s, p50 {w.median():.3f}, p90 {w.quantile(0.9):.3f}, "
+                f"max {w.max():.2f}; {int((w > 3).sum())} over 3 s; sum {w.sum():.0f} s")
+        for meth, g in v.groupby(v["lower_state_method"].astype(str)):
+            gw = g["wall_s"].astype(float)
+            line += f"; {meth} {len(g)}: mean {gw.mean():.3f} s, max {gw.max():.2f}, {gw.sum() / w.sum():.0%}"
+        print(line)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
