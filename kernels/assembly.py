@@ -248,7 +248,7 @@ def _work_arrays(nq, npr, nd):
     H = np.empty((npr, nd))
     g = np.empty(npr)
     pb = np.empty(npr)
-    Bt = np.empty((nd, 5 * nq + npr))
+    Bt = np.zeros((nd, 5 * nq + npr))  # its structural zeros are never overwritten (_stack_b_db)
     DBt = np.empty((nd, 5 * nq + npr))
     D = np.empty((5, 5))
     sv = np.empty(5)
@@ -280,24 +280,20 @@ def _stack_b_db(dNdX_eq, N_q, R_q, D, c, Bt, DBt):
     side by side, the element stiffness is the row products ``Ke[i, j] = Bt[i] . DBt[j]``: dot
     products ~50 long, which vectorise, where accumulating ``B^T D B`` point by point ran
     triangular loops 1-18 long (the element pass 15-20 % faster; the sums are reordered, so the
-    stiffness changes by round-off)."""
+    stiffness changes by round-off). Only ``B``'s non-zeros are written: its zeros in ``Bt`` are
+    those :func:`_work_arrays` allocated."""
     nen = dNdX_eq.shape[0]
     for a in range(nen):
         bx = dNdX_eq[a, 0]
         by = dNdX_eq[a, 1]
         bn = N_q[a] / R_q
-        r = Bt[2 * a]
+        r = Bt[2 * a]  # B's zeros in these columns stay as _work_arrays set them
         z = Bt[2 * a + 1]
         r[c] = bx
         r[c + 1] = by
-        r[c + 2] = 0.0
-        r[c + 3] = 0.0
         r[c + 4] = bn
-        z[c] = 0.0
-        z[c + 1] = 0.0
         z[c + 2] = bx
         z[c + 3] = by
-        z[c + 4] = 0.0
         dr = DBt[2 * a]
         dz = DBt[2 * a + 1]
         for k in range(5):

@@ -192,7 +192,7 @@ def band_ldlt_solve(fac: np.ndarray, b: np.ndarray, ext: np.ndarray) -> np.ndarr
     The forward substitution runs over the columns of ``L`` (contiguous axpys, with the division
     by ``D`` in the same pass), the backward one over the same columns as rows of ``L^T`` (dot
     products, summed in any order by :func:`dot_any_order`): 1.9-2.2x faster than with sequential sums,
-    and equal to them to round-off (1e-14 to 2e-13 relative on D and C).
+    and equal to them to round-off (against dense numpy: ``scripts/profile_designs.py --kernels D``).
     """
     x = b.copy()
     _solve_in_place(fac, x, ext)
@@ -253,10 +253,10 @@ def bordered_solve(fac: np.ndarray, K: np.ndarray, ext: np.ndarray, b: np.ndarra
 
     The first solution is formed in the output's storage and the refinement's residual
     ``rhs - [[K, b], [c^T, d]] [x; y]`` is solved in place (fewer temporaries); with the faster
-    solves and product, the refined solve takes 2.0-2.3x less CPU time than before. Its result
-    differs from that of sequential sums by 2e-10 (D) to 2e-9 (C, ``nt = 3``) relative, as the
-    refinement's residual is mostly round-off (the bordered matrices' condition numbers are 2e9 to
-    5e9): both are within 1e-10 to 2e-9 of the exact solution (extended-precision refinement).
+    solves and product, the refined solve takes 2.0-2.3x less CPU time than before. Summed in any
+    order, its result moves by round-off, which on the actuators' bordered matrices (condition
+    numbers 2e9 to 4e9) is at the level of its error: within 1e-10 to 2e-10 of a solution refined
+    with extended-precision residuals (``scripts/profile_designs.py --kernels D [--nt 3]``).
     """
     n = fac.shape[0]
     s = rhs[n]

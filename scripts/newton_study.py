@@ -75,14 +75,20 @@ def _variants(a: argparse.Namespace) -> None:
               flush=True)
 
 
-def _design(name: str):
-    from snapjump_cli.designs import get_design
+#: The grid's five design parameters, in the order of a comma-separated ``--design``.
+_PARAMS = ("eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio")
+
+
+def _design_of(params) -> "Design":
     from snapjump_cli.geometry import Design
 
-    if "," in name:
-        keys = ("eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio")
-        return Design(**dict(zip(keys, map(float, name.split(",")))))
-    return get_design(name)
+    return Design(**dict(zip(_PARAMS, map(float, params))))
+
+
+def _design(name: str):
+    from snapjump_cli.designs import get_design
+
+    return _design_of(name.split(",")) if "," in name else get_design(name)
 
 
 def _history(a: argparse.Namespace) -> None:
@@ -152,8 +158,7 @@ def _recheck(a: argparse.Namespace) -> None:
     if a.flags:
         from joblib import Parallel, delayed
 
-        params = [tuple(float(r[k]) for k in ("eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio"))
-                  for _, r in d.iterrows()]
+        params = [tuple(float(r[k]) for k in _PARAMS) for _, r in d.iterrows()]
         got = Parallel(n_jobs=a.jobs)(delayed(_coarse_flags)(x) for x in params)
         sc_nt3 = [bool(v) for v in d["self_crossing"]]
         same = sum(g[0] == s3 for g, s3 in zip(got, sc_nt3))
@@ -168,13 +173,11 @@ def _recheck(a: argparse.Namespace) -> None:
 def _coarse_flags(params: tuple) -> tuple:
     """``(self_crossing, lower_state_method)`` of a grid design solved at the grid's mesh alone."""
     from snapjump_cli.config import load_config
-    from snapjump_cli.geometry import Design
     from snapjump_cli.solve import SolveFailed, solve_scene
 
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")
-    keys = ("eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio")
     try:
-        m = solve_scene(Design(**dict(zip(keys, params))), cfg.mesh, cfg.solver).metrics
+        m = solve_scene(_design_of(params), cfg.mesh, cfg.solver).metrics
     except SolveFailed as exc:
         return None, f"failed: {exc}"[:60]
     return bool(m["self_crossing"]), m["lower_state_method"]

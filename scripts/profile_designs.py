@@ -15,7 +15,8 @@ need ``SNAPJUMP_PROFILE_PHASES=1`` (the Python corrector, whose timers split the
 times each kernel of one Newton iteration (CPU time per call, 600 calls) at the middle point of
 the design's path: the element pass with the stiffness, with the residual only and with the
 energy only, the bordered band LDL^T and one refined bordered solve (``--nt 3``: on the mesh of
-the re-check).
+the re-check), then how exact the band kernels are there (condition number, the bordered solve
+against an extended-precision solution, the band solve and product against dense numpy).
 """
 from __future__ import annotations
 
@@ -121,7 +122,43 @@ def kernels(name: str, calls: int = 600, nt: int | None = None) -> int:
                      ("refined bordered solve",
                       lambda: bordered_solve(fac[2], K, m.band_ext, -g, c, 0.1, fac[3], fac[4], rhs, True))):
         print(f"  {label}: {per_call(f):.3f}")
+    _solve_accuracy(K, m.band_ext, g, c, rhs, fac)
     return 0
+
+
+def _solve_accuracy(K, ext, g, c, rhs, fac) -> None:
+    """How exact the band kernels are on this matrix: the bordered matrix's condition number, the
+    errors of the bordered solve (without and with its refinement step) against a solution
+    refined with residuals in extended precision, and the band solve and product against dense
+    numpy."""
+    import numpy as np
+
+    from snapjump_kernels.banded import band_ldlt_solve, bordered_solve, sym_band_matvec
+
+    n = len(ext)
+    A = np.zeros((n, n))
+    for j in range(n):
+        A[j:j + ext[j] + 1, j] = K[j, :ext[j] + 1]
+        A[j, j:j + ext[j] + 1] = K[j, :ext[j] + 1]
+    B = np.zeros((n + 1, n + 1))
+    B[:n, :n], B[:n, n], B[n, :n], B[n, n] = A, -g, c, 0.1
+
+    def solve(r, refine):
+        return bordered_solve(fac[2], K, ext, -g, c, 0.1, fac[3], fac[4], np.ascontiguousarray(r), refine)
+
+    x = solve(rhs, False).astype(np.longdouble)
+    for _ in range(8):  # iterative refinement with the residual in extended precision
+        x = x + solve((rhs.astype(np.longdouble) - B.astype(np.longdouble) @ x).astype(float), False)
+    exact = x.astype(float)
+
+    def err(y, ref):
+        return float(np.abs(y - ref).max() / np.abs(ref).max())
+
+    b = rhs[:n]
+    print(f"  accuracy: cond of the bordered matrix {np.linalg.cond(B):.1e}; bordered solve vs the "
+          f"extended-precision solution {err(solve(rhs, False), exact):.1e} (refined: {err(solve(rhs, True), exact):.1e}); "
+          f"band solve vs dense numpy {err(band_ldlt_solve(fac[2], b, ext), np.linalg.solve(A, b)):.1e}, "
+          f"band product {err(sym_band_matvec(K, b, ext), A @ b):.1e}")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -30,6 +30,12 @@ _SNAP_KEYS = ("dE_J", "dE_norm", "dE_energy_J", "dE_path_J", "dE_rel_diff", "dy_
               "dy_pole_norm", "p_star_Pa", "V_star_m3", "h_imp_m", "L0_m")
 
 
+def _hermite_basis(t):
+    """The cubic Hermite basis on [0, 1] at ``t``: ``(h00, h10, h01, h11)`` (value at the start,
+    derivative at the start, value at the end, derivative at the end)."""
+    return 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t, -2 * t**3 + 3 * t**2, t**3 - t**2
+
+
 def hermite_p_dV(a: PathPoint, b: PathPoint, h: float, sV: float, sp: float) -> float:
     """``integral p dV`` from ``a`` to ``b`` (arc length ``h``; scaled units), cubic Hermite."""
     V0, V1 = a.zeta[0] * sV, b.zeta[0] * sV
@@ -38,10 +44,7 @@ def hermite_p_dV(a: PathPoint, b: PathPoint, h: float, sV: float, sp: float) -> 
     dp0, dp1 = a.tangent[1] * sp * h, b.tangent[1] * sp * h
     x, w = _G3
     t = 0.5 * (x + 1.0)
-    h00 = 2 * t**3 - 3 * t**2 + 1
-    h10 = t**3 - 2 * t**2 + t
-    h01 = -2 * t**3 + 3 * t**2
-    h11 = t**3 - t**2
+    h00, h10, h01, h11 = _hermite_basis(t)
     d00 = 6 * t**2 - 6 * t
     d10 = 3 * t**2 - 4 * t + 1
     d01 = -6 * t**2 + 6 * t
@@ -93,7 +96,7 @@ def path_self_crosses(V: np.ndarray, p: np.ndarray, dV: np.ndarray | None = None
     if len(i) == 0:
         return False
     t = np.linspace(0.0, 1.0, sub + 1)[:, None]
-    h00, h10, h01, h11 = 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t, -2 * t**3 + 3 * t**2, t**3 - t**2
+    h00, h10, h01, h11 = _hermite_basis(t)
 
     def curve(k):  # (len(k), sub + 1, 2)
         return (h00 * P[k][:, None] + h10 * D[k][:, None, 0] + h01 * P[k + 1][:, None] + h11 * D[k][:, None, 1])
