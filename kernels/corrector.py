@@ -57,13 +57,15 @@ def _element_update(edofs, H, x, base, out):
 @njit(cache=True)
 def newton_correct(u0, p0, target_k, target_val, z0, t_z, t_u, u_ref, ds, alpha2, sc, tol, max_newton,
                    pole_dof, V_offset, kl, ext, dofmap, X, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv,
-                   edofs, epos, edges, edge_dofs, edge_pos, p_geo0, tol_inc):
+                   edofs, epos, edges, edge_dofs, edge_pos, p_geo0, tol_inc, theta_max):
     """Newton on ``R(u, p) = 0`` and one constraint: ``target_k >= 0`` fixes the scaled measure
     ``zeta_k = target_val``; ``target_k < 0`` is the Riks hyperplane
     ``t_z . (zeta - z0) + alpha2 t_u . (u - u_ref) = ds``.
 
     ``p_geo0`` (ne, np): the element pressures to start the mixed linearisation from, or shape
-    (0, np) for the reduced one; ``tol_inc > 0`` accepts an iterate by the error test (Riks only).
+    (0, np) for the reduced one; ``tol_inc > 0`` accepts an iterate by the error test (Riks only),
+    and then Newton gives up as soon as a correction above ``tol_inc`` is more than ``theta_max``
+    times the one before (no contraction: the caller halves the step instead of iterating on).
 
     Returns
     -------
@@ -190,6 +192,8 @@ def newton_correct(u0, p0, target_k, target_val, z0, t_z, t_u, u_ref, ds, alpha2
             p += x[n]
             Vt = cavity_state(u, dofmap, X, edges, edge_dofs, edge_pos, g) + V_offset
             return True, it, n_fac, u, p, R, g, data, Vt, np.nan, p_el, xt, nneg, schur, dp_el
+        if riks and tol_inc > 0.0 and it > 0 and inc >= tol_inc and inc > theta_max * inc_prev:
+            return False, it, n_fac, u, p, R, g, data, Vt, E, pb, empty, 0, 0.0, dp_el
         inc_prev = inc
         if mixed:  # the three-field Newton's pressure update
             _element_update(edofs, H, x, pb, pg)

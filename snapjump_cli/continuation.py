@@ -49,7 +49,8 @@ class Problem(Protocol):
 
     n: int
 
-    # optional: ``newton(u, p, scales, tol, max_newton, target=None, riks=None, aux=None, tol_inc=0.0)``,
+    # optional: ``newton(u, p, scales, tol, max_newton, target=None, riks=None, aux=None, tol_inc=0.0,
+    # theta_max=0.5)``,
     # the corrector of :meth:`Tracer.correct` compiled for this problem (see
     # :meth:`snapjump_cli.model.Model.newton`)
 
@@ -104,7 +105,14 @@ class ContinuationSettings:
     tol_path : Newton tolerance of ordinary path points (``None``: ``tol``)
     fused : use the problem's compiled corrector (``problem.newton``) if it has one
     error_test : accept ordinary path points by the error test (else by the residual test)
+    theta_max : with the error test, Newton gives up on a step as soon as a correction (above the
+        tolerance) is more than ``theta_max`` times the one before: converging steps contract by
+        ~1e-3 per iteration (90 % below 2e-2), failing ones by 0.3-1 or not at all, and iterating on
+        to ``max_newton`` cost ~9 element passes per failed step (``scripts/newton_study.py contraction``)
     mixed_tangent : linearise with the auxiliary field carried along the path, if the problem has one
+    split_steps : a step that turned more than ``max_turn_deg`` is kept, with its half-way point
+        added, when each half turns less (else it is rejected and the step halved); the converged
+        end point is not thrown away
     """
 
     scales: tuple[float, float, float]
@@ -122,6 +130,8 @@ class ContinuationSettings:
     tol_path: float | None = _USER_DEFAULTS.tol_path
     fused: bool = True
     error_test: bool = True
+    theta_max: float = 0.5
+    split_steps: bool = True
     mixed_tangent: bool = True
 
     @classmethod
@@ -165,6 +175,7 @@ class Path:
     points: list[PathPoint] = field(default_factory=list)
     n_newton: int = 0
     n_rejected: int = 0
+    n_split: int = 0  # steps that turned too far, kept by adding their half-way point
     n_bifurcations: int = 0
     stop_reason: str = ""
 
@@ -287,7 +298,8 @@ class Tracer:
         Newton correction computed there, in the arc-length metric, is below ``tol`` and smaller
         than the one before (it estimates the iterate's error); the state returned is then the
         iterate plus that correction, not evaluated (its error is of the order of the correction
-        squared). A Riks result keeps the last factorisation for the tangent (``tangent_solver``
+        squared), and Newton gives up once a correction above ``tol`` exceeds
+        ``settings.theta_max`` times the one before. A Riks result keeps the last factorisation for the tangent (``tangent_solver``
         or, compiled, ``tangent_x``). ``aux``: the auxiliary field to linearise with (the
         problem's mixed pressures), if any.
         """
@@ -300,7 +312,8 @@ class Tracer:
             if target is None:
                 t_z, t_u, u_0 = t
                 riks = (z0, t_z, t_u, u_0, ds, self.alpha**2)
-            res = fused(u, p, self.sc, tol, cfg.max_newton, target=target, riks=riks, aux=aux, tol_inc=tol_inc)
+            res = fused(u, p, self.sc, tol, cfg.max_newton, target=target, riks=riks, aux=aux, tol_inc=tol_inc,
+                        theta_max=cfg.theta_max)
             if res is not None:
                 self.n_newton += res[1]
             return res
@@ -350,6 +363,8 @@ class Tracer:
                 aux_next = lin.aux + aux_dir(du) if aux_dir is not None else None
                 self.n_newton += it
                 return _Corrected(u + du, p + dp, solver, aux_next, aux_dir), it
+            if tol_inc > 0.0 and it > 0 and inc >= tol_inc and inc > cfg.theta_max * inc_prev:
+                return None  # no contraction: the caller halves the step
             inc_prev = inc
             if aux is not None:  # the mixed Newton's update of the auxiliary field
                 aux = lin.aux + lin.aux_dir(du)
@@ -385,6 +400,26 @@ class Tracer:
         aux0 = None
         if pt.aux is not None and self.cfg.mixed_tangent:
             aux0 = pt.aux + ds * pt.daux_ds if pt.daux_ds is not None else pt.aux
+        return self._point(pt, u0, p0, aux0, ds, tol, error_test)
+
+    def step_between(self, pt: PathPoint, end: PathPoint, tol: float | None = None, error_test: bool = False):
+        """The path point half way from ``pt`` to ``end`` (a converged point of a step of length
+        ``end.s - pt.s`` from ``pt``), predicted by the cubic Hermite interpolation between them;
+        ``PathPoint`` or ``None``. Used to split a step that turned too far instead of discarding it."""
+        ds = end.s - pt.s
+        u0 = 0.5 * (pt.u + end.u) + 0.125 * ds * (pt.du_ds - end.du_ds)
+        p0 = 0.5 * (pt.p + end.p) + 0.125 * ds * (pt.dp_ds - end.dp_ds)
+        aux0 = None
+        if pt.aux is not None and end.aux is not None and self.cfg.mixed_tangent:
+            aux0 = 0.5 * (pt.aux + end.aux)
+            if pt.daux_ds is not None and end.daux_ds is not None:
+                aux0 = aux0 + 0.125 * ds * (pt.daux_ds - end.daux_ds)
+        return self._point(pt, u0, p0, aux0, 0.5 * ds, tol, error_test)
+
+    def _point(self, pt: PathPoint, u0: np.ndarray, p0: float, aux0, ds: float, tol: float | None,
+               error_test: bool):
+        """Correct the predicted state ``(u0, p0)`` onto the Riks hyperplane at ``ds`` from ``pt``
+        and make it a ``PathPoint`` (``None`` if Newton failed)."""
         res = self.correct(u0, p0, pt.zeta, (pt.tangent, pt.du_ds, pt.u), ds, tol=tol, aux=aux0,
                            error_test=error_test)
         if res is None:
@@ -419,6 +454,30 @@ def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0, t_prev: np.ndar
     aux = getattr(lin, "aux", None)
     daux = lin.aux_dir(v) if aux is not None else None
     return PathPoint(u0.copy(), p0, z, t, v, q, 0.0, 0, tracer.last_det_sign, tracer.last_n_neg, aux, daux)
+
+
+def step_turn(a: PathPoint, b: PathPoint, alpha: float = 0.0) -> float:
+    """How far a step from ``a`` to ``b`` turns, degrees: the larger of :func:`turn_angle` and
+    :func:`chord_angle` (what ``max_turn_deg`` limits)."""
+    return max(turn_angle(a, b, alpha), chord_angle(a, b, alpha))
+
+
+def _split(tr: Tracer, a: PathPoint, b: PathPoint) -> PathPoint | None:
+    """The point half way along a step from ``a`` to ``b`` that turned more than ``max_turn_deg``,
+    if each half turns less and neither half crosses a bifurcation (else ``None``: the step is
+    rejected). Sets ``b.s`` to its arc length from the half-way point, as a step from there measures
+    it (the projection on that point's tangent)."""
+    cfg = tr.cfg
+    mid = tr.step_between(a, b, tol=cfg.tol_path, error_test=cfg.error_test)
+    if mid is None or a.det_sign * mid.det_sign < 0 or mid.det_sign * b.det_sign < 0:
+        return None
+    if step_turn(a, mid, tr.alpha) > cfg.max_turn_deg or step_turn(mid, b, tr.alpha) > cfg.max_turn_deg:
+        return None
+    h = float(mid.tangent @ (b.zeta - mid.zeta)) + tr.alpha**2 * float(mid.du_ds @ (b.u - mid.u))
+    if not h > 0.0:
+        return None
+    b.s = mid.s + h
+    return mid
 
 
 def turn_angle(a: PathPoint, b: PathPoint, alpha: float = 0.0) -> float:
@@ -482,8 +541,21 @@ def trace(
         prev = path.points[-2] if (cfg.hermite_predictor and len(path.points) > 1) else None
         new = tr.step(pt, ds, prev, tol=cfg.tol_path, error_test=cfg.error_test)
         if new is not None:
-            ang = max(turn_angle(pt, new, tr.alpha), chord_angle(pt, new, tr.alpha))
+            ang = step_turn(pt, new, tr.alpha)
             crossed = pt.det_sign * new.det_sign < 0  # a bifurcation point lies inside the step
+            if ang > cfg.max_turn_deg and ds > 4 * cfg.ds_min and not crossed and cfg.split_steps:
+                # keep the converged end point if the step's two halves each turn little enough
+                mid = _split(tr, pt, new)
+                if mid is not None:
+                    path.n_split += 1
+                    path.points.append(mid)
+                    path.n_newton = tr.n_newton
+                    reason = stop(path)
+                    if reason:
+                        path.stop_reason = reason
+                        break
+                    pt, ds = mid, new.s - mid.s
+                    ang = step_turn(pt, new, tr.alpha)
             if ang > cfg.max_turn_deg and ds > 4 * cfg.ds_min:
                 new = None
                 cause = f"tangent or chord turned {ang:.1f} deg"

@@ -327,13 +327,14 @@ class Model:
 
     def newton(self, u: np.ndarray, p: float, scales: np.ndarray, tol: float, max_newton: int,
                target: tuple[int, float] | None = None, riks: tuple | None = None, aux: np.ndarray | None = None,
-               tol_inc: float = 0.0) -> tuple[Linearization, int] | None:
+               tol_inc: float = 0.0, theta_max: float = 0.5) -> tuple[Linearization, int] | None:
         """The continuation's Newton corrector in one compiled call (:mod:`snapjump_kernels.corrector`).
 
         ``scales`` are those of the path measures ``(V, p, w)``; the constraint is ``target =
         (k, value)`` (``zeta_k = value``) or ``riks = (z0, t_z, t_u, u_ref, ds, alpha2)``; ``aux``
         the element pressures to start the mixed linearisation from; ``tol_inc > 0`` the error
-        test (Riks). Returns the linearisation at the accepted state (its stiffness assembled; with
+        test (Riks), with which Newton stops when a correction above ``tol_inc`` exceeds ``theta_max``
+        times the one before. Returns the linearisation at the accepted state (its stiffness assembled; with
         ``riks`` also the tangent system's solution ``tangent_x``, its inertia ``tangent_inertia``
         and the element pressures' change along it ``daux_x``) and the iterations, or ``None`` if
         Newton failed.
@@ -354,7 +355,7 @@ class Model:
             float(ds), float(alpha2), np.asarray(scales, float), float(tol), int(max_newton), self.pole_dof,
             float(self.V_offset), self.kl, self.band_ext, self.dofmap, self.X, self.conn, self.mat, self.mu,
             self.jm, self.kappa, self.dNdX, self.N_ref, self.Rq, self.Wq, self.Np, self.Minv, self.edofs, self.epos,
-            self.edges, self.edge_dofs, self.edge_pos, p_geo, float(tol_inc))
+            self.edges, self.edge_dofs, self.edge_pos, p_geo, float(tol_inc), float(theta_max))
         self.n_assemblies += it + 1
         self.n_factorizations += n_fac
         self.t_newton += time.perf_counter() - t0

@@ -1,0 +1,87 @@
+"""Step control of the continuation: steps split instead of rejected, Newton stopped early."""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from snapjump_cli.continuation import ContinuationSettings, step_turn
+from snapjump_cli.designs import get_design
+from snapjump_cli.settings import MeshSettings, SolverSettings
+from snapjump_cli.solve import solve_scene
+
+_FROM_SOLVER = ContinuationSettings.from_solver.__func__
+_MESH = MeshSettings(order=2, nt=2, aspect=3.0)
+
+
+def _solve(monkeypatch, name: str, solver: SolverSettings = SolverSettings(), **internal):
+    orig = _FROM_SOLVER
+    monkeypatch.setattr(ContinuationSettings, "from_solver",
+                        classmethod(lambda cls, *a, **k: orig(cls, *a, **{**k, **internal})))
+    return solve_scene(get_design(name), _MESH, solver)
+
+
+@pytest.fixture(scope="module")
+def design_D():
+    mp = pytest.MonkeyPatch()
+    try:
+        new = _solve(mp, "D")
+        old = _solve(mp, "D", split_steps=False, theta_max=math.inf)
+    finally:
+        mp.undo()
+    return new, old
+
+
+def test_split_steps_keep_the_answers_and_save_element_passes(design_D):
+    new, old = design_D
+    assert new.path.n_split > 0
+    for k in ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa", "h_imp_m"):
+        assert new.metrics[k] == pytest.approx(old.metrics[k], rel=1e-6), k
+    # dE along the path (Hermite quadrature over the points) agrees with the energy difference
+    # as well as it did with every step kept whole
+    gap_new, gap_old = (abs(r.metrics["dE_path_J"] / r.metrics["dE_J"] - 1) for r in (new, old))
+    assert gap_new <= max(2 * gap_old, 1e-6)
+    for k in ("self_crossing", "lower_state_method", "snaps"):
+        assert new.metrics[k] == old.metrics[k], k
+    assert new.model.n_assemblies < old.model.n_assemblies
+
+
+def test_every_kept_step_turns_less_than_the_limit_and_its_arc_length_is_the_projection(design_D):
+    new, _ = design_D
+    tr = new.tracer
+    pts = new.path.points
+    assert len(pts) > 20
+    for a, b in zip(pts[:-1], pts[1:]):
+        assert step_turn(a, b, tr.alpha) <= tr.cfg.max_turn_deg
+        # the Riks constraint of the step from a: the projection on a's tangent is the step length
+        h = float(a.tangent @ (b.zeta - a.zeta)) + tr.alpha**2 * float(a.du_ds @ (b.u - a.u))
+        assert b.s - a.s == pytest.approx(h, rel=1e-5, abs=1e-9)
+
+
+def test_newton_gives_up_without_contraction_and_both_correctors_agree():
+    res = solve_scene(get_design("C"), _MESH, SolverSettings())
+    tr, M = res.tracer, res.model
+    pts = res.path.points
+    cfg0 = tr.cfg
+    out = {}
+    for ds in (1.5, 1.8, 2.1):  # steps far longer than the path allows here (ds ~ 0.1)
+        for theta in (cfg0.theta_max, math.inf):
+            for fused in (True, False):
+                tr.cfg = dataclasses.replace(cfg0, fused=fused, theta_max=theta)
+                n0 = M.n_assemblies
+                new = tr.step(pts[10], ds, pts[9], tol=cfg0.tol_path, error_test=True)
+                out[ds, theta, fused] = (new is None, M.n_assemblies - n0, None if new is None else new.zeta)
+    tr.cfg = cfg0
+    earlier = 0
+    for ds in (1.5, 1.8, 2.1):
+        rule, free = out[ds, cfg0.theta_max, True], out[ds, math.inf, True]
+        assert rule[1] <= free[1]
+        earlier += rule[0] and rule[1] < free[1]  # stopped without contraction, before max_newton
+        for theta in (cfg0.theta_max, math.inf):  # the compiled and the Python corrector decide alike
+            a, b = out[ds, theta, True], out[ds, theta, False]
+            assert a[:2] == b[:2], (ds, theta)
+            if a[2] is not None:
+                np.testing.assert_allclose(a[2], b[2], rtol=1e-8)
+    assert earlier >= 1
