@@ -12,6 +12,7 @@ only where the lower state lies on the path.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -21,7 +22,8 @@ from snapjump_cli.meshdata import solid_volumes
 from snapjump_cli.model import Model
 from snapjump_cli.snap import SnapStates
 
-__all__ = ["snap_metrics", "scene_curve", "snap_sequence", "hermite_p_dV", "path_self_crosses", "path_derivatives"]
+__all__ = ["snap_metrics", "scene_curve", "snap_sequence", "hermite_p_dV", "path_p_dV", "path_self_crosses",
+           "path_derivatives"]
 
 _G3 = np.polynomial.legendre.leggauss(4)
 
@@ -38,20 +40,29 @@ def _hermite_basis(t):
 
 def hermite_p_dV(a: PathPoint, b: PathPoint, h: float, sV: float, sp: float) -> float:
     """``integral p dV`` from ``a`` to ``b`` (arc length ``h``; scaled units), cubic Hermite."""
-    V0, V1 = a.zeta[0] * sV, b.zeta[0] * sV
-    p0, p1 = a.p, b.p
-    dV0, dV1 = a.tangent[0] * sV * h, b.tangent[0] * sV * h  # derivatives w.r.t. t in [0, 1]
-    dp0, dp1 = a.tangent[1] * sp * h, b.tangent[1] * sp * h
+    b = dataclasses.replace(b, s=a.s + h)
+    return path_p_dV([a, b], sV, sp)
+
+
+def path_p_dV(points: list[PathPoint], sV: float, sp: float) -> float:
+    """``integral p dV`` along the path through ``points`` (scaled units): on each segment the cubic
+    Hermite interpolation of ``V`` and ``p`` in the arc length (the points' ``s``) from the end
+    values and tangents, 4-point Gauss quadrature; all segments at once."""
+    V = np.array([pt.zeta[0] for pt in points]) * sV
+    p = np.array([pt.p for pt in points])
+    h = np.diff([pt.s for pt in points])
+    tV = np.array([pt.tangent[0] for pt in points]) * sV
+    tp = np.array([pt.tangent[1] for pt in points]) * sp
     x, w = _G3
-    t = 0.5 * (x + 1.0)
+    t = (0.5 * (x + 1.0))[:, None]  # (4, 1): the Gauss points of every segment
     h00, h10, h01, h11 = _hermite_basis(t)
     d00 = 6 * t**2 - 6 * t
     d10 = 3 * t**2 - 4 * t + 1
     d01 = -6 * t**2 + 6 * t
     d11 = 3 * t**2 - 2 * t
-    p = h00 * p0 + h10 * dp0 + h01 * p1 + h11 * dp1
-    Vt = d00 * V0 + d10 * dV0 + d01 * V1 + d11 * dV1
-    return float(0.5 * np.sum(w * p * Vt))
+    pq = h00 * p[:-1] + h10 * (tp[:-1] * h) + h01 * p[1:] + h11 * (tp[1:] * h)  # (4, segments)
+    Vt = d00 * V[:-1] + d10 * (tV[:-1] * h) + d01 * V[1:] + d11 * (tV[1:] * h)  # dV/dt, t in [0, 1]
+    return float(np.sum(0.5 * (w[:, None] * pq * Vt).sum(axis=0)))
 
 
 def _orient(a, b, c):
@@ -189,11 +200,7 @@ def snap_metrics(
         W_up, W_lo = model.energy(up.u), model.energy(lo.u)
         dE_energy = W_up - W_lo
         if st.lower_method == "path":  # path integral: upper -> points after it -> lower
-            seq = snap_sequence(path, st)
-            integral = 0.0
-            for a, b in zip(seq[:-1], seq[1:]):
-                integral += hermite_p_dV(a, b, b.s - a.s, sV, sp)
-            dE_path = -integral
+            dE_path = -path_p_dV(snap_sequence(path, st), sV, sp)
         else:  # the descent state is not on the traced path: no path integral
             dE_path = float("nan")
         metrics.update(

@@ -194,8 +194,9 @@ class Model:
             raise ValueError("the pole node's vertical dof is constrained")
 
     def _storage_pattern(self) -> None:
-        """Element and cavity dof tables, the band and its envelope, the CSR patterns and the
-        position of every element (and cavity) matrix entry in the assembled data array."""
+        """Element and cavity dof tables, the band and its envelope (and for SuperLU the CSR pattern
+        of the bordered matrix), and the position of every element (and cavity) matrix entry in the
+        assembled data array."""
         solver, dofmap = self.solver, self.dofmap
         edofs = dofmap[self.conn].reshape(self.conn.shape[0], -1)
         self.edofs = np.ascontiguousarray(edofs)
@@ -211,32 +212,34 @@ class Model:
         vg = (rg >= 0) & (cg >= 0)
         self.band_ext = envelope_extents(np.concatenate([ri[valid], rg[vg]]), np.concatenate([ci[valid], cg[vg]]),
                                          n, self.kl)
-        # CSR pattern of K_T alone (tests, stability checks) and of the bordered matrix (superlu)
-        gd = np.unique(edge_dofs[edge_dofs >= 0])
-        self.border_dofs = np.union1d(gd, [self.pole_dof])
-        n1 = n + 1
-        bd = self.border_dofs
-        br = np.concatenate([bd, np.full(len(bd), n), [n]])
-        bc = np.concatenate([np.full(len(bd), n), bd, [n]])
-        keys = np.unique(np.concatenate([ri[valid] * n1 + ci[valid], br * n1 + bc]))
-        self._csr_keys = keys
-        self.indptr = np.searchsorted(keys // n1, np.arange(n1 + 1)).astype(np.int64)
-        self.indices = (keys % n1).astype(np.int64)
-
-        def csr_pos(r, c):
-            p = np.searchsorted(keys, r * n1 + c)
-            return np.where((r >= 0) & (c >= 0), p, -1)
 
         def band_pos(r, c):  # lower band only, stored (n, kl + 1): A[i, j] -> [j, i - j]
             p = c * (self.kl + 1) + (r - c)
             return np.where((r >= 0) & (c >= 0) & (r >= c), p, -1)
 
-        pos = band_pos if solver == "banded" else csr_pos
+        if solver == "banded":
+            pos = band_pos
+        else:  # the CSR pattern of the bordered matrix (only SuperLU needs it: ~5 ms a model)
+            gd = np.unique(edge_dofs[edge_dofs >= 0])
+            self.border_dofs = np.union1d(gd, [self.pole_dof])
+            n1 = n + 1
+            bd = self.border_dofs
+            br = np.concatenate([bd, np.full(len(bd), n), [n]])
+            bc = np.concatenate([np.full(len(bd), n), bd, [n]])
+            keys = np.unique(np.concatenate([ri[valid] * n1 + ci[valid], br * n1 + bc]))
+            self.indptr = np.searchsorted(keys // n1, np.arange(n1 + 1)).astype(np.int64)
+            self.indices = (keys % n1).astype(np.int64)
+
+            def csr_pos(r, c):
+                p = np.searchsorted(keys, r * n1 + c)
+                return np.where((r >= 0) & (c >= 0), p, -1)
+
+            pos = csr_pos
         self.epos = np.ascontiguousarray(pos(ri, ci).reshape(self.conn.shape[0], nd, nd).astype(np.int64))
         self.edge_pos = np.ascontiguousarray(pos(rg, cg).reshape(self.edges.shape[0], nde, nde).astype(np.int64))
         self.ndata = (self.kl + 1) * n if solver == "banded" else len(keys)
         ar = np.arange(n)
-        self.diag_pos = (band_pos if solver == "banded" else csr_pos)(ar, ar)
+        self.diag_pos = pos(ar, ar)
         if solver == "superlu":
             self.col_pos = csr_pos(bd, np.full(len(bd), n))
             self.row_pos = csr_pos(np.full(len(bd), n), bd)
