@@ -402,19 +402,26 @@ class Tracer:
             aux0 = pt.aux + ds * pt.daux_ds if pt.daux_ds is not None else pt.aux
         return self._point(pt, u0, p0, aux0, ds, tol, error_test)
 
-    def step_between(self, pt: PathPoint, end: PathPoint, tol: float | None = None, error_test: bool = False):
-        """The path point half way from ``pt`` to ``end`` (a converged point of a step of length
-        ``end.s - pt.s`` from ``pt``), predicted by the cubic Hermite interpolation between them;
-        ``PathPoint`` or ``None``. Used to split a step that turned too far instead of discarding it."""
-        ds = end.s - pt.s
-        u0 = 0.5 * (pt.u + end.u) + 0.125 * ds * (pt.du_ds - end.du_ds)
-        p0 = 0.5 * (pt.p + end.p) + 0.125 * ds * (pt.dp_ds - end.dp_ds)
+    def step_between(self, pt: PathPoint, end: PathPoint, ds: float | None = None, tol: float | None = None,
+                     error_test: bool = False):
+        """The path point at arc length ``ds`` (default: half way) from ``pt`` towards ``end``, a
+        converged point of a step of length ``end.s - pt.s`` from ``pt``: predicted by the cubic
+        Hermite interpolation between the two (far closer than an extrapolation), then corrected
+        onto the Riks hyperplane at ``ds`` from ``pt``; ``PathPoint`` or ``None``. Used to split
+        a step that turned too far, and by the root finding inside a step."""
+        h = end.s - pt.s
+        ds = 0.5 * h if ds is None else ds
+        t = ds / h
+        h00, h10, h01, h11 = 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t, -2 * t**3 + 3 * t**2, t**3 - t**2
+        u0 = h00 * pt.u + (h10 * h) * pt.du_ds + h01 * end.u + (h11 * h) * end.du_ds
+        p0 = h00 * pt.p + h10 * h * pt.dp_ds + h01 * end.p + h11 * h * end.dp_ds
         aux0 = None
         if pt.aux is not None and end.aux is not None and self.cfg.mixed_tangent:
-            aux0 = 0.5 * (pt.aux + end.aux)
             if pt.daux_ds is not None and end.daux_ds is not None:
-                aux0 = aux0 + 0.125 * ds * (pt.daux_ds - end.daux_ds)
-        return self._point(pt, u0, p0, aux0, 0.5 * ds, tol, error_test)
+                aux0 = h00 * pt.aux + (h10 * h) * pt.daux_ds + h01 * end.aux + (h11 * h) * end.daux_ds
+            else:
+                aux0 = (1 - t) * pt.aux + t * end.aux
+        return self._point(pt, u0, p0, aux0, ds, tol, error_test)
 
     def _point(self, pt: PathPoint, u0: np.ndarray, p0: float, aux0, ds: float, tol: float | None,
                error_test: bool):

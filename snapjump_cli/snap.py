@@ -32,21 +32,35 @@ __all__ = ["SnapStates", "SnapTracker", "root_on_step", "state_at_pressure"]
 
 
 def root_on_step(tr: Tracer, a: PathPoint, b: PathPoint, a_prev: PathPoint | None,
-                 f: Callable[[PathPoint], float], tol: float, max_iter: int) -> PathPoint:
-    """Illinois regula falsi on the length of a re-solved step from ``a`` for a root of ``f``
-    (a function of a path point; ``f(a)`` and ``f(b)`` have opposite signs). Returns the point
-    where ``|f| < tol``, else the last one found on ``b``'s side of the root (``b`` if none)."""
+                 f: Callable[[PathPoint], float], tol: float, max_iter: int, s0: float | None = None) -> PathPoint:
+    """A root of ``f`` (a function of a path point; ``f(a)`` and ``f(b)`` have opposite signs) on
+    the length of a re-solved step from ``a``: the secant through the last two trial points while
+    it stays inside the bracket, else Illinois regula falsi on the bracket; the first trial at
+    the arc length ``s0`` if given (a better first estimate than the secant's). Returns the point
+    where ``|f| < tol``, else the last one found on ``b``'s side of the root (``b`` if none).
+    Each trial point is predicted by the cubic Hermite interpolation between ``a`` and ``b``
+    (:meth:`~snapjump_cli.continuation.Tracer.step_between`; an extrapolation from ``a`` if that
+    fails)."""
     lo, flo = 0.0, f(a)
     hi, fhi, best = b.s - a.s, f(b), b
     b_positive = fhi > 0
     side = 0
+    trials: list[tuple[float, float]] = []
     for _ in range(max_iter):
         if abs(fhi) < tol:
             break
-        s = hi - fhi * (hi - lo) / (fhi - flo)
+        if s0 is not None:
+            s, s0 = s0, None
+        elif len(trials) >= 2 and trials[-1][1] != trials[-2][1]:
+            (s1, f1), (s2, f2) = trials[-2], trials[-1]
+            s = s2 - f2 * (s2 - s1) / (f2 - f1)
+        else:
+            s = hi - fhi * (hi - lo) / (fhi - flo)
         if not (lo < s < hi):
-            s = 0.5 * (lo + hi)
-        c = tr.step(a, s, a_prev)
+            s = hi - fhi * (hi - lo) / (fhi - flo)
+            if not (lo < s < hi):
+                s = 0.5 * (lo + hi)
+        c = tr.step_between(a, b, s) or tr.step(a, s, a_prev)
         if c is None:  # the predictor may fail where the path curves: bisect
             s = 0.5 * (lo + hi)
             c = tr.step(a, s, a_prev)
@@ -55,6 +69,7 @@ def root_on_step(tr: Tracer, a: PathPoint, b: PathPoint, a_prev: PathPoint | Non
         fc = f(c)
         if abs(fc) < tol:
             return c
+        trials.append((s, fc))
         if (fc > 0) == b_positive:
             hi, fhi, best = s, fc, c
             if side == 1:
@@ -68,6 +83,26 @@ def root_on_step(tr: Tracer, a: PathPoint, b: PathPoint, a_prev: PathPoint | Non
         if hi - lo < 1e-13:
             break
     return best
+
+
+def _hermite_root(a: PathPoint, b: PathPoint, value: float, derivative: bool = False) -> float | None:
+    """Arc length from ``a`` where the cubic Hermite interpolation of the scaled volume between the
+    path points ``a`` and ``b`` (their values and tangents) takes ``value`` (with ``derivative``:
+    where its derivative ``dV/ds`` does); ``None`` if it has no such point inside the step.
+    A first estimate for :func:`root_on_step`, exact to the interpolation's error."""
+    h = b.s - a.s
+    V0, V1, d0, d1 = a.zeta[0], b.zeta[0], a.tangent[0] * h, b.tangent[0] * h
+    # V(t) = c0 + c1 t + c2 t^2 + c3 t^3 on t in [0, 1]
+    c = np.array([V0, d0, -3 * V0 - 2 * d0 + 3 * V1 - d1, 2 * V0 + d0 - 2 * V1 + d1])
+    if derivative:
+        coef = np.array([c[1], 2 * c[2], 3 * c[3]])
+    else:
+        coef = c - np.array([value, 0.0, 0.0, 0.0])
+    roots = np.roots(coef[::-1]) if np.any(coef[1:] != 0) else np.zeros(0)
+    inside = [r.real for r in roots if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0]
+    if not inside:
+        return None
+    return float(min(inside)) * h
 
 
 @dataclass
@@ -165,17 +200,22 @@ class SnapTracker:
                             f"within {gap:.1e} of (V*, p*)")
 
     def locate_volume_limit(self, a: PathPoint, b: PathPoint, a_prev: PathPoint | None = None,
-                            tol: float = 1e-9, max_iter: int = 30) -> PathPoint:
-        """Root of ``dV/ds`` between the path points ``a`` (dV/ds > 0) and ``b`` (dV/ds <= 0)."""
-        return root_on_step(self.tracer, a, b, a_prev, lambda pt: pt.tangent[0], tol, max_iter)
+                            tol: float = 1e-7, max_iter: int = 30) -> PathPoint:
+        """Root of ``dV/ds`` between the path points ``a`` (dV/ds > 0) and ``b`` (dV/ds <= 0),
+        to ``|dV/ds| < tol`` (the unit tangent's volume component: it carries round-off of a few
+        1e-9 from the Newton tolerance, so a tighter ``tol`` only makes the iteration dither; the
+        limit point then lies within ~``tol`` of the root in arc length, and ``V*`` within ~``tol^2``)."""
+        return root_on_step(self.tracer, a, b, a_prev, lambda pt: pt.tangent[0], tol, max_iter,
+                            s0=_hermite_root(a, b, 0.0, derivative=True))
 
     def locate_volume(self, a: PathPoint, b: PathPoint, V_target: float, a_prev: PathPoint | None = None,
                       max_iter: int = 40) -> PathPoint | None:
         """The path point at scaled volume ``V_target`` between path points ``a`` and ``b``
         (``V_a < V_target <= V_b``), then a volume-control Newton polish at exactly ``V_target``.
         Being on the path, the point's arc length is exact for the path integral of dE."""
-        tol = 1e-10 * max(1.0, abs(V_target))
-        best = root_on_step(self.tracer, a, b, a_prev, lambda pt: pt.zeta[0] - V_target, tol, max_iter)
+        tol = 1e-8 * max(1.0, abs(V_target))
+        best = root_on_step(self.tracer, a, b, a_prev, lambda pt: pt.zeta[0] - V_target, tol, max_iter,
+                            s0=_hermite_root(a, b, V_target))
         polished = self.solve_at_volume(best, best, V_target) if best.tangent[0] > 0 else None
         if polished is None:  # fall back on interpolating between the bracketing points
             log.debug("locate_volume: regula falsi did not reach V*; interpolating")

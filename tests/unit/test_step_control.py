@@ -85,3 +85,31 @@ def test_newton_gives_up_without_contraction_and_both_correctors_agree():
             if a[2] is not None:
                 np.testing.assert_allclose(a[2], b[2], rtol=1e-8)
     assert earlier >= 1
+
+
+def _cubic_points(s_a: float, s_b: float):
+    from snapjump_cli.continuation import PathPoint
+
+    V = lambda s: 1.0 + 2.0 * s - 3.0 * s**2 + 0.5 * s**3  # noqa: E731
+    dV = lambda s: 2.0 - 6.0 * s + 1.5 * s**2  # noqa: E731
+    pt = lambda s: PathPoint(np.zeros(1), 0.0, np.array([V(s), 0.0, 0.0]), np.array([dV(s), 0.0, 0.0]),  # noqa: E731
+                             np.zeros(1), 0.0, s)
+    return pt(s_a), pt(s_b), V, dV
+
+
+def test_hermite_root_first_estimates_are_exact_on_a_cubic_volume():
+    from snapjump_cli.snap import _hermite_root
+
+    a, b, V, dV = _cubic_points(0.2, 0.8)
+    s_lim = (6.0 - math.sqrt(36.0 - 12.0)) / 3.0  # dV/ds = 0 at s = 0.367
+    assert a.s + _hermite_root(a, b, 0.0, derivative=True) == pytest.approx(s_lim, rel=1e-12)
+    a, b, V, dV = _cubic_points(0.5, 0.9)  # V falls monotonically here
+    assert a.s + _hermite_root(a, b, V(0.7)) == pytest.approx(0.7, rel=1e-12)
+    assert _hermite_root(a, b, V(0.5) + 10.0) is None  # not reached inside the step
+
+
+def test_snap_states_are_located_to_their_tolerances(design_D):
+    new, _ = design_D
+    st = new.states
+    assert abs(st.upper.tangent[0]) < 1e-7  # the volume limit: dV/ds = 0
+    assert st.lower.zeta[0] == pytest.approx(st.upper.zeta[0], rel=1e-12)  # the lower state at V*
