@@ -247,6 +247,27 @@ def node_order(n_nodes: int, conn: np.ndarray, start: int, fixed: np.ndarray) ->
     start : the first node (the inner or only cap's lower pole)
     fixed : (n_nodes, 2) constrained dofs (:func:`fixed_dofs`), for the envelope
     """
+    conn = np.ascontiguousarray(conn, dtype=np.int64)
+    fixed = np.ascontiguousarray(fixed, dtype=bool)
+    key = (n_nodes, int(start), conn.shape, conn.tobytes(), fixed.tobytes())
+    hit = _ORDER_CACHE.get(key)
+    if hit is None:
+        if len(_ORDER_CACHE) >= _ORDER_CACHE_SIZE:
+            _ORDER_CACHE.pop(next(iter(_ORDER_CACHE)))
+        hit = _ORDER_CACHE[key] = _node_order(n_nodes, conn, start, fixed)
+    return hit.copy()
+
+
+#: :func:`node_order` of the meshes seen last (the mesh's connectivity, start and constrained
+#: dofs -> order). The order depends on the topology alone, and a sweep meshes the same topology
+#: again and again (the structured meshes of 347 paper-grid designs have 75 distinct ones): four
+#: breadth-first searches (~6 ms) become a dictionary look-up.
+_ORDER_CACHE: dict = {}
+_ORDER_CACHE_SIZE = 512
+
+
+def _node_order(n_nodes: int, conn: np.ndarray, start: int, fixed: np.ndarray) -> np.ndarray:
+    """:func:`node_order`, computed."""
     graph = _node_graph(n_nodes, conn)
     first = _breadth_first(graph, start, None)
     best, best_cost = first, math.inf

@@ -531,3 +531,20 @@ def test_gmsh_session_keeps_the_python_signal_handlers():
         assert caught() & (1 << (signal.SIGTERM - 1)), "gmsh removed the SIGTERM handler"
     finally:
         signal.signal(signal.SIGTERM, old)
+
+
+def test_node_order_cache_gives_the_computed_order_and_a_private_copy():
+    from snapjump_cli import meshdata
+
+    # a strip of 6 Q4 elements, 2 x 7 nodes
+    conn = np.array([[i, i + 1, i + 8, i + 7] for i in range(6)], dtype=np.int64)
+    fixed = np.zeros((14, 2), bool)
+    fixed[0, 0] = True
+    meshdata._ORDER_CACHE.clear()
+    first = meshdata.node_order(14, conn, 0, fixed)
+    assert np.array_equal(first, meshdata._node_order(14, conn, 0, fixed))
+    first[:] = -1  # the caller's copy: the cache keeps its own
+    again = meshdata.node_order(14, conn.astype(np.int32), 0, fixed)
+    assert np.array_equal(again, meshdata._node_order(14, conn, 0, fixed))
+    assert len(meshdata._ORDER_CACHE) == 1
+    assert sorted(again.tolist()) == list(range(14))
