@@ -143,7 +143,11 @@ def cuthill_mckee(n_nodes: int, conn: np.ndarray, start: int, ties: np.ndarray |
         order of this function from ``start`` (whatever its ``ties``), the default order is the
         identity.
     """
-    return _breadth_first(_node_graph(n_nodes, conn), start, ties)
+    if ties is not None:
+        return _breadth_first(_node_graph(n_nodes, conn), start, ties)
+    conn = np.ascontiguousarray(conn, dtype=np.int64)
+    return _cached(("cuthill_mckee", n_nodes, int(start), conn.shape, conn.tobytes()),
+                   lambda: _breadth_first(_node_graph(n_nodes, conn), start, None))
 
 
 def _node_graph(n_nodes: int, conn: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -249,21 +253,27 @@ def node_order(n_nodes: int, conn: np.ndarray, start: int, fixed: np.ndarray) ->
     """
     conn = np.ascontiguousarray(conn, dtype=np.int64)
     fixed = np.ascontiguousarray(fixed, dtype=bool)
-    key = (n_nodes, int(start), conn.shape, conn.tobytes(), fixed.tobytes())
+    return _cached(("node_order", n_nodes, int(start), conn.shape, conn.tobytes(), fixed.tobytes()),
+                   lambda: _node_order(n_nodes, conn, start, fixed))
+
+
+#: Node orders (:func:`node_order`, :func:`cuthill_mckee`) of the meshes seen last, by the mesh's
+#: connectivity, start node (and constrained dofs). An order depends on the topology alone, and a
+#: sweep meshes the same topology again and again (the structured meshes of 347 paper-grid
+#: designs have 75 distinct ones): five breadth-first searches (~6-8 ms a design) become
+#: dictionary look-ups.
+_ORDER_CACHE: dict = {}
+_ORDER_CACHE_SIZE = 1024
+
+
+def _cached(key: tuple, compute) -> np.ndarray:
+    """``compute()`` through :data:`_ORDER_CACHE` (oldest entry dropped when full); a copy."""
     hit = _ORDER_CACHE.get(key)
     if hit is None:
         if len(_ORDER_CACHE) >= _ORDER_CACHE_SIZE:
             _ORDER_CACHE.pop(next(iter(_ORDER_CACHE)))
-        hit = _ORDER_CACHE[key] = _node_order(n_nodes, conn, start, fixed)
+        hit = _ORDER_CACHE[key] = compute()
     return hit.copy()
-
-
-#: :func:`node_order` of the meshes seen last (the mesh's connectivity, start and constrained
-#: dofs -> order). The order depends on the topology alone, and a sweep meshes the same topology
-#: again and again (the structured meshes of 347 paper-grid designs have 75 distinct ones): four
-#: breadth-first searches (~6 ms) become a dictionary look-up.
-_ORDER_CACHE: dict = {}
-_ORDER_CACHE_SIZE = 512
 
 
 def _node_order(n_nodes: int, conn: np.ndarray, start: int, fixed: np.ndarray) -> np.ndarray:

@@ -546,5 +546,5 @@ def test_node_order_cache_gives_the_computed_order_and_a_private_copy():
     first[:] = -1  # the caller's copy: the cache keeps its own
     again = meshdata.node_order(14, conn.astype(np.int32), 0, fixed)
     assert np.array_equal(again, meshdata._node_order(14, conn, 0, fixed))
-    assert len(meshdata._ORDER_CACHE) == 1
+    assert len(meshdata._ORDER_CACHE) == 1  # the int32 connectivity hit the same entry
     assert sorted(again.tolist()) == list(range(14))
