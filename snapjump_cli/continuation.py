@@ -69,6 +69,10 @@ class Problem(Protocol):
         evaluation of ``linearize`` at the same state, may be used to avoid recomputing them."""
         ...
 
+    # optional: ``measure_rates(lin, v, q) -> (zeta, d zeta)``: the measures at the evaluated state
+    # ``lin`` and their change along ``(v, q)``, i.e. ``d zeta / du @ v + d zeta / dp * q``
+    # (what a tangent needs, without forming ``d zeta / du``)
+
 
 class ContinuationFailed(RuntimeError):
     """The path could not be continued; the message gives the cause."""
@@ -249,9 +253,14 @@ class Tracer:
         """``(t, v, q, zeta, norm)``: the solution ``x = [v; q]`` of the tangent system at ``lin``
         scaled to unit length in the arc-length metric."""
         evaluated = getattr(lin, "g", None) is not None
-        z, dz_du, dz_dp = self.zeta(lin.u, lin.p, lin if evaluated else None)
         v, q = x[:-1], x[-1]
-        dz = dz_du @ v + dz_dp * q
+        rates = getattr(self.pb, "measure_rates", None)
+        if rates is not None and evaluated:  # without forming d zeta / du
+            z, dz = rates(lin, v, q)
+            z, dz = z / self.sc, dz / self.sc
+        else:
+            z, dz_du, dz_dp = self.zeta(lin.u, lin.p, lin if evaluated else None)
+            dz = dz_du @ v + dz_dp * q
         a = self.alpha
         nrm = math.sqrt(float(dz @ dz) + a * a * float(v @ v))
         if not np.isfinite(nrm) or nrm == 0.0:

@@ -378,6 +378,13 @@ class Model:
         E, ok, R, g, V, _ = self._evaluate(u, 0.0, 0)
         return (E, V) if ok else None
 
+    def measure_rates(self, lin: Linearization, v: np.ndarray, q: float) -> tuple[np.ndarray, np.ndarray]:
+        """The path measures ``(V, p, w)`` at the evaluated state ``lin`` and their change along
+        ``(v, q)``: ``(g . v, q, v_pole)`` (:meth:`measures` without forming ``d zeta / du``)."""
+        pole = self.pole_dof
+        return (np.array([lin.V, lin.p, lin.u[pole]]),
+                np.array([float(lin.g @ v), float(q), float(v[pole])]))
+
     def measures(self, u: np.ndarray, p: float, lin: Linearization | None = None):
         """Path measures ``zeta = (V, p, w)`` and their derivatives (cavity only: cheap; free
         when ``lin``, an evaluation at the same ``u``, is given).
