@@ -9,6 +9,7 @@
     .venv/bin/python scripts/newton_study.py turning --design D         # where the path turns
     .venv/bin/python scripts/newton_study.py pressure --design D        # element pressure at predictions
     .venv/bin/python scripts/newton_study.py accepted --design D        # residual of the accepted states
+    .venv/bin/python scripts/newton_study.py contraction D grid-1543    # Newton contraction, steps kept and failed
 
 ``variants`` solves the first N valid, snapping designs of the seeded benchmark sample (the grid
 rows of bench/regression/baseline.json) as the sweep does and prints the assemblies, steps and
@@ -27,7 +28,9 @@ the snap in each plane of the measures: what limits the steps. ``pressure`` prin
 for the path steps, how far the condensed element pressure ``kappa M^-1 g(u)`` of the predicted
 state is from that of the accepted state (relative, whole field): the reason for the mixed
 linearisation (docs/numerics.md). ``accepted`` prints the relative residual of the path states
-that the error test accepted (median, 90th percentile, largest).
+that the error test accepted (median, 90th percentile, largest). ``contraction`` prints how much
+each Newton correction of a path step shrinks against the one before, for the steps that converged
+and those that failed (with the give-up rule ``theta_max`` switched off): the basis of that rule.
 """
 from __future__ import annotations
 
@@ -86,8 +89,15 @@ def _design_of(params) -> "Design":
 
 
 def _design(name: str):
+    """A named design, ``grid-NNNN`` (the paper grid's point NNNN) or ``eta_i,theta_i,eta_o,theta_o,mu_ratio``."""
     from snapjump_cli.designs import get_design
 
+    if name.startswith("grid-"):
+        from snapjump_cli.config import load_config
+        from snapjump_cli.geometry import Design
+
+        points = list(load_config(REPO / "configs" / "paper_grid.yaml").designs())
+        return Design(**points[int(name[5:])].design_kwargs())
     return _design_of(name.split(",")) if "," in name else get_design(name)
 
 
@@ -304,6 +314,51 @@ def _accepted(a: argparse.Namespace) -> None:
           f"{np.median(r):.2g}, 90th percentile {np.quantile(r, 0.9):.2g}, largest {r.max():.2g}")
 
 
+def _contraction(a: argparse.Namespace) -> None:
+    """Contraction of the Newton corrections (each one over the one before) on the path steps, for
+    the steps that converged and those that failed, with the give-up rule switched off: why Newton
+    stops at a contraction above ``theta_max`` (ContinuationSettings)."""
+    os.environ["SNAPJUMP_PROFILE_PHASES"] = "1"  # the Python corrector reports its corrections
+    from snapjump_cli import continuation as C
+    from snapjump_cli.config import load_config
+    from snapjump_cli.solve import solve_scene
+
+    cfg = load_config(REPO / "configs" / "paper_grid.yaml")
+    orig_correct, orig_from = C.Tracer.correct, C.ContinuationSettings.from_solver.__func__
+    for name in a.designs:
+        calls: list[tuple[bool, list[float]]] = []
+
+        def correct(self, u, p, z0, t, ds, target=None, tol=None, aux=None, error_test=False):
+            incs: list[float] = []
+            self.on_increment = lambda it, inc: incs.append(inc)
+            res = orig_correct(self, u, p, z0, t, ds, target, tol, aux, error_test)
+            self.on_increment = None
+            if target is None and error_test:
+                calls.append((res is not None, incs))
+            return res
+
+        C.Tracer.correct = correct
+        C.ContinuationSettings.from_solver = classmethod(
+            lambda cls, *x, **k: orig_from(cls, *x, **{**k, "theta_max": float("inf")}))
+        try:
+            m = solve_scene(_design(name), cfg.mesh, cfg.solver).metrics
+        finally:
+            C.Tracer.correct = orig_correct
+            C.ContinuationSettings.from_solver = classmethod(orig_from)
+        print(f"{name}: {m['n_steps']} steps; path corrector calls {len(calls)}, "
+              f"{sum(not ok for ok, _ in calls)} failed")
+        for label, want in (("converged", True), ("failed", False)):
+            th = [i[k + 1] / i[k] for ok, i in calls if ok == want for k in range(len(i) - 1)]
+            if th:
+                print(f"  {label}: contraction median {np.median(th):.1e}, 90th percentile "
+                      f"{np.quantile(th, 0.9):.1e}, largest {max(th):.2g}; element passes "
+                      f"{sum(len(i) + (0 if ok else 1) for ok, i in calls if ok == want)}")
+        ok_incs = [i for ok, i in calls if ok]
+        for thr in (0.25, 0.5, 0.75):
+            n = sum(1 for i in ok_incs if any(i[k + 1] > thr * i[k] for k in range(len(i) - 1)))
+            print(f"  converged steps with a contraction above {thr}: {n} of {len(ok_incs)}")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="what", required=True)
@@ -321,9 +376,12 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("-j", "--jobs", type=int, default=2)
     for name in ("pressure", "accepted", "predictor", "turning"):
         sub.add_parser(name).add_argument("--design", default="D")
+    c = sub.add_parser("contraction")
+    c.add_argument("designs", nargs="*", default=["D", "C", "grid-0037", "grid-1543", "grid-2239"],
+                   help="named designs, grid-NNNN or eta_i,theta_i,eta_o,theta_o,mu_ratio")
     a = ap.parse_args(argv)
     {"variants": _variants, "history": _history, "perturb": _perturb, "recheck": _recheck, "pressure": _pressure,
-     "accepted": _accepted, "predictor": _predictor, "turning": _turning}[a.what](a)
+     "accepted": _accepted, "predictor": _predictor, "turning": _turning, "contraction": _contraction}[a.what](a)
     return 0
 
 

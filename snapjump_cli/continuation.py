@@ -111,8 +111,9 @@ class ContinuationSettings:
     error_test : accept ordinary path points by the error test (else by the residual test)
     theta_max : with the error test, Newton gives up on a step as soon as a correction (above the
         tolerance) is more than ``theta_max`` times the one before: converging steps contract by
-        ~1e-3 per iteration (90 % below 2e-2), failing ones by 0.3-1 or not at all, and iterating on
-        to ``max_newton`` cost ~9 element passes per failed step (``scripts/newton_study.py contraction``)
+        ~1e-3 per iteration (90 % below 2e-2; above 0.5 in 3 of ~800 steps), failing ones by ~0.9
+        in the median (often growing), and iterating on to ``max_newton`` cost ~9 element passes
+        per failed step (``scripts/newton_study.py contraction``)
     mixed_tangent : linearise with the auxiliary field carried along the path, if the problem has one
     split_steps : a step that turned more than ``max_turn_deg`` is kept, with its half-way point
         added, when each half turns less (else it is rejected and the step halved); the converged
@@ -213,6 +214,9 @@ class Tracer:
         self.n_newton = 0
         self.last_det_sign = 0
         self.last_n_neg = -1
+        #: called as ``on_increment(iteration, size)`` with every Newton correction of the Python
+        #: corrector (diagnostics; the compiled one does not report them)
+        self.on_increment: Callable[[int, float], None] | None = None
         # weight of the RMS displacement in the arc length (0: measures only)
         self.alpha = 1.0 / (math.sqrt(problem.n) * settings.u_scale) if settings.u_scale > 0 else 0.0
 
@@ -367,6 +371,8 @@ class Tracer:
                 return None
             dz = dz_du @ du + dz_dp * dp
             inc = math.sqrt(float(dz @ dz) + self.alpha**2 * float(du @ du))
+            if self.on_increment is not None:  # diagnostics (scripts/newton_study.py)
+                self.on_increment(it, inc)
             if tol_inc > 0.0 and it > 0 and inc < tol_inc and inc < inc_prev:
                 aux_dir = getattr(lin, "aux_dir", None)
                 aux_next = lin.aux + aux_dir(du) if aux_dir is not None else None
