@@ -55,8 +55,10 @@ class Problem(Protocol):
     # :meth:`snapjump_cli.model.Model.newton`)
 
     def linearize(self, u: np.ndarray, p: float, stiffness: bool = True):
-        """Object with ``.R`` (residual) and ``.factor(c_u, c_p)`` -> solver with ``.solve(rhs)``
-        for the bordered matrix ``[[dR/du, dR/dp], [c_u^T, c_p]]``; ``None`` for a failed iterate.
+        """Object with ``.R`` (residual) and ``.factor(c_u, c_p)`` -> solver with
+        ``.solve(rhs, refine=True)`` for the bordered matrix ``[[dR/du, dR/dp], [c_u^T, c_p]]``
+        (``refine=False``: the Newton corrections, which may skip a refinement step); ``None`` for
+        a failed iterate.
         With ``stiffness=False`` only ``.R`` is needed (no ``factor``).
 
         Optional auxiliary field: a problem that accepts ``linearize(u, p, aux=a)`` builds the
@@ -365,7 +367,7 @@ class Tracer:
                 lin.tangent_solver = solver
                 self.n_newton += it
                 return lin, it
-            x = solver.solve(np.concatenate([-R, [-h]]))
+            x = solver.solve(np.concatenate([-R, [-h]]), refine=False)  # Newton corrects its error
             du, dp = x[:-1], x[-1]
             if not (np.all(np.isfinite(du)) and np.isfinite(dp)):
                 return None

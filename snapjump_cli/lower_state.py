@@ -136,7 +136,8 @@ def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint]
 
 class _MultiBorderedSolver:
     """Solves ``[[K, B], [C^T, D]] [x; y] = [r; s]`` (``B``, ``C``: n x m, ``D``: m x m) by block
-    elimination with the band ``LDL^T`` of ``K`` and one step of iterative refinement."""
+    elimination with the band ``LDL^T`` of ``K`` (and, with ``refine``, one step of iterative
+    refinement)."""
 
     def __init__(self, base, B: np.ndarray, C: np.ndarray, D: np.ndarray):
         self.base, self.B, self.C, self.D = base, B, C, D
@@ -148,20 +149,25 @@ class _MultiBorderedSolver:
         self.KiB = KiB
         self.S = D - C.T @ KiB
         self.n_negative = -1  # the inertia of the whole matrix is not tracked (no det sign)
+        self._S_inv = None  # the m x m Schur complement's inverse, on the first solve
 
     def _once(self, r, s):
         z = self._solve_K(r)
-        y = np.linalg.solve(self.S, s - self.C.T @ z)
+        if self._S_inv is None:
+            self._S_inv = np.linalg.inv(self.S)
+        y = self._S_inv @ (s - self.C.T @ z)
         return z - self.KiB @ y, y
 
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
+    def solve(self, rhs: np.ndarray, refine: bool = True) -> np.ndarray:
         m = self.B.shape[1]
         r, s = rhs[:-m], rhs[-m:]
         x, y = self._once(r, s)
-        top = sym_band_matvec(self.base.K, x, self.base.ext) + self.B @ y
-        bot = self.C.T @ x + self.D @ y
-        dx, dy = self._once(r - top, s - bot)
-        return np.concatenate([x + dx, y + dy])
+        if refine:
+            top = sym_band_matvec(self.base.K, x, self.base.ext) + self.B @ y
+            bot = self.C.T @ x + self.D @ y
+            dx, dy = self._once(r - top, s - bot)
+            x, y = x + dx, y + dy
+        return np.concatenate([x, y])
 
 
 class _FixedVolumeLinearization:

@@ -103,13 +103,13 @@ class BorderedSolver:
         self.ext = ext  # envelope column extents of the band (banded only)
         self.Kib, self.schur = Kib, schur  # K^-1 b and d - c^T K^-1 b (banded only)
 
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
+    def solve(self, rhs: np.ndarray, refine: bool = True) -> np.ndarray:
         """Solution of the bordered system for one right-hand side ``[r; s]`` (length n + 1),
-        with one step of iterative refinement on the full bordered system (banded)."""
+        with (``refine``) one step of iterative refinement on the full bordered system (banded)."""
         rhs = np.asarray(rhs, dtype=float)
         if self.kind == "superlu":
             return self.fac.solve(rhs)
-        return bordered_solve(self.fac, self.K, self.ext, self.b, self.c, self.d, self.Kib, self.schur, rhs, True)
+        return bordered_solve(self.fac, self.K, self.ext, self.b, self.c, self.d, self.Kib, self.schur, rhs, refine)
 
 
 class Model:
