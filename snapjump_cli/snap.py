@@ -211,8 +211,9 @@ class SnapTracker:
     def locate_volume(self, a: PathPoint, b: PathPoint, V_target: float, a_prev: PathPoint | None = None,
                       max_iter: int = 40) -> PathPoint | None:
         """The path point at scaled volume ``V_target`` between path points ``a`` and ``b``
-        (``V_a < V_target <= V_b``), then a volume-control Newton polish at exactly ``V_target``.
-        Being on the path, the point's arc length is exact for the path integral of dE."""
+        (``V_a < V_target <= V_b``), to ``|V - V_target| < 1e-8 max(1, |V_target|)``, then a
+        volume-control Newton polish at exactly ``V_target``. Being on the path, the point's arc
+        length is exact for the path integral of dE (to the ~1e-8 the polish moves it)."""
         tol = 1e-8 * max(1.0, abs(V_target))
         best = root_on_step(self.tracer, a, b, a_prev, lambda pt: pt.zeta[0] - V_target, tol, max_iter,
                             s0=_hermite_root(a, b, V_target))
