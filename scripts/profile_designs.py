@@ -17,6 +17,12 @@ the design's path: the element pass with the stiffness, with the residual only a
 energy only, the bordered band LDL^T and one refined bordered solve (``--nt 3``: on the mesh of
 the re-check), then how exact the band kernels are there (condition number, the bordered solve
 against an extended-precision solution, the band solve and product against dense numpy).
+
+    .venv/bin/python scripts/profile_designs.py --topologies 400
+
+meshes a seeded sample of paper-grid points (the invalid ones drop out) and counts the distinct
+mesh topologies, i.e. the node orders the sweep computes once and then looks up (the order cache
+of ``snapjump_cli/meshdata.py``).
 """
 from __future__ import annotations
 
@@ -161,6 +167,32 @@ def _solve_accuracy(K, ext, g, c, rhs, fac) -> None:
           f"band product {err(sym_band_matvec(K, b, ext), A @ b):.1e}")
 
 
+def topologies(n: int, seed: int = 0) -> int:
+    """Mesh ``n`` seeded paper-grid points; print how many were valid and their distinct topologies."""
+    import numpy as np
+
+    from snapjump_cli import meshdata
+    from snapjump_cli.config import load_config
+    from snapjump_cli.geometry import Design, InvalidDesign
+    from snapjump_cli.mesh import mesh_scene
+
+    cfg = load_config(REPO / "configs" / "paper_grid.yaml")
+    points = list(cfg.designs())
+    meshdata._ORDER_CACHE.clear()
+    n_valid = 0
+    for i in np.random.default_rng(seed).choice(len(points), n, replace=False):
+        try:
+            d = Design(**points[int(i)].design_kwargs())
+        except InvalidDesign:
+            continue
+        mesh_scene(d, cfg.mesh)
+        n_valid += 1
+    n_orders = sum(1 for key in meshdata._ORDER_CACHE if key[0] == "node_order")
+    print(f"{n} points (seed {seed}), {n_valid} valid designs meshed at {cfg.mesh}: "
+          f"{n_orders} distinct mesh topologies ({len(meshdata._ORDER_CACHE)} cached orders)")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=3)
@@ -172,9 +204,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--profile", action="store_true", help="with --startup: cProfile of the first solve")
     ap.add_argument("--startup", action="store_true",
                     help="only the start-up costs of a fresh process: imports, first and second solve of a cap")
+    ap.add_argument("--topologies", type=int, metavar="N",
+                    help="only count the distinct mesh topologies of N seeded grid points")
     a = ap.parse_args(argv)
     repo = Path(a.repo).resolve()
     sys.path.insert(0, str(repo))
+    if a.topologies:
+        return topologies(a.topologies)
     if a.startup:
         return startup(a.profile)
     if a.kernels:

@@ -37,6 +37,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from snapjump_cli import hermite
 from snapjump_cli.settings import SolverSettings
 
 log = logging.getLogger(__name__)
@@ -429,7 +430,7 @@ class Tracer:
         h = end.s - pt.s
         ds = 0.5 * h if ds is None else ds
         t = ds / h
-        h00, h10, h01, h11 = 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t, -2 * t**3 + 3 * t**2, t**3 - t**2
+        h00, h10, h01, h11 = hermite.basis(t)
         u0 = h00 * pt.u + (h10 * h) * pt.du_ds + h01 * end.u + (h11 * h) * end.du_ds
         p0 = h00 * pt.p + h10 * h * pt.dp_ds + h01 * end.p + h11 * h * end.dp_ds
         aux0 = None
@@ -527,6 +528,16 @@ def chord_angle(a: PathPoint, b: PathPoint, alpha: float = 0.0) -> float:
     return out
 
 
+def _accept(path: Path, point: PathPoint, tracer: Tracer, stop: Callable[[Path], str | None]) -> bool:
+    """Append an accepted point to ``path``; True if ``stop`` ends the trace (reason recorded)."""
+    path.points.append(point)
+    path.n_newton = tracer.n_newton
+    reason = stop(path)
+    if reason:
+        path.stop_reason = reason
+    return bool(reason)
+
+
 def trace(
     problem: Problem,
     settings: ContinuationSettings,
@@ -572,11 +583,7 @@ def trace(
                 mid = _split(tr, pt, new)
                 if mid is not None:
                     path.n_split += 1
-                    path.points.append(mid)
-                    path.n_newton = tr.n_newton
-                    reason = stop(path)
-                    if reason:
-                        path.stop_reason = reason
+                    if _accept(path, mid, tr, stop):
                         break
                     pt, ds = mid, new.s - mid.s
                     ang = step_turn(pt, new, tr.alpha)
@@ -591,11 +598,7 @@ def trace(
             else:
                 if crossed:
                     path.n_bifurcations += 1
-                path.points.append(new)
-                path.n_newton = tr.n_newton
-                reason = stop(path)
-                if reason:
-                    path.stop_reason = reason
+                if _accept(path, new, tr, stop):
                     break
                 # Newton's iteration count hardly depends on the step while the predictor is in
                 # its basin: grow while it converges in <= n_opt iterations, shrink beyond

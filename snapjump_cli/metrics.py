@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from snapjump_cli import hermite
 from snapjump_cli.continuation import Path, PathPoint
 from snapjump_cli.meshdata import solid_volumes
 from snapjump_cli.model import Model
@@ -30,12 +31,6 @@ _G3 = np.polynomial.legendre.leggauss(4)
 #: The metrics that stay ``None`` without a snap (the first keys of the dict, in this order).
 _SNAP_KEYS = ("dE_J", "dE_norm", "dE_energy_J", "dE_path_J", "dE_rel_diff", "dy_pole_m", "dy_pole_upper_m",
               "dy_pole_norm", "p_star_Pa", "V_star_m3", "h_imp_m", "L0_m")
-
-
-def _hermite_basis(t):
-    """The cubic Hermite basis on [0, 1] at ``t``: ``(h00, h10, h01, h11)`` (value at the start,
-    derivative at the start, value at the end, derivative at the end)."""
-    return 2 * t**3 - 3 * t**2 + 1, t**3 - 2 * t**2 + t, -2 * t**3 + 3 * t**2, t**3 - t**2
 
 
 def hermite_p_dV(a: PathPoint, b: PathPoint, h: float, sV: float, sp: float) -> float:
@@ -55,7 +50,7 @@ def path_p_dV(points: list[PathPoint], sV: float, sp: float) -> float:
     tp = np.array([pt.tangent[1] for pt in points]) * sp
     x, w = _G3
     t = (0.5 * (x + 1.0))[:, None]  # (4, 1): the Gauss points of every segment
-    h00, h10, h01, h11 = _hermite_basis(t)
+    h00, h10, h01, h11 = hermite.basis(t)
     d00 = 6 * t**2 - 6 * t
     d10 = 3 * t**2 - 4 * t + 1
     d01 = -6 * t**2 + 6 * t
@@ -107,7 +102,7 @@ def path_self_crosses(V: np.ndarray, p: np.ndarray, dV: np.ndarray | None = None
     if len(i) == 0:
         return False
     t = np.linspace(0.0, 1.0, sub + 1)[:, None]
-    h00, h10, h01, h11 = _hermite_basis(t)
+    h00, h10, h01, h11 = hermite.basis(t)
 
     def curve(k):  # (len(k), sub + 1, 2)
         return (h00 * P[k][:, None] + h10 * D[k][:, None, 0] + h01 * P[k + 1][:, None] + h11 * D[k][:, None, 1])

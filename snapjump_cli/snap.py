@@ -24,6 +24,7 @@ from typing import Callable
 
 import numpy as np
 
+from snapjump_cli import hermite
 from snapjump_cli.continuation import Path, PathPoint, Tracer
 
 log = logging.getLogger(__name__)
@@ -92,8 +93,7 @@ def _hermite_root(a: PathPoint, b: PathPoint, value: float, derivative: bool = F
     A first estimate for :func:`root_on_step`, exact to the interpolation's error."""
     h = b.s - a.s
     V0, V1, d0, d1 = a.zeta[0], b.zeta[0], a.tangent[0] * h, b.tangent[0] * h
-    # V(t) = c0 + c1 t + c2 t^2 + c3 t^3 on t in [0, 1]
-    c = np.array([V0, d0, -3 * V0 - 2 * d0 + 3 * V1 - d1, 2 * V0 + d0 - 2 * V1 + d1])
+    c = hermite.power_coefficients(V0, d0, V1, d1)  # V(t) on t in [0, 1], power form
     if derivative:
         coef = np.array([c[1], 2 * c[2], 3 * c[3]])
     else:

@@ -1,0 +1,31 @@
+"""The cubic Hermite interpolation shared by the continuation, the snap location and the metrics."""
+import numpy as np
+
+from snapjump_cli import hermite
+
+
+def test_basis_reproduces_cubics():
+    rng = np.random.default_rng(3)
+    c = rng.normal(size=4)
+    y = lambda t: c[0] + c[1] * t + c[2] * t**2 + c[3] * t**3  # noqa: E731
+    dy = lambda t: c[1] + 2 * c[2] * t + 3 * c[3] * t**2  # noqa: E731
+    t = np.linspace(0.0, 1.0, 11)
+    h00, h10, h01, h11 = hermite.basis(t)
+    np.testing.assert_allclose(h00 * y(0) + h10 * dy(0) + h01 * y(1) + h11 * dy(1), y(t), atol=1e-14)
+
+
+def test_basis_end_conditions():
+    h = np.array(hermite.basis(np.array([0.0, 1.0])))  # (4 weights, 2 ends)
+    np.testing.assert_array_equal(h, [[1, 0], [0, 0], [0, 1], [0, 0]])
+    eps = 1e-6  # the derivative weights: slope 1 at their own end, 0 at the other
+    d = (np.array(hermite.basis(np.array([eps, 1.0]))) - np.array(hermite.basis(np.array([0.0, 1.0 - eps])))) / eps
+    np.testing.assert_allclose(d, [[0, 0], [1, 0], [0, 0], [0, 1]], atol=1e-5)
+
+
+def test_power_coefficients_match_basis():
+    rng = np.random.default_rng(4)
+    y0, d0, y1, d1 = rng.normal(size=4)
+    c = hermite.power_coefficients(y0, d0, y1, d1)
+    t = np.linspace(-0.5, 1.5, 9)
+    h00, h10, h01, h11 = hermite.basis(t)
+    np.testing.assert_allclose(np.polyval(c[::-1], t), h00 * y0 + h10 * d0 + h01 * y1 + h11 * d1, atol=1e-13)
