@@ -103,12 +103,15 @@ def newton_correct(u0, p0, target_k, target_val, z0, t_z, t_u, u_ref, ds, alpha2
     E = 0.0
     Vt = 0.0
     inc_prev = np.inf
+    # a typed int, not the constant 2: numba would compile evaluate and the element pass a second
+    # time for the argument type Literal[int](2)
+    want = np.int64(2)
     for it in range(max_newton + 1):
         R[:] = 0.0
         g[:] = 0.0
         data[:] = 0.0
         E, ok, V = evaluate(u, dofmap, X, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, edofs, epos,
-                            edges, edge_dofs, edge_pos, p, 2, R, g, data, pg, pb, H)
+                            edges, edge_dofs, edge_pos, p, want, R, g, data, pg, pb, H)
         if not ok:
             return False, it, n_fac, u, p, R, g, data, 0.0, 0.0, pb, empty, 0, 0.0, dp_el
         Vt = V + V_offset

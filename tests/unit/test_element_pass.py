@@ -14,7 +14,7 @@ import pytest
 
 from snapjump_cli.model import Model
 from snapjump_cli.verification import sphere_mesh
-from snapjump_kernels.assembly import assemble
+from snapjump_kernels.assembly import _assemble_plain, assemble
 from snapjump_kernels.gent import gent_iso
 
 
@@ -75,7 +75,7 @@ def _reference(M: Model, U: np.ndarray, p_geo: np.ndarray | None):
     return E, F, K, PB, HS, dev
 
 
-def _kernel(M: Model, U: np.ndarray, p_geo: np.ndarray | None, lower: bool, want: int = 2):
+def _kernel(M: Model, U: np.ndarray, p_geo: np.ndarray | None, lower: bool, want: int = 2, kernel=assemble):
     """The kernel's results with the stiffness in a dense (n, n) array: ``epos`` points every
     element entry (``lower``: those on and below the diagonal) at its place in it."""
     ne, nd, npr, n = M.conn.shape[0], M.edofs.shape[1], M.Np.shape[1], M.n
@@ -86,7 +86,7 @@ def _kernel(M: Model, U: np.ndarray, p_geo: np.ndarray | None, lower: bool, want
     f, data = np.zeros(n), np.zeros(n * n)
     pb, H = np.zeros((ne, npr)), np.zeros((ne, npr, nd))
     pg = np.zeros((0, npr)) if p_geo is None else p_geo
-    E, ok, dev = assemble(U, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np, M.Minv,
+    E, ok, dev = kernel(U, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np, M.Minv,
                           M.edofs, epos, want, f, data, pg, pb, H)
     K = data.reshape(n, n)
     if lower:
@@ -140,3 +140,18 @@ def test_point_outside_the_gent_domain_fails_the_pass(order):
     U[last] += 3.0 * np.random.default_rng(15).standard_normal((len(last), 2))
     E, ok, *_ = _kernel(M, U, None, True)
     assert not ok
+
+
+@pytest.mark.parametrize("mixed", [False, True])
+def test_q9_lanes_agree_with_the_plain_loop(mixed):
+    """The batched Q9 pass against the element-by-element loop that every other element uses:
+    energy, force, element pressures and their derivatives bit for bit, the stiffness to round-off."""
+    M = _model(2)
+    U = _state(M, 16)
+    p_geo = 0.3 + np.random.default_rng(17).standard_normal((M.conn.shape[0], 3)) if mixed else None
+    E, ok, dev, f, K, pb, H = _kernel(M, U, p_geo, True)
+    E1, ok1, dev1, f1, K1, pb1, H1 = _kernel(M, U, p_geo, True, kernel=_assemble_plain)
+    assert ok and ok1
+    assert E == E1 and dev == dev1
+    assert np.array_equal(f, f1) and np.array_equal(pb, pb1) and np.array_equal(H, H1)
+    assert _rel(K, K1) < 1e-14
