@@ -103,9 +103,10 @@ class _Osc:
         wt = w * t
         if self.D > 0.0:
             E = np.exp(-st)
-            EC = E * np.cos(wt)
+            cos_wt = np.cos(wt)  # each evaluated once: the scan calls this on long time grids
+            EC = E * cos_wt
             ES = E * np.sin(wt) / w
-            ECm1 = np.expm1(-st) * np.cos(wt) - 2.0 * np.sin(0.5 * wt) ** 2
+            ECm1 = np.expm1(-st) * cos_wt - 2.0 * np.sin(0.5 * wt) ** 2
         elif self.D < 0.0:
             small = wt < 0.5
             ws = np.where(small, wt, 0.0)
@@ -189,6 +190,43 @@ class _Model:
         y = ph.y0 + w0 * t - 0.5 * self.g * t * t - self.r * de
         v = w0 - self.g * t - self.r * ed
         return y, v, e, ed
+
+    def flight_at(self, ph: _Phase) -> tuple[Callable[[float], float], Callable[[float], float]]:
+        """``y_i(t)`` and ``v_i(t)`` of a flight phase as functions of one local time ``t``.
+
+        They are what the root finders call (most of the model's evaluations), so the phase's
+        constants are bound once and the scalar is never wrapped in an array. Every value equals
+        ``float(flight(ph, t)[0])`` / ``float(flight(ph, t)[1])`` to the bit: the same operations
+        in the same order, numpy's ``exp``/``expm1``/``sin``/``cos`` (``math``'s differ from them
+        in the last bit) and the scalar ``** 2`` (``pow``, which rounds differently from the
+        arrays' ``square`` in the last bit).
+        """
+        osc = self.rel
+        if osc.D <= 0.0:  # never the case for a real design: the general path, unhurried
+            return (lambda t: float(self.flight(ph, t)[0])), (lambda t: float(self.flight(ph, t)[1]))
+        sig, w, g, r = osc.sig, osc.w, self.g, self.r
+        x0, v0, y0 = ph.e0, ph.ed0, ph.y0
+        w0 = ph.v0 + r * ph.ed0          # as in flight()
+        b = v0 + sig * x0                # as in _Osc.xv(): dx = x0 ECm1 + b ES
+        c = sig * v0 + osc.w0sq * x0     # v = v0 EC - c ES
+        hg = 0.5 * g
+        exp, expm1, sin, cos = np.exp, np.expm1, np.sin, np.cos
+
+        def y_at(t: float) -> float:
+            st = sig * t
+            wt = w * t
+            ES = exp(-st) * sin(wt) / w
+            ECm1 = expm1(-st) * cos(wt) - 2.0 * sin(0.5 * wt) ** 2
+            return float(y0 + w0 * t - hg * t * t - r * (x0 * ECm1 + b * ES))
+
+        def v_at(t: float) -> float:
+            st = sig * t
+            wt = w * t
+            E = exp(-st)
+            ES = E * sin(wt) / w
+            return float(w0 - g * t - r * (v0 * (E * cos(wt)) - c * ES))
+
+        return y_at, v_at
 
     def flight_acc(self, e: float, ed: float) -> float:
         """Acceleration of a free ``m_i`` (spring + dashpot + gravity)."""
@@ -323,12 +361,7 @@ def _scan_flight(md: "_Model", ph: "_Phase", t_avail: float,
                  h0: float) -> tuple[float | None, list[tuple[float, float]]]:
     """First impact (local time, or ``None`` before ``t_avail``) and the apexes before it."""
 
-    def Fy(s: float) -> float:
-        return float(md.flight(ph, s)[0])
-
-    def Fv(s: float) -> float:
-        return float(md.flight(ph, s)[1])
-
+    Fy, Fv = md.flight_at(ph)
     apexes: list[tuple[float, float]] = []
     # A flight starting on the ground must be resolved by the first sample: shrink h0 if not.
     if ph.y0 == 0.0:

@@ -445,3 +445,44 @@ def test_heavily_damped_weak_design_settles_and_is_certified():
     for fn in (jump_height, jump_height_ode):
         r = fn(h_imp_m=0.0, params=JumpParams(c_d=2.0), **A_LIKE)
         assert r.complete and not r.jumped and not r.lift_off and r.y_jump_m == 0.0
+
+
+
+def _flight_phases(design: dict, p: JumpParams) -> tuple:
+    """The model of ``design`` and flight phases to probe it with: those of a real trajectory, and
+    two without gravity or centre-of-mass motion whose ``y_i`` is only the oscillator's
+    ``x0 (exp(-sig t) C(t) - 1)`` and whose ``v_i`` is only ``v0 exp(-sig t) C(t)`` (so a last-bit
+    change in those terms is not lost in the sum)."""
+    from snapjump_cli.jump_events import _Model, _Phase
+
+    traj = jump_trajectory(h_imp_m=2e-3, params=p, **design)
+    phases = [ph for ph in traj._phases if ph.kind == "flight" and ph.t1 > ph.t0][:3]
+    md = traj._model
+    md0 = _Model(md.k, md.m_i, md.m_o, JumpParams(c_d=p.c_d, g=0.0))
+    osc, r, x0, v0 = md0.rel, md0.r, 1e-2, 1.0
+    only_x = _Phase("flight", 0.0, 1.0, 0.0, r * osc.sig * x0, x0, -osc.sig * x0)
+    only_v = _Phase("flight", 0.0, 1.0, 0.0, -r * v0, -osc.sig * v0 / osc.w0sq, v0)
+    return [(md, ph, ph.t1 - ph.t0) for ph in phases] + [(md0, only_x, 0.0), (md0, only_v, 0.0)]
+
+
+@pytest.mark.parametrize("design,p", [(C, JumpParams()), (D, JumpParams()), (D, JumpParams(c_d=0.0)),
+                                      (OVER, JumpParams()), (_critical(), JumpParams())],
+                         ids=["C", "D", "D undamped", "overdamped", "critical"])
+def test_scalar_flight_equals_the_general_form_to_the_bit(design, p):
+    """The root finders' scalar ``y_i(t)``, ``v_i(t)`` (``_Model.flight_at``) give exactly the
+    numbers of the general form ``_Model.flight`` at the same scalar time, and agree with its
+    array form (which rounds squares differently: within a few ulp)."""
+    rng = np.random.default_rng(1)
+    for md, ph, span in _flight_phases(design, p):
+        y_at, v_at = md.flight_at(ph)
+        span = span or 100.0 * md.rel.dt
+        ts = np.concatenate([[0.0, span], rng.uniform(0.0, span, 1500),
+                             rng.uniform(0.0, 20.0 * md.rel.dt, 500)])
+        general = [md.flight(ph, t) for t in ts.tolist()]
+        ys = np.array([y_at(t) for t in ts.tolist()])
+        vs = np.array([v_at(t) for t in ts.tolist()])
+        np.testing.assert_array_equal(ys, [float(g[0]) for g in general])
+        np.testing.assert_array_equal(vs, [float(g[1]) for g in general])
+        Y, V, _, _ = md.flight(ph, ts)
+        np.testing.assert_allclose(ys, Y, rtol=1e-12, atol=1e-15 * np.max(np.abs(Y)))
+        np.testing.assert_allclose(vs, V, rtol=1e-12, atol=1e-15 * np.max(np.abs(V)))
