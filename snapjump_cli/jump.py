@@ -249,7 +249,7 @@ def jump_trajectory(dE_J: float, dy_pole_m: float, h_imp_m: float, m_i_kg: float
                 if ym > ymax:
                     ymax, tpeak = ym, t + tm
             t_loc = t_avail if t_hit is None else t_hit
-            yy, vv, ee, eed = (float(a) for a in md.flight(ph, t_loc))
+            yy, vv, ee, eed = md.flight_at(ph).state(t_loc)
             phases.append(_Phase("flight", t, t + t_loc, y, v, e, ed))
             if t_hit is None:  # ran out of time in flight
                 t, y, v, e, ed = p.t_max, yy, vv, ee, eed

@@ -29,6 +29,12 @@ _V_STICK_REL = 1e-7
 #: Samples per oscillation period when scanning for contacts, lift-offs and apexes.
 _SAMPLES_PER_PERIOD = 64
 _CHUNK = 4096
+#: Samples in the first piece of a chunk evaluated by the flight scan (:func:`_flight_samples`).
+_PIECE = 256
+_STEPS = np.arange(1.0, _CHUNK + 1.0)
+_STEPS.flags.writeable = False
+#: Relative tolerance of the root finders (``brentq``).
+_RTOL = 4 * np.finfo(float).eps
 
 
 def system_matrices(k_s: float, m_i: float, m_o: float, c_d: float, g: float,
@@ -191,42 +197,9 @@ class _Model:
         v = w0 - self.g * t - self.r * ed
         return y, v, e, ed
 
-    def flight_at(self, ph: _Phase) -> tuple[Callable[[float], float], Callable[[float], float]]:
-        """``y_i(t)`` and ``v_i(t)`` of a flight phase as functions of one local time ``t``.
-
-        They are what the root finders call (most of the model's evaluations), so the phase's
-        constants are bound once and the scalar is never wrapped in an array. Every value equals
-        ``float(flight(ph, t)[0])`` / ``float(flight(ph, t)[1])`` to the bit: the same operations
-        in the same order, numpy's ``exp``/``expm1``/``sin``/``cos`` (``math``'s differ from them
-        in the last bit) and the scalar ``** 2`` (``pow``, which rounds differently from the
-        arrays' ``square`` in the last bit).
-        """
-        osc = self.rel
-        if osc.D <= 0.0:  # never the case for a real design: the general path, unhurried
-            return (lambda t: float(self.flight(ph, t)[0])), (lambda t: float(self.flight(ph, t)[1]))
-        sig, w, g, r = osc.sig, osc.w, self.g, self.r
-        x0, v0, y0 = ph.e0, ph.ed0, ph.y0
-        w0 = ph.v0 + r * ph.ed0          # as in flight()
-        b = v0 + sig * x0                # as in _Osc.xv(): dx = x0 ECm1 + b ES
-        c = sig * v0 + osc.w0sq * x0     # v = v0 EC - c ES
-        hg = 0.5 * g
-        exp, expm1, sin, cos = np.exp, np.expm1, np.sin, np.cos
-
-        def y_at(t: float) -> float:
-            st = sig * t
-            wt = w * t
-            ES = exp(-st) * sin(wt) / w
-            ECm1 = expm1(-st) * cos(wt) - 2.0 * sin(0.5 * wt) ** 2
-            return float(y0 + w0 * t - hg * t * t - r * (x0 * ECm1 + b * ES))
-
-        def v_at(t: float) -> float:
-            st = sig * t
-            wt = w * t
-            E = exp(-st)
-            ES = E * sin(wt) / w
-            return float(w0 - g * t - r * (v0 * (E * cos(wt)) - c * ES))
-
-        return y_at, v_at
+    def flight_at(self, ph: _Phase) -> _FlightAt:
+        """The flight phase ``ph`` evaluated at one local time at a time (:class:`_FlightAt`)."""
+        return _FlightAt(self, ph)
 
     def flight_acc(self, e: float, ed: float) -> float:
         """Acceleration of a free ``m_i`` (spring + dashpot + gravity)."""
@@ -269,6 +242,68 @@ class _Model:
         return (E + (self.m_o * self.g) ** 2 / (2.0 * self.k)) / (self.M * self.g)
 
 
+
+class _FlightAt:
+    """``y_i``, ``v_i`` and the whole state of one flight phase at one local time ``t``, as floats.
+
+    They are what the root finders call (most of the model's evaluations), so the phase's
+    constants are bound once and the scalar is never wrapped in an array. Every value equals
+    the general form's ``float(_Model.flight(ph, t)[j])`` to the bit: the same operations in the
+    same order, numpy's ``exp``/``expm1``/``sin``/``cos`` (``math``'s differ from them in the
+    last bit) and the scalar ``** 2`` (``pow``, which rounds differently from the arrays'
+    ``square``: the array form can differ from both in the last bit).
+    """
+
+    def __init__(self, md: _Model, ph: _Phase) -> None:
+        osc = self.osc = md.rel
+        self.md, self.ph = md, ph
+        # never the case for a real design: the general path, unhurried
+        self.general = osc.D <= 0.0
+        self.sig, self.w, self.g, self.r = osc.sig, osc.w, md.g, md.r
+        self.x0, self.v0, self.y0 = ph.e0, ph.ed0, ph.y0
+        self.w0 = ph.v0 + md.r * ph.ed0             # as in _Model.flight
+        self.b = self.v0 + osc.sig * self.x0          # as in _Osc.xv: dx = x0 ECm1 + b ES
+        self.c = osc.sig * self.v0 + osc.w0sq * self.x0  # v = v0 EC - c ES
+        self.hg = 0.5 * md.g
+
+    def y(self, t: float) -> float:
+        """``y_i(t)``."""
+        if self.general:
+            return float(self.md.flight(self.ph, t)[0])
+        st = self.sig * t
+        wt = self.w * t
+        ES = np.exp(-st) * np.sin(wt) / self.w
+        ECm1 = np.expm1(-st) * np.cos(wt) - 2.0 * np.sin(0.5 * wt) ** 2
+        return float(self.y0 + self.w0 * t - self.hg * t * t
+                     - self.r * (self.x0 * ECm1 + self.b * ES))
+
+    def v(self, t: float) -> float:
+        """``v_i(t)``."""
+        if self.general:
+            return float(self.md.flight(self.ph, t)[1])
+        st = self.sig * t
+        wt = self.w * t
+        E = np.exp(-st)
+        ES = E * np.sin(wt) / self.w
+        return float(self.w0 - self.g * t - self.r * (self.v0 * (E * np.cos(wt)) - self.c * ES))
+
+    def state(self, t: float) -> tuple[float, float, float, float]:
+        """``(y_i, v_i, e, e_dot)`` at ``t``."""
+        if self.general:
+            return tuple(float(a) for a in self.md.flight(self.ph, t))  # type: ignore[return-value]
+        st = self.sig * t
+        wt = self.w * t
+        E = np.exp(-st)
+        cos_wt = np.cos(wt)
+        ES = E * np.sin(wt) / self.w
+        ECm1 = np.expm1(-st) * cos_wt - 2.0 * np.sin(0.5 * wt) ** 2
+        dx = self.x0 * ECm1 + self.b * ES
+        ed = self.v0 * (E * cos_wt) - self.c * ES
+        y = self.y0 + self.w0 * t - self.hg * t * t - self.r * dx
+        v = self.w0 - self.g * t - self.r * ed
+        return float(y), float(v), float(self.x0 + dx), float(ed)
+
+
 def _time_grid(h0: float, dt: float, t_end: float):
     """Yield chunks of increasing sample times in ``(0, t_end]`` (the last one ends at ``t_end``).
 
@@ -278,14 +313,16 @@ def _time_grid(h0: float, dt: float, t_end: float):
     n_geo = int(math.ceil(math.log2(dt / h0))) if h0 < dt else 0
     head = np.cumsum(h0 * 2.0 ** np.arange(n_geo))
     last = float(head[-1]) if head.size else 0.0
-    chunk = np.concatenate([head, last + dt * np.arange(1, _CHUNK + 1)])
+    steps = dt * _STEPS  # the same for every chunk
+    chunk = np.concatenate([head, last + steps])
     while True:
-        sel = chunk[chunk < t_end]
-        if sel.size < chunk.size:
-            yield np.append(sel, t_end)
+        # the times never decrease, so those before t_end are a prefix
+        m = int(np.searchsorted(chunk, t_end))
+        if m < chunk.size:
+            yield np.append(chunk[:m], t_end)
             return
         yield chunk
-        chunk = float(chunk[-1]) + dt * np.arange(1, _CHUNK + 1)
+        chunk = float(chunk[-1]) + steps
 
 
 def _first_fall(F: Callable[[float], float], dF: Callable[[float], float],
@@ -311,7 +348,7 @@ def _first_fall(F: Callable[[float], float], dF: Callable[[float], float],
             a, b = T[k - 1], T[k + 1]
             if not (dFv[k - 1] < 0.0 < dFv[k + 1]):
                 continue
-            tm = brentq(dF, a, b, xtol=1e-300, rtol=4 * np.finfo(float).eps)
+            tm = brentq(dF, a, b, xtol=1e-300, rtol=_RTOL)
             if F(tm) <= 0.0:
                 if best is None or tm < best:
                     best_bracket = (a, tm)
@@ -322,7 +359,7 @@ def _first_fall(F: Callable[[float], float], dF: Callable[[float], float],
     a, b = best_bracket
     if F(b) == 0.0:
         return float(b)
-    return float(brentq(F, a, b, xtol=1e-300, rtol=4 * np.finfo(float).eps))
+    return float(brentq(F, a, b, xtol=1e-300, rtol=_RTOL))
 
 
 def _maxima(F: Callable[[float], float], dF: Callable[[float], float], T: np.ndarray,
@@ -334,7 +371,6 @@ def _maxima(F: Callable[[float], float], dF: Callable[[float], float], T: np.nda
     samples with index ``< skip`` are ignored (already handled with the previous chunk).
     """
     out: list[tuple[float, float]] = []
-    eps = 4 * np.finfo(float).eps
     idx = np.nonzero((dFv[:-1] > 0.0) & (dFv[1:] <= 0.0))[0]
     covered: set[int] = set()
     for k in idx:
@@ -342,7 +378,7 @@ def _maxima(F: Callable[[float], float], dF: Callable[[float], float], T: np.nda
         if k < skip:
             continue
         a, b = T[k], T[k + 1]
-        t = b if dFv[k + 1] == 0.0 else brentq(dF, a, b, xtol=1e-300, rtol=eps)
+        t = b if dFv[k + 1] == 0.0 else brentq(dF, a, b, xtol=1e-300, rtol=_RTOL)
         out.append((float(t), float(F(t))))
     if T.size >= 3:
         smax = np.nonzero((Fv[1:-1] >= Fv[:-2]) & (Fv[1:-1] > Fv[2:]))[0] + 1
@@ -361,7 +397,8 @@ def _scan_flight(md: "_Model", ph: "_Phase", t_avail: float,
                  h0: float) -> tuple[float | None, list[tuple[float, float]]]:
     """First impact (local time, or ``None`` before ``t_avail``) and the apexes before it."""
 
-    Fy, Fv = md.flight_at(ph)
+    at = md.flight_at(ph)
+    Fy, Fv = at.y, at.v
     apexes: list[tuple[float, float]] = []
     # A flight starting on the ground must be resolved by the first sample: shrink h0 if not.
     if ph.y0 == 0.0:
@@ -373,11 +410,7 @@ def _scan_flight(md: "_Model", ph: "_Phase", t_avail: float,
     Y_prev = np.array([ph.y0])
     V_prev = np.array([ph.v0])
     for chunk in _time_grid(h0, md.rel.dt, t_avail):
-        Yc, Vc, _, _ = md.flight(ph, chunk)
-        T = np.concatenate([T_prev, chunk])
-        Yv = np.concatenate([Y_prev, Yc])
-        Vv = np.concatenate([V_prev, Vc])
-        t_hit = _first_fall(Fy, Fv, T, Yv, Vv)
+        T, Yv, Vv, t_hit = _flight_samples(md, ph, Fy, Fv, chunk, T_prev, Y_prev, V_prev)
         if t_hit is not None:
             keep = T < t_hit
             T = np.append(T[keep], t_hit)
@@ -388,6 +421,41 @@ def _scan_flight(md: "_Model", ph: "_Phase", t_avail: float,
             return t_hit, apexes
         T_prev, Y_prev, V_prev = T[-2:], Yv[-2:], Vv[-2:]
     return None, apexes
+
+
+def _flight_samples(md: "_Model", ph: "_Phase", Fy: Callable[[float], float],
+                    Fv: Callable[[float], float], chunk: np.ndarray, T_prev: np.ndarray,
+                    Y_prev: np.ndarray, V_prev: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float | None]:
+    """``(T, y_i, v_i)`` at ``T_prev`` and ``chunk``'s times up to the first impact, and that
+    impact (:func:`_first_fall` on ``T``; ``None``: none in the chunk, all of it sampled).
+
+    The first impact usually comes within a few hundred of the chunk's ~4100 samples, so the
+    chunk is evaluated in pieces of ``_PIECE``, ``2 _PIECE``, ... samples, each scanned with the
+    two samples before it, until one holds the impact. That finds the impact the whole chunk
+    would: every sample is interior to exactly one piece (local minima), every pair of
+    neighbours lies in one (sign changes), and the pieces are scanned in time order, each
+    refined with the same brackets; the samples are the same numbers (element-wise formulas).
+    """
+    Ts, Ys, Vs = [T_prev], [Y_prev], [V_prev]
+    Tq, Yq, Vq = T_prev, Y_prev, V_prev
+    start, size = 0, _PIECE
+    t_hit = None
+    while start < chunk.size:
+        piece = chunk[start:start + size]
+        Yc, Vc, _, _ = md.flight(ph, piece)
+        Ts.append(piece)
+        Ys.append(Yc)
+        Vs.append(Vc)
+        Tq = np.concatenate([Tq[-2:], piece])
+        Yq = np.concatenate([Yq[-2:], Yc])
+        Vq = np.concatenate([Vq[-2:], Vc])
+        t_hit = _first_fall(Fy, Fv, Tq, Yq, Vq)
+        if t_hit is not None:
+            break
+        start += size
+        size *= 2
+    return np.concatenate(Ts), np.concatenate(Ys), np.concatenate(Vs), t_hit
 
 
 def _scan_rest(md: "_Model", ph: "_Phase", t_avail: float,

@@ -469,12 +469,13 @@ def _flight_phases(design: dict, p: JumpParams) -> tuple:
                                       (OVER, JumpParams()), (_critical(), JumpParams())],
                          ids=["C", "D", "D undamped", "overdamped", "critical"])
 def test_scalar_flight_equals_the_general_form_to_the_bit(design, p):
-    """The root finders' scalar ``y_i(t)``, ``v_i(t)`` (``_Model.flight_at``) give exactly the
-    numbers of the general form ``_Model.flight`` at the same scalar time, and agree with its
-    array form (which rounds squares differently: within a few ulp)."""
+    """The root finders' scalar ``y_i(t)``, ``v_i(t)`` and state (``_Model.flight_at``) give
+    exactly the numbers of the general form ``_Model.flight`` at the same scalar time, and agree
+    with its array form (which rounds squares differently: within a few ulp)."""
     rng = np.random.default_rng(1)
     for md, ph, span in _flight_phases(design, p):
-        y_at, v_at = md.flight_at(ph)
+        at = md.flight_at(ph)
+        y_at, v_at = at.y, at.v
         span = span or 100.0 * md.rel.dt
         ts = np.concatenate([[0.0, span], rng.uniform(0.0, span, 1500),
                              rng.uniform(0.0, 20.0 * md.rel.dt, 500)])
@@ -483,6 +484,8 @@ def test_scalar_flight_equals_the_general_form_to_the_bit(design, p):
         vs = np.array([v_at(t) for t in ts.tolist()])
         np.testing.assert_array_equal(ys, [float(g[0]) for g in general])
         np.testing.assert_array_equal(vs, [float(g[1]) for g in general])
+        for t, g in zip(ts.tolist()[::10], general[::10]):
+            assert at.state(t) == tuple(float(a) for a in g)
         Y, V, _, _ = md.flight(ph, ts)
         np.testing.assert_allclose(ys, Y, rtol=1e-12, atol=1e-15 * np.max(np.abs(Y)))
         np.testing.assert_allclose(vs, V, rtol=1e-12, atol=1e-15 * np.max(np.abs(V)))
