@@ -29,7 +29,7 @@ _V_STICK_REL = 1e-7
 #: Samples per oscillation period when scanning for contacts, lift-offs and apexes.
 _SAMPLES_PER_PERIOD = 64
 _CHUNK = 4096
-#: Samples in the first piece of a chunk evaluated by the flight scan (:func:`_flight_samples`).
+#: Samples in the first piece of a chunk evaluated by the flight scan (:func:`_samples_to_fall`).
 _PIECE = 256
 _STEPS = np.arange(1.0, _CHUNK + 1.0)
 _STEPS.flags.writeable = False
@@ -409,13 +409,16 @@ def _scan_flight(md: "_Model", ph: "_Phase", t_avail: float,
     T_prev = np.array([0.0])
     Y_prev = np.array([ph.y0])
     V_prev = np.array([ph.v0])
+
+    def yv(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return md.flight(ph, t)[:2]
+
     for chunk in _time_grid(h0, md.rel.dt, t_avail):
-        T, Yv, Vv, t_hit = _flight_samples(md, ph, Fy, Fv, chunk, T_prev, Y_prev, V_prev)
-        if t_hit is not None:
-            keep = T < t_hit
-            T = np.append(T[keep], t_hit)
-            Yv = np.append(Yv[keep], 0.0)
-            Vv = np.append(Vv[keep], Fv(t_hit))
+        T, Yv, Vv, t_hit = _samples_to_fall(yv, Fy, Fv, chunk, T_prev, Y_prev, V_prev)
+        if t_hit is not None:  # cut at the impact (the samples before it are a prefix)
+            m = int(np.searchsorted(T, t_hit))
+            T, Yv, Vv = T[:m + 1], Yv[:m + 1], Vv[:m + 1]  # _samples_to_fall's own arrays
+            T[m], Yv[m], Vv[m] = t_hit, 0.0, Fv(t_hit)
         apexes.extend(_maxima(Fy, Fv, T, Yv, Vv, skip=T_prev.size - 1))
         if t_hit is not None:
             return t_hit, apexes
@@ -423,39 +426,38 @@ def _scan_flight(md: "_Model", ph: "_Phase", t_avail: float,
     return None, apexes
 
 
-def _flight_samples(md: "_Model", ph: "_Phase", Fy: Callable[[float], float],
-                    Fv: Callable[[float], float], chunk: np.ndarray, T_prev: np.ndarray,
-                    Y_prev: np.ndarray, V_prev: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float | None]:
-    """``(T, y_i, v_i)`` at ``T_prev`` and ``chunk``'s times up to the first impact, and that
-    impact (:func:`_first_fall` on ``T``; ``None``: none in the chunk, all of it sampled).
+def _samples_to_fall(yv: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+                     F: Callable[[float], float], dF: Callable[[float], float],
+                     chunk: np.ndarray, T_prev: np.ndarray, F_prev: np.ndarray,
+                     dF_prev: np.ndarray, piece: int | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float | None]:
+    """``T = [T_prev, chunk]`` with ``F``, ``dF`` sampled on it (``yv(t)`` gives both on an array;
+    ``F_prev``, ``dF_prev`` at ``T_prev``) up to the first fall of ``F`` to ``<= 0``, and that
+    time (:func:`_first_fall` on the whole of ``T``; ``None``: none, all of ``T`` sampled).
 
-    The first impact usually comes within a few hundred of the chunk's ~4100 samples, so the
-    chunk is evaluated in pieces of ``_PIECE``, ``2 _PIECE``, ... samples, each scanned with the
-    two samples before it, until one holds the impact. That finds the impact the whole chunk
-    would: every sample is interior to exactly one piece (local minima), every pair of
-    neighbours lies in one (sign changes), and the pieces are scanned in time order, each
-    refined with the same brackets; the samples are the same numbers (element-wise formulas).
+    The first fall (a flight's impact) usually comes within a few hundred of a chunk's ~4100
+    samples, so the chunk is sampled in pieces of ``piece`` (default ``_PIECE``), twice that,
+    ... samples, each scanned with the two samples before it, until one holds the fall. That
+    finds what the whole chunk gives: every sample is interior to exactly one piece (local
+    minima), every pair of neighbours lies in one (sign changes), the pieces are scanned in
+    time order and refined with the same brackets, and each sample is the same number (the
+    formulas are element-wise). The arrays returned are new (the caller may overwrite them).
     """
-    Ts, Ys, Vs = [T_prev], [Y_prev], [V_prev]
-    Tq, Yq, Vq = T_prev, Y_prev, V_prev
-    start, size = 0, _PIECE
-    t_hit = None
-    while start < chunk.size:
-        piece = chunk[start:start + size]
-        Yc, Vc, _, _ = md.flight(ph, piece)
-        Ts.append(piece)
-        Ys.append(Yc)
-        Vs.append(Vc)
-        Tq = np.concatenate([Tq[-2:], piece])
-        Yq = np.concatenate([Yq[-2:], Yc])
-        Vq = np.concatenate([Vq[-2:], Vc])
-        t_hit = _first_fall(Fy, Fv, Tq, Yq, Vq)
-        if t_hit is not None:
-            break
-        start += size
-        size *= 2
-    return np.concatenate(Ts), np.concatenate(Ys), np.concatenate(Vs), t_hit
+    p = T_prev.size
+    T = np.concatenate([T_prev, chunk])
+    Fv = np.empty_like(T)
+    dFv = np.empty_like(T)
+    Fv[:p], dFv[:p] = F_prev, dF_prev
+    lo, size = p, piece or _PIECE
+    while lo < T.size:
+        hi = min(lo + size, T.size)
+        Fv[lo:hi], dFv[lo:hi] = yv(T[lo:hi])
+        k = max(lo - 2, 0)
+        t_fall = _first_fall(F, dF, T[k:hi], Fv[k:hi], dFv[k:hi])
+        if t_fall is not None:
+            return T[:hi], Fv[:hi], dFv[:hi], t_fall
+        lo, size = hi, 2 * size
+    return T, Fv, dFv, None
 
 
 def _scan_rest(md: "_Model", ph: "_Phase", t_avail: float,

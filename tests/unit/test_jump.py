@@ -489,3 +489,62 @@ def test_scalar_flight_equals_the_general_form_to_the_bit(design, p):
         Y, V, _, _ = md.flight(ph, ts)
         np.testing.assert_allclose(ys, Y, rtol=1e-12, atol=1e-15 * np.max(np.abs(Y)))
         np.testing.assert_allclose(vs, V, rtol=1e-12, atol=1e-15 * np.max(np.abs(V)))
+
+
+
+def test_sampling_in_pieces_finds_the_first_fall_of_the_whole_chunk():
+    """_samples_to_fall (a chunk sampled in growing pieces up to the first fall) returns what
+    _first_fall finds on the whole chunk, whatever the piece size: here the first fall is a
+    grazing dip between two positive samples, preceded by sampled minima that do not dip, and
+    a piece boundary falls on each sample for some size."""
+    from snapjump_cli.jump_events import _first_fall, _samples_to_fall
+
+    def F(t):  # minima at t = k + 1/2, the k-th at 0.05 - 0.006 k: the 9th dips below zero
+        return 1.05 - 0.006 * np.floor(t) + np.cos(2.0 * np.pi * t)
+
+    def dF(t):
+        return -2.0 * np.pi * np.sin(2.0 * np.pi * t)
+
+    def f(t):
+        return float(F(t))
+
+    def df(t):
+        return float(dF(t))
+
+    def yv(t):
+        return F(t), dF(t)
+
+    chunk = 0.0 + 0.075 * np.arange(1.0, 201.0)
+    T_prev = np.array([0.0])
+    T = np.concatenate([T_prev, chunk])
+    whole = _first_fall(f, df, T, F(T), dF(T))
+    assert whole is not None and 9.0 < whole < 9.5 and np.all(F(T[T <= whole]) > 0.0)
+    for piece in range(1, 160):
+        Tp, Fp, dFp, t = _samples_to_fall(yv, f, df, chunk, T_prev, F(T_prev), dF(T_prev), piece)
+        assert t == whole, piece
+        assert Tp[-1] >= whole and np.array_equal(Tp, T[:Tp.size])
+        assert np.array_equal(Fp, F(Tp)) and np.array_equal(dFp, dF(Tp))
+    # no fall in the chunk: all of it sampled
+    Tp, Fp, _, t = _samples_to_fall(yv, f, df, chunk[:100], T_prev, F(T_prev), dF(T_prev), 7)
+    assert t is None and np.array_equal(Tp, T[:101]) and np.array_equal(Fp, F(Tp))
+
+
+@pytest.mark.parametrize("design,h,p", [(C, 5e-3, JumpParams()), (D, 0.0, JumpParams()),
+                                        (B_LIKE, 1e-3, JumpParams()), (OVER, 0.2e-3, JumpParams()),
+                                        (C, 3e-3, JumpParams(alpha=1.0, t_max=0.3))],
+                         ids=["C", "D h=0", "B-like", "overdamped", "C elastic"])
+def test_flight_scan_in_pieces_equals_the_whole_chunk(monkeypatch, design, h, p):
+    """The flight scan samples a chunk of the time grid in growing pieces up to the first
+    impact (_samples_to_fall); any first piece size, down to one sample, gives exactly the
+    contacts, apexes and phases that sampling whole chunks at once gives."""
+    import snapjump_cli.jump_events as je
+
+    def run(piece: int):
+        monkeypatch.setattr(je, "_PIECE", piece)
+        traj = jump_trajectory(h_imp_m=h, params=p, **design)
+        return (traj.result, traj.contact_times, traj.apexes, traj._phases)
+
+    whole = run(10 * je._CHUNK)
+    assert whole[1] and whole[2]
+    for piece in (1, 3, 256):
+        assert run(piece) == whole
