@@ -29,8 +29,8 @@ _V_STICK_REL = 1e-7
 #: Samples per oscillation period when scanning for contacts, lift-offs and apexes.
 _SAMPLES_PER_PERIOD = 64
 _CHUNK = 4096
-#: Samples in the first piece of a chunk evaluated by the flight scan (:func:`_samples_to_fall`).
-_PIECE = 256
+#: Fewest samples in the first piece of a chunk sampled by the flight scan (:func:`_samples_to_fall`).
+_PIECE_MIN = 16
 _STEPS = np.arange(1.0, _CHUNK + 1.0)
 _STEPS.flags.writeable = False
 #: Relative tolerance of the root finders (``brentq``).
@@ -200,6 +200,19 @@ class _Model:
     def flight_at(self, ph: _Phase) -> _FlightAt:
         """The flight phase ``ph`` evaluated at one local time at a time (:class:`_FlightAt`)."""
         return _FlightAt(self, ph)
+
+    def fall_time_bound(self, ph: _Phase) -> float:
+        """A local time by which a flight from ``ph`` has surely reached the ground (``inf``
+        without gravity).
+
+        ``y_i = y0 + w0 t - g t^2 / 2 - r (x(t) - x0)`` with ``|x(t)| <=`` :meth:`_Osc.sup_bound`,
+        so ``y_i < 0`` once ``y0 + r (|x0| + sup |x|) + w0 t - g t^2 / 2 < 0``.
+        """
+        if self.g <= 0.0:
+            return math.inf
+        H = ph.y0 + self.r * (abs(ph.e0) + self.rel.sup_bound(ph.e0, ph.ed0))
+        w0 = ph.v0 + self.r * ph.ed0
+        return (w0 + math.sqrt(w0 * w0 + 2.0 * self.g * H)) / self.g
 
     def flight_acc(self, e: float, ed: float) -> float:
         """Acceleration of a free ``m_i`` (spring + dashpot + gravity)."""
@@ -413,8 +426,12 @@ def _scan_flight(md: "_Model", ph: "_Phase", t_avail: float,
     def yv(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return md.flight(ph, t)[:2]
 
+    t_fall = md.fall_time_bound(ph)
     for chunk in _time_grid(h0, md.rel.dt, t_avail):
-        T, Yv, Vv, t_hit = _samples_to_fall(yv, Fy, Fv, chunk, T_prev, Y_prev, V_prev)
+        # sample at once up to where the impact must have come: a guess of the work only, any
+        # piece size gives the same answer
+        piece = max(_PIECE_MIN, int(np.searchsorted(chunk, t_fall)) + 2)
+        T, Yv, Vv, t_hit = _samples_to_fall(yv, Fy, Fv, chunk, T_prev, Y_prev, V_prev, piece)
         if t_hit is not None:  # cut at the impact (the samples before it are a prefix)
             m = int(np.searchsorted(T, t_hit))
             T, Yv, Vv = T[:m + 1], Yv[:m + 1], Vv[:m + 1]  # _samples_to_fall's own arrays
@@ -429,15 +446,15 @@ def _scan_flight(md: "_Model", ph: "_Phase", t_avail: float,
 def _samples_to_fall(yv: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
                      F: Callable[[float], float], dF: Callable[[float], float],
                      chunk: np.ndarray, T_prev: np.ndarray, F_prev: np.ndarray,
-                     dF_prev: np.ndarray, piece: int | None = None
+                     dF_prev: np.ndarray, piece: int
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float | None]:
     """``T = [T_prev, chunk]`` with ``F``, ``dF`` sampled on it (``yv(t)`` gives both on an array;
     ``F_prev``, ``dF_prev`` at ``T_prev``) up to the first fall of ``F`` to ``<= 0``, and that
     time (:func:`_first_fall` on the whole of ``T``; ``None``: none, all of ``T`` sampled).
 
     The first fall (a flight's impact) usually comes within a few hundred of a chunk's ~4100
-    samples, so the chunk is sampled in pieces of ``piece`` (default ``_PIECE``), twice that,
-    ... samples, each scanned with the two samples before it, until one holds the fall. That
+    samples, so the chunk is sampled in pieces of ``piece``, twice that, ... samples, each
+    scanned with the two samples before it, until one holds the fall. That
     finds what the whole chunk gives: every sample is interior to exactly one piece (local
     minima), every pair of neighbours lies in one (sign changes), the pieces are scanned in
     time order and refined with the same brackets, and each sample is the same number (the
@@ -448,7 +465,7 @@ def _samples_to_fall(yv: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
     Fv = np.empty_like(T)
     dFv = np.empty_like(T)
     Fv[:p], dFv[:p] = F_prev, dF_prev
-    lo, size = p, piece or _PIECE
+    lo, size = p, piece
     while lo < T.size:
         hi = min(lo + size, T.size)
         Fv[lo:hi], dFv[lo:hi] = yv(T[lo:hi])

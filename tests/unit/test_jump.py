@@ -535,16 +535,30 @@ def test_sampling_in_pieces_finds_the_first_fall_of_the_whole_chunk():
                          ids=["C", "D h=0", "B-like", "overdamped", "C elastic"])
 def test_flight_scan_in_pieces_equals_the_whole_chunk(monkeypatch, design, h, p):
     """The flight scan samples a chunk of the time grid in growing pieces up to the first
-    impact (_samples_to_fall); any first piece size, down to one sample, gives exactly the
-    contacts, apexes and phases that sampling whole chunks at once gives."""
+    impact (_samples_to_fall), the first one up to where the impact must have come; any first
+    piece size, down to one sample, gives exactly the contacts, apexes and phases that sampling
+    whole chunks at once gives."""
     import snapjump_cli.jump_events as je
 
-    def run(piece: int):
-        monkeypatch.setattr(je, "_PIECE", piece)
+    def run() -> tuple:
         traj = jump_trajectory(h_imp_m=h, params=p, **design)
         return (traj.result, traj.contact_times, traj.apexes, traj._phases)
 
-    whole = run(10 * je._CHUNK)
-    assert whole[1] and whole[2]
+    as_is = run()
+    assert as_is[1] and as_is[2]
+    monkeypatch.setattr(je._Model, "fall_time_bound", lambda self, ph: math.inf)
+    assert run() == as_is  # whole chunks
+    monkeypatch.setattr(je._Model, "fall_time_bound", lambda self, ph: 0.0)
     for piece in (1, 3, 256):
-        assert run(piece) == whole
+        monkeypatch.setattr(je, "_PIECE_MIN", piece)
+        assert run() == as_is
+
+
+@pytest.mark.parametrize("name,design,h,p", CASES, ids=[c[0] for c in CASES])
+def test_fall_time_bound_is_an_upper_bound(name, design, h, p):
+    """Every flight reaches the ground by _Model.fall_time_bound of its start (it sizes the
+    first piece of the scan: a wrong bound costs time, not accuracy)."""
+    traj = jump_trajectory(h_imp_m=h, params=p, **design)
+    md = traj._model
+    for ph, tc in zip([ph for ph in traj._phases if ph.kind == "flight"], traj.contact_times):
+        assert ph.t1 - ph.t0 <= md.fall_time_bound(ph)
