@@ -7,14 +7,16 @@ about its static equilibrium. :class:`_Model` evaluates both phase kinds (:class
 holds the shared rules: the energy bound on later heights and the impossibility of a lift-off.
 Impacts, lift-offs and apexes are located by sampling on a grid far finer than the oscillation
 period (:func:`_time_grid`) and root finding (:func:`_first_fall`, :func:`_maxima`), one phase
-at a time (:func:`_scan_flight`, :func:`_scan_rest`). See the docstring of
-:mod:`snapjump_cli.jump` for the conventions.
+at a time (:func:`_scan_flight`, :func:`_scan_rest`). The flight scan asks for its samples
+(it is a generator, :data:`Request`), so that :mod:`snapjump_cli.jump_batch` can answer many
+designs' scans at once; the root finders' scalar evaluations are done in place (:class:`_FlightAt`).
+See the docstring of :mod:`snapjump_cli.jump` for the conventions.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, Generator, Iterator, Sequence
 
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
@@ -29,9 +31,12 @@ _V_STICK_REL = 1e-7
 #: Samples per oscillation period when scanning for contacts, lift-offs and apexes.
 _SAMPLES_PER_PERIOD = 64
 _CHUNK = 4096
-#: Fewest samples in the first piece of a chunk sampled by the flight scan (:func:`_samples_to_fall`).
+#: Samples in the first piece of a chunk sampled by the flight scan (:func:`_samples_to_fall`)
+#: and fewest in the next: most flights on the ground again within 32 samples (rebounds), the
+#: others much later, before :meth:`_Model.fall_time_bound`, where the second piece ends.
+_PIECE_FIRST = 32
 _PIECE_MIN = 16
-_STEPS = np.arange(1.0, _CHUNK + 1.0)
+_STEPS = np.arange(1.0, _CHUNK + 1.0)  # j of the chunks' times base + dt j
 _STEPS.flags.writeable = False
 #: Relative tolerance of the root finders (``brentq``).
 _RTOL = 4 * np.finfo(float).eps
@@ -100,6 +105,22 @@ class _Osc:
         if self.D > 0.0 and self.sig > 0.0:
             period = min(period, 2.0 * math.pi / self.sig)
         self.dt = period / _SAMPLES_PER_PERIOD
+
+    @classmethod
+    def stacked(cls, oscs: Sequence[_Osc]) -> _Osc:
+        """Under-damped ``oscs`` as one oscillator whose constants are columns, one row each.
+
+        Its :meth:`xv` at a 2-D time array evaluates row ``i`` with exactly the operations of
+        ``oscs[i]`` (numpy broadcasts element by element). ``D`` stays a number, the smallest:
+        every row takes the under-damped branch.
+        """
+        if not all(o.D > 0.0 for o in oscs):
+            raise ValueError("only under-damped oscillators are stacked")
+        st = cls.__new__(cls)
+        for name in ("m", "c", "k", "sig", "w0sq", "w", "dt"):
+            setattr(st, name, np.array([getattr(o, name) for o in oscs])[:, None])
+        st.D = min(o.D for o in oscs)
+        return st
 
     def _ec_es(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``exp(-sig t) C(t)``, ``exp(-sig t) S(t)`` and ``exp(-sig t) C(t) - 1`` (accurate)."""
@@ -190,12 +211,7 @@ class _Model:
     # ---- flight ----
     def flight(self, ph: _Phase, t: np.ndarray) -> tuple[np.ndarray, ...]:
         """``(y_i, v_i, e, e_dot)`` at local times ``t`` of a flight phase."""
-        t = np.asarray(t, dtype=float)
-        w0 = ph.v0 + self.r * ph.ed0  # centre-of-mass velocity
-        de, e, ed = self.rel.xv(ph.e0, ph.ed0, t)
-        y = ph.y0 + w0 * t - 0.5 * self.g * t * t - self.r * de
-        v = w0 - self.g * t - self.r * ed
-        return y, v, e, ed
+        return _flight(self.r, self.g, self.rel, ph, t)
 
     def flight_at(self, ph: _Phase) -> _FlightAt:
         """The flight phase ``ph`` evaluated at one local time at a time (:class:`_FlightAt`)."""
@@ -254,6 +270,21 @@ class _Model:
              + self.m_o * self.g * e + 0.5 * self.k * e * e)
         return (E + (self.m_o * self.g) ** 2 / (2.0 * self.k)) / (self.M * self.g)
 
+
+
+def _flight(r: float | np.ndarray, g: float | np.ndarray, osc: _Osc, ph: _Phase,
+            t: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``(y_i, v_i, e, e_dot)`` at local times ``t`` of a flight phase (:meth:`_Model.flight`).
+
+    With column constants (``r``, ``g``, ``ph``'s numbers, :meth:`_Osc.stacked`) and a 2-D
+    ``t``, many flights at once, row by row (:mod:`snapjump_cli.jump_batch`).
+    """
+    t = np.asarray(t, dtype=float)
+    w0 = ph.v0 + r * ph.ed0  # centre-of-mass velocity
+    de, e, ed = osc.xv(ph.e0, ph.ed0, t)
+    y = ph.y0 + w0 * t - 0.5 * g * t * t - r * de
+    v = w0 - g * t - r * ed
+    return y, v, e, ed
 
 
 class _FlightAt:
@@ -317,7 +348,68 @@ class _FlightAt:
         return float(y), float(v), float(self.x0 + dx), float(ed)
 
 
-def _time_grid(h0: float, dt: float, t_end: float):
+class _Chunk:
+    """The sample times of one chunk of the time grid (:func:`_time_grid`), made on demand.
+
+    ``head``, then ``base + dt * j`` for ``j = 1 .. n_steps``; only the times before ``t_end``
+    are kept, and if any is not, ``t_end`` itself ends the chunk (and the grid). A flight is
+    usually on the ground again within a few hundred of a chunk's ~4100 times, so they are made
+    piece by piece (:meth:`times`), each the number the whole array would hold (``base + dt j``
+    is computed the same way element by element).
+    """
+
+    def __init__(self, head: np.ndarray, base: float, dt: float, n_steps: int, t_end: float) -> None:
+        self.base, self.dt, self.t_end = base, dt, t_end
+        n_head = int(np.searchsorted(head, t_end))  # the times never decrease
+        if n_head < head.size:
+            n_steps, self.ends = 0, True
+        else:
+            n_steps_before = self._steps_before(t_end, n_steps)
+            self.ends = n_steps_before < n_steps
+            n_steps = n_steps_before
+        self.head = head[:n_head]
+        self.n_head, self.n_steps = n_head, n_steps
+        self.size = n_head + n_steps + self.ends
+        self.last_step = base + dt * float(n_steps)  # the next chunk's base (if this one is whole)
+
+    def _steps_before(self, t: float, n_steps: int) -> int:
+        """How many of ``base + dt * j`` (``j = 1 .. n_steps``) are ``< t``."""
+        base, dt = self.base, self.dt
+        if base + dt * float(n_steps) < t:
+            return n_steps
+        # an estimate, then set right on the exact values (they never decrease)
+        j = min(max(int((t - base) / dt), 0), n_steps)
+        while j < n_steps and base + dt * float(j + 1) < t:
+            j += 1
+        while j > 0 and not base + dt * float(j) < t:
+            j -= 1
+        return j
+
+    def count_before(self, t: float) -> int:
+        """How many of the chunk's times are ``< t``."""
+        n = int(np.searchsorted(self.head, t))
+        if n < self.n_head:
+            return n
+        n += self._steps_before(t, self.n_steps)
+        return n + (n == self.size - 1 and self.ends and self.t_end < t)
+
+    def times(self, lo: int, hi: int) -> np.ndarray:
+        """The chunk's times ``lo`` to ``hi - 1``."""
+        parts = []
+        if lo < self.n_head:
+            parts.append(self.head[lo:hi])
+        a, b = max(lo - self.n_head, 0), min(hi - self.n_head, self.n_steps)
+        if a < b:
+            parts.append(self.base + self.dt * _STEPS[a:b])
+        if self.ends and hi >= self.size:
+            parts.append(np.array([self.t_end]))
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+
+_NO_TIMES = np.empty(0)
+
+
+def _time_grid(h0: float, dt: float, t_end: float) -> Iterator[_Chunk]:
     """Yield chunks of increasing sample times in ``(0, t_end]`` (the last one ends at ``t_end``).
 
     Steps grow geometrically from ``h0`` up to ``dt`` and then stay at ``dt``.
@@ -325,17 +417,13 @@ def _time_grid(h0: float, dt: float, t_end: float):
     h0 = min(h0, dt)
     n_geo = int(math.ceil(math.log2(dt / h0))) if h0 < dt else 0
     head = np.cumsum(h0 * 2.0 ** np.arange(n_geo))
-    last = float(head[-1]) if head.size else 0.0
-    steps = dt * _STEPS  # the same for every chunk
-    chunk = np.concatenate([head, last + steps])
+    base = float(head[-1]) if head.size else 0.0
     while True:
-        # the times never decrease, so those before t_end are a prefix
-        m = int(np.searchsorted(chunk, t_end))
-        if m < chunk.size:
-            yield np.append(chunk[:m], t_end)
-            return
+        chunk = _Chunk(head, base, dt, _CHUNK, t_end)
         yield chunk
-        chunk = float(chunk[-1]) + steps
+        if chunk.ends:
+            return
+        head, base = _NO_TIMES, chunk.last_step
 
 
 def _first_fall(F: Callable[[float], float], dF: Callable[[float], float],
@@ -347,14 +435,15 @@ def _first_fall(F: Callable[[float], float], dF: Callable[[float], float],
     """
     n = T.size
     best: float | None = None
-    down = np.nonzero((Fv[:-1] > 0.0) & (Fv[1:] <= 0.0))[0]
+    down = ((Fv[:-1] > 0.0) & (Fv[1:] <= 0.0)).nonzero()[0]
     if down.size:
         k = int(down[0])
         best_bracket = (T[k], T[k + 1])
         best = best_bracket[1]
     # sampled local minima with positive value: refine
     if n >= 3:
-        mins = np.nonzero((Fv[1:-1] <= Fv[:-2]) & (Fv[1:-1] < Fv[2:]) & (Fv[1:-1] > 0.0))[0] + 1
+        mid = Fv[1:-1]
+        mins = ((mid <= Fv[:-2]) & (mid < Fv[2:]) & (mid > 0.0)).nonzero()[0] + 1
         for k in mins:
             if best is not None and T[k - 1] >= best:
                 break
@@ -384,7 +473,7 @@ def _maxima(F: Callable[[float], float], dF: Callable[[float], float], T: np.nda
     samples with index ``< skip`` are ignored (already handled with the previous chunk).
     """
     out: list[tuple[float, float]] = []
-    idx = np.nonzero((dFv[:-1] > 0.0) & (dFv[1:] <= 0.0))[0]
+    idx = ((dFv[:-1] > 0.0) & (dFv[1:] <= 0.0)).nonzero()[0]
     covered: set[int] = set()
     for k in idx:
         covered.update((int(k), int(k) + 1))
@@ -394,7 +483,8 @@ def _maxima(F: Callable[[float], float], dF: Callable[[float], float], T: np.nda
         t = b if dFv[k + 1] == 0.0 else brentq(dF, a, b, xtol=1e-300, rtol=_RTOL)
         out.append((float(t), float(F(t))))
     if T.size >= 3:
-        smax = np.nonzero((Fv[1:-1] >= Fv[:-2]) & (Fv[1:-1] > Fv[2:]))[0] + 1
+        mid = Fv[1:-1]
+        smax = ((mid >= Fv[:-2]) & (mid > Fv[2:])).nonzero()[0] + 1
         for k in smax:
             if k - 1 < skip or k in covered or (k - 1) in covered:
                 continue
@@ -406,10 +496,20 @@ def _maxima(F: Callable[[float], float], dF: Callable[[float], float], T: np.nda
     return out
 
 
-def _scan_flight(md: "_Model", ph: "_Phase", t_avail: float,
-                 h0: float) -> tuple[float | None, list[tuple[float, float]]]:
-    """First impact (local time, or ``None`` before ``t_avail``) and the apexes before it."""
+#: A request of the flight scan (a generator): ``(key, t)`` asks for ``(y_i, v_i)`` of the flight
+#: ``key`` (a :class:`_FlightAt`) at the times ``t`` (an array), to be sent back into it.
+Request = tuple[object, np.ndarray]
+Samples = tuple[np.ndarray, np.ndarray]
 
+
+def _scan_flight(md: "_Model", ph: "_Phase", t_avail: float,
+                 h0: float) -> Generator[Request, Samples, tuple[float | None, list[tuple[float, float]]]]:
+    """First impact (local time, or ``None`` before ``t_avail``) and the apexes before it.
+
+    A generator: the flight's values on the time grid are asked for (:data:`Request`) rather
+    than computed here, so that the scans of many designs can be answered together
+    (:mod:`snapjump_cli.jump_batch`); the scalar evaluations of the root finders are done here.
+    """
     at = md.flight_at(ph)
     Fy, Fv = at.y, at.v
     apexes: list[tuple[float, float]] = []
@@ -422,16 +522,14 @@ def _scan_flight(md: "_Model", ph: "_Phase", t_avail: float,
     T_prev = np.array([0.0])
     Y_prev = np.array([ph.y0])
     V_prev = np.array([ph.v0])
-
-    def yv(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return md.flight(ph, t)[:2]
-
     t_fall = md.fall_time_bound(ph)
     for chunk in _time_grid(h0, md.rel.dt, t_avail):
-        # sample at once up to where the impact must have come: a guess of the work only, any
-        # piece size gives the same answer
-        piece = max(_PIECE_MIN, int(np.searchsorted(chunk, t_fall)) + 2)
-        T, Yv, Vv, t_hit = _samples_to_fall(yv, Fy, Fv, chunk, T_prev, Y_prev, V_prev, piece)
+        # a short piece, then up to where the impact must have come: a guess of the work only,
+        # any piece sizes give the same answer
+        n_fall = chunk.count_before(t_fall) + 2
+        first = min(n_fall, _PIECE_FIRST)
+        T, Yv, Vv, t_hit = yield from _samples_to_fall(at, Fy, Fv, chunk, T_prev, Y_prev, V_prev,
+                                                       first, max(n_fall - first, _PIECE_MIN))
         if t_hit is not None:  # cut at the impact (the samples before it are a prefix)
             m = int(np.searchsorted(T, t_hit))
             T, Yv, Vv = T[:m + 1], Yv[:m + 1], Vv[:m + 1]  # _samples_to_fall's own arrays
@@ -443,37 +541,38 @@ def _scan_flight(md: "_Model", ph: "_Phase", t_avail: float,
     return None, apexes
 
 
-def _samples_to_fall(yv: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
-                     F: Callable[[float], float], dF: Callable[[float], float],
-                     chunk: np.ndarray, T_prev: np.ndarray, F_prev: np.ndarray,
-                     dF_prev: np.ndarray, piece: int
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float | None]:
-    """``T = [T_prev, chunk]`` with ``F``, ``dF`` sampled on it (``yv(t)`` gives both on an array;
-    ``F_prev``, ``dF_prev`` at ``T_prev``) up to the first fall of ``F`` to ``<= 0``, and that
-    time (:func:`_first_fall` on the whole of ``T``; ``None``: none, all of ``T`` sampled).
+def _samples_to_fall(key: object, F: Callable[[float], float], dF: Callable[[float], float],
+                     chunk: _Chunk, T_prev: np.ndarray, F_prev: np.ndarray,
+                     dF_prev: np.ndarray, piece: int, then: int
+                     ) -> Generator[Request, Samples, tuple[np.ndarray, np.ndarray, np.ndarray, float | None]]:
+    """``T = [T_prev, chunk]`` with ``F``, ``dF`` sampled on it (``F_prev``, ``dF_prev`` at
+    ``T_prev``) up to the first fall of ``F`` to ``<= 0``, and that time (:func:`_first_fall` on
+    the whole of ``T``; ``None``: none, all of ``T`` sampled).
 
+    A generator: it yields ``(key, t)`` and expects ``(F(t), dF(t))`` (arrays) sent back.
     The first fall (a flight's impact) usually comes within a few hundred of a chunk's ~4100
-    samples, so the chunk is sampled in pieces of ``piece``, twice that, ... samples, each
-    scanned with the two samples before it, until one holds the fall. That
-    finds what the whole chunk gives: every sample is interior to exactly one piece (local
-    minima), every pair of neighbours lies in one (sign changes), the pieces are scanned in
-    time order and refined with the same brackets, and each sample is the same number (the
-    formulas are element-wise). The arrays returned are new (the caller may overwrite them).
+    samples, so the chunk is sampled in pieces of ``piece``, ``then``, twice that, ... samples,
+    each scanned with the two samples before it, until one holds the fall. That finds what the
+    whole chunk gives: every sample is interior to exactly one piece (local minima), every pair
+    of neighbours lies in one (sign changes), the pieces are scanned in time order and refined
+    with the same brackets, and each sample is the same number (the formulas are element-wise).
+    The arrays returned are new (the caller may overwrite them).
     """
     p = T_prev.size
-    T = np.concatenate([T_prev, chunk])
+    T = np.empty(p + chunk.size)
     Fv = np.empty_like(T)
     dFv = np.empty_like(T)
-    Fv[:p], dFv[:p] = F_prev, dF_prev
-    lo, size = p, piece
+    T[:p], Fv[:p], dFv[:p] = T_prev, F_prev, dF_prev
+    lo, size, size_next = p, piece, then
     while lo < T.size:
         hi = min(lo + size, T.size)
-        Fv[lo:hi], dFv[lo:hi] = yv(T[lo:hi])
+        T[lo:hi] = chunk.times(lo - p, hi - p)
+        Fv[lo:hi], dFv[lo:hi] = yield key, T[lo:hi]
         k = max(lo - 2, 0)
         t_fall = _first_fall(F, dF, T[k:hi], Fv[k:hi], dFv[k:hi])
         if t_fall is not None:
             return T[:hi], Fv[:hi], dFv[:hi], t_fall
-        lo, size = hi, 2 * size
+        lo, size, size_next = hi, size_next, 2 * size_next
     return T, Fv, dFv, None
 
 
@@ -493,7 +592,8 @@ def _scan_rest(md: "_Model", ph: "_Phase", t_avail: float,
     T_prev = np.array([0.0])
     F_prev = np.array([Ff(0.0)])
     D_prev = np.array([dFf(0.0)])
-    for chunk in _time_grid(md.rest.dt * 1e-4, md.rest.dt, t_avail):
+    for ch in _time_grid(md.rest.dt * 1e-4, md.rest.dt, t_avail):
+        chunk = ch.times(0, ch.size)
         Ec, EDc = md.rest_state(ph, chunk)
         T = np.concatenate([T_prev, chunk])
         Fv = np.concatenate([F_prev, -md.lift_force(Ec, EDc)])

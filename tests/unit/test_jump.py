@@ -492,12 +492,22 @@ def test_scalar_flight_equals_the_general_form_to_the_bit(design, p):
 
 
 
+def _answer_all(gen, evaluate):
+    """Run a generator of requests ``(key, t)`` to its end, sending back ``evaluate(t)``."""
+    try:
+        _, t = next(gen)
+        while True:
+            _, t = gen.send(evaluate(t))
+    except StopIteration as stop:
+        return stop.value
+
+
 def test_sampling_in_pieces_finds_the_first_fall_of_the_whole_chunk():
     """_samples_to_fall (a chunk sampled in growing pieces up to the first fall) returns what
-    _first_fall finds on the whole chunk, whatever the piece size: here the first fall is a
+    _first_fall finds on the whole chunk, whatever the piece sizes: here the first fall is a
     grazing dip between two positive samples, preceded by sampled minima that do not dip, and
     a piece boundary falls on each sample for some size."""
-    from snapjump_cli.jump_events import _first_fall, _samples_to_fall
+    from snapjump_cli.jump_events import _Chunk, _first_fall, _samples_to_fall
 
     def F(t):  # minima at t = k + 1/2, the k-th at 0.05 - 0.006 k: the 9th dips below zero
         return 1.05 - 0.006 * np.floor(t) + np.cos(2.0 * np.pi * t)
@@ -514,19 +524,62 @@ def test_sampling_in_pieces_finds_the_first_fall_of_the_whole_chunk():
     def yv(t):
         return F(t), dF(t)
 
-    chunk = 0.0 + 0.075 * np.arange(1.0, 201.0)
+    times = 0.0 + 0.075 * np.arange(1.0, 201.0)
     T_prev = np.array([0.0])
-    T = np.concatenate([T_prev, chunk])
+    T = np.concatenate([T_prev, times])
     whole = _first_fall(f, df, T, F(T), dF(T))
     assert whole is not None and 9.0 < whole < 9.5 and np.all(F(T[T <= whole]) > 0.0)
-    for piece in range(1, 160):
-        Tp, Fp, dFp, t = _samples_to_fall(yv, f, df, chunk, T_prev, F(T_prev), dF(T_prev), piece)
+    for piece, then in [(p, 2 * p) for p in range(1, 160)] + [(1, 1), (7, 100), (130, 3)]:
+        scan = _samples_to_fall(None, f, df, _Chunk(times, 0.0, 1.0, 0, math.inf), T_prev,
+                                F(T_prev), dF(T_prev), piece, then)
+        Tp, Fp, dFp, t = _answer_all(scan, yv)
         assert t == whole, piece
         assert Tp[-1] >= whole and np.array_equal(Tp, T[:Tp.size])
         assert np.array_equal(Fp, F(Tp)) and np.array_equal(dFp, dF(Tp))
     # no fall in the chunk: all of it sampled
-    Tp, Fp, _, t = _samples_to_fall(yv, f, df, chunk[:100], T_prev, F(T_prev), dF(T_prev), 7)
+    scan = _samples_to_fall(None, f, df, _Chunk(times[:100], 0.0, 1.0, 0, math.inf), T_prev,
+                            F(T_prev), dF(T_prev), 7, 14)
+    Tp, Fp, _, t = _answer_all(scan, yv)
     assert t is None and np.array_equal(Tp, T[:101]) and np.array_equal(Fp, F(Tp))
+
+
+def _time_grid_materialised(h0: float, dt: float, t_end: float):
+    """The time grid as whole arrays (what _time_grid's chunks stand for)."""
+    from snapjump_cli.jump_events import _CHUNK
+
+    h0 = min(h0, dt)
+    n_geo = int(math.ceil(math.log2(dt / h0))) if h0 < dt else 0
+    head = np.cumsum(h0 * 2.0 ** np.arange(n_geo))
+    last = float(head[-1]) if head.size else 0.0
+    chunk = np.concatenate([head, last + dt * np.arange(1, _CHUNK + 1)])
+    while True:
+        sel = chunk[chunk < t_end]
+        if sel.size < chunk.size:
+            yield np.append(sel, t_end)
+            return
+        yield chunk
+        chunk = float(chunk[-1]) + dt * np.arange(1, _CHUNK + 1)
+
+
+def test_time_grid_chunks_hold_the_materialised_times():
+    """_time_grid's chunks make their times on demand, piece by piece: the same numbers, chunks
+    and end as the whole arrays, and count_before counts them."""
+    from snapjump_cli.jump_events import _time_grid
+
+    rng = np.random.default_rng(3)
+    dt = 1e-4
+    ends = [0.5 * dt, dt, 3e-3, 0.4096, 0.4096 + 17 * dt, 1.3, float(4 * 4096 * dt + 5 * dt)]
+    for h0 in (1e-4 * dt, dt, 2 * dt, 3.3e-9):
+        for t_end in ends + list(rng.uniform(0.0, 1.5, 5)):
+            chunks = list(_time_grid(h0, dt, t_end))
+            whole = list(_time_grid_materialised(h0, dt, t_end))
+            assert [c.size for c in chunks] == [w.size for w in whole]
+            for c, w in zip(chunks, whole):
+                assert np.array_equal(c.times(0, c.size), w)
+                cuts = sorted({0, c.size, *rng.integers(0, c.size + 1, 6).tolist()})
+                assert np.array_equal(np.concatenate([c.times(a, b) for a, b in zip(cuts, cuts[1:])]), w)
+                for t in [*w[rng.integers(0, w.size, 4)].tolist(), 0.0, t_end, 2.0, math.inf]:
+                    assert c.count_before(t) == int(np.sum(w < t))
 
 
 @pytest.mark.parametrize("design,h,p", [(C, 5e-3, JumpParams()), (D, 0.0, JumpParams()),
@@ -547,9 +600,10 @@ def test_flight_scan_in_pieces_equals_the_whole_chunk(monkeypatch, design, h, p)
     as_is = run()
     assert as_is[1] and as_is[2]
     monkeypatch.setattr(je._Model, "fall_time_bound", lambda self, ph: math.inf)
+    monkeypatch.setattr(je, "_PIECE_FIRST", 10**6)
     assert run() == as_is  # whole chunks
     monkeypatch.setattr(je._Model, "fall_time_bound", lambda self, ph: 0.0)
-    for piece in (1, 3, 256):
+    for piece in (1, 3, 256):  # pieces of 2, then piece, 2 piece, ...
         monkeypatch.setattr(je, "_PIECE_MIN", piece)
         assert run() == as_is
 
