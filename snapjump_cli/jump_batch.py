@@ -10,6 +10,7 @@ numbers either way (the formulas are element-wise), so are the results.
 """
 from __future__ import annotations
 
+import gc
 from typing import Any, Generator, Iterable, Sequence
 
 import numpy as np
@@ -57,12 +58,21 @@ def run_many(sims: Iterable[Simulation]) -> list[Any]:
         except Exception as e:  # noqa: BLE001 - one failing design never stops the others
             out[i] = e
 
-    for i in range(len(sims)):
-        advance(i, None)
-    while waiting:
-        batch, waiting = waiting, []
-        for (i, _), answer in zip(batch, sample_flights([req for _, req in batch])):
-            advance(i, answer)
+    # Thousands of suspended simulations are alive at once: the cyclic garbage collector, run
+    # every few hundred allocations, would walk them all again and again (a tenth of the time).
+    # Nothing here needs it (reference counting frees the simulations' objects).
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        for i in range(len(sims)):
+            advance(i, None)
+        while waiting:
+            batch, waiting = waiting, []
+            for (i, _), answer in zip(batch, sample_flights([req for _, req in batch])):
+                advance(i, answer)
+    finally:
+        if collecting:
+            gc.enable()
     return out
 
 
