@@ -566,13 +566,16 @@ def _samples_to_fall(key: object, F: Callable[[float], float], dF: Callable[[flo
     The arrays returned are new (the caller may overwrite them).
     """
     p = T_prev.size
-    T = np.empty(p + chunk.size)
-    Fv = np.empty_like(T)
-    dFv = np.empty_like(T)
+    n = p + chunk.size
+    # room for the first two pieces (usually all that is sampled: many scans are alive at once
+    # in jump_batch), for the whole chunk only if more is needed
+    T, Fv, dFv = (np.empty(min(n, p + piece + then)) for _ in range(3))
     T[:p], Fv[:p], dFv[:p] = T_prev, F_prev, dF_prev
     lo, size, size_next = p, piece, then
-    while lo < T.size:
-        hi = min(lo + size, T.size)
+    while lo < n:
+        hi = min(lo + size, n)
+        if hi > T.size:
+            T, Fv, dFv = (np.concatenate([a[:lo], np.empty(n - lo)]) for a in (T, Fv, dFv))
         T[lo:hi] = chunk.times(lo - p, hi - p)
         Fv[lo:hi], dFv[lo:hi] = yield key, T[lo:hi]
         k = max(lo - 2, 0)

@@ -48,6 +48,22 @@ def test_many_at_once_equal_one_at_a_time(p):
         assert r == alone, d  # every field, floats to the bit
 
 
+def test_a_few_at_a_time_equal_all_at_once():
+    """run_many with fewer simulations running than designs (the next starting as one ends)."""
+    from snapjump_cli.jump import _simulate
+    from snapjump_cli.jump_batch import run_many
+
+    designs = _designs()
+    p = JumpParams()
+    want = jump_heights(designs, p)
+    for width in (1, 3, 1000):
+        got = [r if isinstance(r, Exception) else r.result
+               for r in run_many((_simulate(*d, p) for d in designs), width)]
+        assert len(got) == len(want)
+        for g, w in zip(got, want):
+            assert (type(g) is type(w) and str(g) == str(w)) if isinstance(w, Exception) else g == w
+
+
 def test_sampled_flights_equal_the_flight_to_the_bit():
     """sample_flights answers requests of several designs, lengths and damping in blocks: the
     very numbers of _Model.flight."""
