@@ -433,6 +433,36 @@ def _time_grid(h0: float, dt: float, t_end: float) -> Iterator[_Chunk]:
         head, base = _NO_TIMES, chunk.last_step
 
 
+# Indices where samples change in a given way: for short arrays (most of the flights' scans)
+# a loop over Python floats, as numpy's cost per call is then most of the work; the same
+# comparisons either way (NaN compares false in both).
+#: Longest array scanned as a list of floats.
+_SHORT = 64
+
+
+def _down_crossings(a: np.ndarray | list[float]) -> Sequence[int]:
+    """Indices ``k`` with ``a[k] > 0`` and ``a[k + 1] <= 0``, increasing."""
+    if isinstance(a, list):
+        return [k for k in range(len(a) - 1) if a[k] > 0.0 and a[k + 1] <= 0.0]
+    return ((a[:-1] > 0.0) & (a[1:] <= 0.0)).nonzero()[0]
+
+
+def _sampled_minima(a: np.ndarray | list[float]) -> Sequence[int]:
+    """Indices ``k`` (not the ends) with ``a[k] <= a[k - 1]``, ``a[k] < a[k + 1]`` and ``a[k] > 0``."""
+    if isinstance(a, list):
+        return [k for k in range(1, len(a) - 1) if a[k] <= a[k - 1] and a[k] < a[k + 1] and a[k] > 0.0]
+    mid = a[1:-1]
+    return ((mid <= a[:-2]) & (mid < a[2:]) & (mid > 0.0)).nonzero()[0] + 1
+
+
+def _sampled_maxima(a: np.ndarray | list[float]) -> Sequence[int]:
+    """Indices ``k`` (not the ends) with ``a[k] >= a[k - 1]`` and ``a[k] > a[k + 1]``."""
+    if isinstance(a, list):
+        return [k for k in range(1, len(a) - 1) if a[k] >= a[k - 1] and a[k] > a[k + 1]]
+    mid = a[1:-1]
+    return ((mid >= a[:-2]) & (mid > a[2:])).nonzero()[0] + 1
+
+
 def _first_fall(F: Callable[[float], float], dF: Callable[[float], float],
                 T: np.ndarray, Fv: np.ndarray, dFv: np.ndarray) -> float | None:
     """First time after ``T[0]`` at which ``F`` (``>= 0`` at ``T[0]``) reaches ``<= 0``, or ``None``.
@@ -442,16 +472,15 @@ def _first_fall(F: Callable[[float], float], dF: Callable[[float], float],
     """
     n = T.size
     best: float | None = None
-    down = ((Fv[:-1] > 0.0) & (Fv[1:] <= 0.0)).nonzero()[0]
-    if down.size:
+    Fs = Fv.tolist() if n <= _SHORT else Fv
+    down = _down_crossings(Fs)
+    if len(down):
         k = int(down[0])
         best_bracket = (T[k], T[k + 1])
         best = best_bracket[1]
     # sampled local minima with positive value: refine
     if n >= 3:
-        mid = Fv[1:-1]
-        mins = ((mid <= Fv[:-2]) & (mid < Fv[2:]) & (mid > 0.0)).nonzero()[0] + 1
-        for k in mins:
+        for k in _sampled_minima(Fs):
             if best is not None and T[k - 1] >= best:
                 break
             a, b = T[k - 1], T[k + 1]
@@ -480,9 +509,9 @@ def _maxima(F: Callable[[float], float], dF: Callable[[float], float], T: np.nda
     samples with index ``< skip`` are ignored (already handled with the previous chunk).
     """
     out: list[tuple[float, float]] = []
-    idx = ((dFv[:-1] > 0.0) & (dFv[1:] <= 0.0)).nonzero()[0]
+    short = T.size <= _SHORT
     covered: set[int] = set()
-    for k in idx:
+    for k in _down_crossings(dFv.tolist() if short else dFv):
         covered.update((int(k), int(k) + 1))
         if k < skip:
             continue
@@ -490,9 +519,7 @@ def _maxima(F: Callable[[float], float], dF: Callable[[float], float], T: np.nda
         t = b if dFv[k + 1] == 0.0 else brentq(dF, a, b, xtol=1e-300, rtol=_RTOL)
         out.append((float(t), float(F(t))))
     if T.size >= 3:
-        mid = Fv[1:-1]
-        smax = ((mid >= Fv[:-2]) & (mid > Fv[2:])).nonzero()[0] + 1
-        for k in smax:
+        for k in _sampled_maxima(Fv.tolist() if short else Fv):
             if k - 1 < skip or k in covered or (k - 1) in covered:
                 continue
             a, b = float(T[k - 1]), float(T[k + 1])

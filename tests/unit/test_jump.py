@@ -616,3 +616,19 @@ def test_fall_time_bound_is_an_upper_bound(name, design, h, p):
     md = traj._model
     for ph, tc in zip([ph for ph in traj._phases if ph.kind == "flight"], traj.contact_times):
         assert ph.t1 - ph.t0 <= md.fall_time_bound(ph)
+
+
+def test_index_scans_of_lists_equal_those_of_arrays():
+    """The sign-change and sampled-extremum scans give the same indices on a list of floats (the
+    short-array path) as on the array: ties, zeros, signed zeros and NaN included."""
+    from snapjump_cli.jump_events import _down_crossings, _sampled_maxima, _sampled_minima
+
+    rng = np.random.default_rng(5)
+    for _ in range(400):
+        n = int(rng.integers(0, 40))
+        a = rng.choice([-1.0, -0.0, 0.0, 0.5, 1.0, 2.0, np.nan], n) if rng.random() < 0.5 \
+            else rng.normal(size=n)
+        for scan in (_down_crossings, _sampled_minima, _sampled_maxima):
+            if scan is not _down_crossings and n < 3:
+                continue
+            assert list(scan(a.tolist())) == [int(k) for k in scan(a)], (scan.__name__, a)
