@@ -51,16 +51,19 @@ Modules
 -------
 This module is the public API (import everything from here). The parameters, the result and the
 input checks are in :mod:`snapjump_cli.jump_params`; the closed-form phases and the location of
-impacts, lift-offs and apexes in :mod:`snapjump_cli.jump_events`; the numerical cross-check
-:func:`jump_height_ode` (``solve_ivp``) in :mod:`snapjump_cli.jump_ode`.
+impacts, lift-offs and apexes in :mod:`snapjump_cli.jump_events`; running one simulation or
+many together (:func:`jump_heights`, for ranking a sweep) in :mod:`snapjump_cli.jump_batch`; the
+numerical cross-check :func:`jump_height_ode` (``solve_ivp``) in :mod:`snapjump_cli.jump_ode`.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Iterable
 
 import numpy as np
 
+from snapjump_cli.jump_batch import Simulation, run_many, run_one
 from snapjump_cli.jump_events import (  # noqa: F401 - _first_fall, _maxima, _Osc re-exported (tests)
     _V_STICK_REL,
     _Model,
@@ -85,6 +88,7 @@ __all__ = [
     "eigensystem",
     "system_matrices",
     "jump_height",
+    "jump_heights",
     "jump_trajectory",
     "jump_height_ode",
 ]
@@ -209,6 +213,34 @@ def jump_trajectory(dE_J: float, dy_pole_m: float, h_imp_m: float, m_i_kg: float
         Its ``result`` equals ``jump_height(...)``. For a non-snapping design it holds no
         phases and :meth:`JumpTrajectory.state` raises ``ValueError``.
     """
+    return run_one(_simulate(dE_J, dy_pole_m, h_imp_m, m_i_kg, m_o_kg, params, L0_m))
+
+
+def jump_heights(designs: Iterable[tuple[float, float, float, float, float]],
+                 params: JumpParams = JumpParams()) -> list[JumpResult | Exception]:
+    """:func:`jump_height` of many designs, simulated together (faster than one by one).
+
+    Parameters
+    ----------
+    designs : iterable of (dE_J, dy_pole_m, h_imp_m, m_i_kg, m_o_kg)
+        The arguments of :func:`jump_height`, one tuple per design.
+    params : JumpParams
+        Model parameters, the same for all.
+
+    Returns
+    -------
+    list of JumpResult or Exception
+        Per design, in order, exactly what ``jump_height(*design, params)`` returns, or the
+        exception it raises (e.g. ``ValueError`` for bad inputs); the others go on.
+    """
+    return [traj.result if isinstance(traj, JumpTrajectory) else traj
+            for traj in run_many(_simulate(*d, params) for d in designs)]
+
+
+def _simulate(dE_J: float, dy_pole_m: float, h_imp_m: float, m_i_kg: float, m_o_kg: float,
+              params: JumpParams, L0_m: float | None = None) -> Simulation:
+    """:func:`jump_trajectory` as a generator that asks for the flights' values on their time
+    grids (:mod:`snapjump_cli.jump_batch` answers); returns the :class:`JumpTrajectory`."""
     dE, dy, h, mi, mo = _validate(dE_J, dy_pole_m, h_imp_m, m_i_kg, m_o_kg, params)
     L0 = dy if L0_m is None else _check_real("L0_m", L0_m)
     ns = _no_snap(dE, dy, h, mi, mo, "closed-form")
@@ -243,13 +275,13 @@ def jump_trajectory(dE_J: float, dy_pole_m: float, h_imp_m: float, m_i_kg: float
             h0 = md.rel.dt * 1e-4
             if y == 0.0 and v > 0.0 and a0 < 0.0:
                 h0 = min(h0, (2.0 * v / -a0) / 16.0)
-            t_hit, found = _scan_flight(md, ph, t_avail, h0)
+            t_hit, found = yield from _scan_flight(md, ph, t_avail, h0)
             for tm, ym in found:
                 apexes.append((t + tm, ym))
                 if ym > ymax:
                     ymax, tpeak = ym, t + tm
             t_loc = t_avail if t_hit is None else t_hit
-            yy, vv, ee, eed = (float(a) for a in md.flight(ph, t_loc))
+            yy, vv, ee, eed = md.flight_at(ph).state(t_loc)
             phases.append(_Phase("flight", t, t + t_loc, y, v, e, ed))
             if t_hit is None:  # ran out of time in flight
                 t, y, v, e, ed = p.t_max, yy, vv, ee, eed

@@ -12,7 +12,6 @@ import math
 from typing import Callable, NamedTuple
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from snapjump_cli.jump_events import _SAMPLES_PER_PERIOD, _V_STICK_REL, _Model, system_matrices
 from snapjump_cli.jump_params import JumpParams, JumpResult, _finish, _no_snap, _validate
@@ -157,6 +156,8 @@ class _OdeJump:
         first = self.max_step_f * 1e-4
         if Y[0] == 0.0 and Y[2] > 0.0 and a0 < 0.0:
             first = min(first, (2.0 * Y[2] / -a0) / 16.0)
+        from scipy.integrate import solve_ivp  # on use: importing jump (rank) need not load it
+
         sol = solve_ivp(f.rhs_flight, (self.t, p.t_max), Y, events=[f.ev_contact, f.ev_apex],
                         max_step=self.max_step_f, first_step=first, **self.opts)
         for ta, Ya in zip(sol.t_events[1], sol.y_events[1]):
@@ -186,6 +187,8 @@ class _OdeJump:
         if f.ev_settle(t, Z) < 0.0:
             self.complete = True
             return True
+        from scipy.integrate import solve_ivp
+
         sol = solve_ivp(f.rhs_rest, (t, p.t_max), Z, events=[f.ev_lift, f.ev_settle],
                         max_step=self.max_step_r, first_step=self.max_step_r * 1e-4, **self.opts)
         if sol.status != 1:

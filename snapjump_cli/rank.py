@@ -97,7 +97,8 @@ def rank_results(
         :class:`snapjump_cli.jump.JumpParams` (default: ``JumpParams()``; ``rho`` sets the masses).
     jump_fn, masses_fn
         Replacements for :func:`snapjump_cli.jump.jump_height` and :func:`snapjump_cli.jump.masses`
-        (tests).
+        (tests). Without ``jump_fn`` the designs are simulated together
+        (:func:`snapjump_cli.jump.jump_heights`: the same results, faster).
     exclude_asymmetric
         Leave unranked the rows whose harmonic check (``solver: {harmonics: N}``) found a
         non-axisymmetric mode losing stability before V* (``asym_first``): their axisymmetric snap
@@ -118,14 +119,16 @@ def rank_results(
     if missing:
         raise RankInputError("not a sweep result table: missing column(s) " + ", ".join(missing))
     check_types(df)
+    jumps_fn = None
     if params is None or jump_fn is None or masses_fn is None:
         from snapjump_cli import jump
 
         params = params if params is not None else jump.JumpParams()
-        jump_fn = jump_fn or jump.jump_height
+        if jump_fn is None:
+            jumps_fn = jump.jump_heights
         masses_fn = masses_fn or jump.masses
     rho = float(getattr(params, "rho", 1000.0))
-    out = _jump_columns(df, params, jump_fn, masses_fn, rho)
+    out = _jump_columns(df, params, jump_fn, masses_fn, rho, jumps_fn)
     if exclude_asymmetric and "asym_first" in df.columns:
         n_first = df["asym_n"] if "asym_n" in df.columns else pd.Series(pd.NA, index=df.index)
         for j in np.flatnonzero(df["asym_first"].astype("boolean").fillna(False).to_numpy(bool)):
@@ -134,14 +137,18 @@ def rank_results(
     return _ranked(df, out)
 
 
-def _jump_columns(df: pd.DataFrame, params: Any, jump_fn: Callable[..., Any],
-                  masses_fn: Callable[..., tuple[float, float]], rho: float) -> dict[str, list[Any]]:
+def _jump_columns(df: pd.DataFrame, params: Any, jump_fn: Callable[..., Any] | None,
+                  masses_fn: Callable[..., tuple[float, float]], rho: float,
+                  jumps_fn: Callable[..., list[Any]] | None = None) -> dict[str, list[Any]]:
     """The added columns (all of :data:`RANK_COLUMNS` but ``rank``), one value per row of ``df``
-    (``None`` where there is none)."""
+    (``None`` where there is none). The jump model runs on the ``ok`` rows with ``jumps_fn``
+    (all at once) if given, else with ``jump_fn`` row by row."""
     n = len(df)
     out: dict[str, list[Any]] = {c: [None] * n for c in RANK_COLUMNS if c != "rank"}
-    n_failed_model = 0
-    for j, r in enumerate(df.to_dict("records")):
+    ok_rows: list[tuple[int, dict]] = []
+    # only the columns read here: boxing every column of every row took longer than the rest
+    used = [c for c in (*REQUIRED_COLUMNS, "error") if c in df.columns]
+    for j, r in enumerate(df[used].to_dict("records")):
         status, err = r["status"], r.get("error")
         vi, vo = r.get("V_inner_solid_m3"), r.get("V_outer_solid_m3")
         if _finite(vi) and _finite(vo) and float(vi) > 0 and float(vo) > 0:
@@ -150,30 +157,54 @@ def _jump_columns(df: pd.DataFrame, params: Any, jump_fn: Callable[..., Any],
             except (ValueError, TypeError):
                 pass
         if status == "ok":
-            if not _jump_row(out, j, r, params, jump_fn):
-                n_failed_model += 1
+            ok_rows.append((j, r))
         elif status == "no_snap":
             _no_snap_row(out, j)
         else:
             out["y_jump_m"][j] = math.nan
             text = "" if err is None or err is pd.NA else str(err)
             out["jump_reason"][j] = f"{status}: {text}" if text else str(status)
+    n_failed_model = 0
+    for (j, r), jr in zip(ok_rows, _jump_results(out, ok_rows, params, jump_fn, jumps_fn)):
+        if not _jump_row(out, j, r, jr):
+            n_failed_model += 1
     if n_failed_model:
         log.warning("the jump model failed on %d ok row(s); their y_jump_m is NaN", n_failed_model)
     return out
 
 
-def _jump_row(out: dict[str, list[Any]], j: int, r: dict, params: Any, jump_fn: Callable[..., Any]) -> bool:
-    """Fill row ``j`` (status ``ok``, its masses already in ``out``) from the jump model;
-    ``False`` if the model failed on it (``y_jump_m`` NaN, the reason says why)."""
-    vi, vo = r.get("V_inner_solid_m3"), r.get("V_outer_solid_m3")
-    try:
-        if out["m_i_kg"][j] is None:
-            raise ValueError(f"no solid volumes (V_inner_solid_m3={vi}, V_outer_solid_m3={vo})")
-        jr = jump_fn(float(r["dE_J"]), float(r["dy_pole_m"]), float(r["h_imp_m"]),
-                     out["m_i_kg"][j], out["m_o_kg"][j], params)
-    except Exception as e:  # noqa: BLE001 - one bad row never stops the ranking
-        out["jump_reason"][j] = f"jump model failed: {type(e).__name__}: {e}"
+def _jump_results(out: dict[str, list[Any]], rows: list[tuple[int, dict]], params: Any,
+                  jump_fn: Callable[..., Any] | None, jumps_fn: Callable[..., list[Any]] | None) -> list[Any]:
+    """Per row ``(j, r)`` (status ``ok``, its masses already in ``out``): the jump model's result
+    or the exception it raised (one bad row never stops the ranking)."""
+    results: list[Any] = [None] * len(rows)
+    args: list[tuple[int, tuple]] = []
+    for i, (j, r) in enumerate(rows):
+        try:
+            if out["m_i_kg"][j] is None:
+                vi, vo = r.get("V_inner_solid_m3"), r.get("V_outer_solid_m3")
+                raise ValueError(f"no solid volumes (V_inner_solid_m3={vi}, V_outer_solid_m3={vo})")
+            args.append((i, (float(r["dE_J"]), float(r["dy_pole_m"]), float(r["h_imp_m"]),
+                             out["m_i_kg"][j], out["m_o_kg"][j])))
+        except Exception as e:  # noqa: BLE001
+            results[i] = e
+    if jumps_fn is not None:
+        for (i, _), res in zip(args, jumps_fn([a for _, a in args], params)):
+            results[i] = res
+        return results
+    for i, a in args:
+        try:
+            results[i] = jump_fn(*a, params)
+        except Exception as e:  # noqa: BLE001
+            results[i] = e
+    return results
+
+
+def _jump_row(out: dict[str, list[Any]], j: int, r: dict, jr: Any) -> bool:
+    """Fill row ``j`` (status ``ok``) from the jump model's result ``jr``; ``False`` if the model
+    failed on it (``jr`` is the exception: ``y_jump_m`` NaN, the reason says why)."""
+    if isinstance(jr, Exception):
+        out["jump_reason"][j] = f"jump model failed: {type(jr).__name__}: {jr}"
         out["y_jump_m"][j] = math.nan
         return False
     out["y_jump_m"][j] = float(jr.y_jump_m)

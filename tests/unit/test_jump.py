@@ -445,3 +445,190 @@ def test_heavily_damped_weak_design_settles_and_is_certified():
     for fn in (jump_height, jump_height_ode):
         r = fn(h_imp_m=0.0, params=JumpParams(c_d=2.0), **A_LIKE)
         assert r.complete and not r.jumped and not r.lift_off and r.y_jump_m == 0.0
+
+
+
+def _flight_phases(design: dict, p: JumpParams) -> tuple:
+    """The model of ``design`` and flight phases to probe it with: those of a real trajectory, and
+    two without gravity or centre-of-mass motion whose ``y_i`` is only the oscillator's
+    ``x0 (exp(-sig t) C(t) - 1)`` and whose ``v_i`` is only ``v0 exp(-sig t) C(t)`` (so a last-bit
+    change in those terms is not lost in the sum)."""
+    from snapjump_cli.jump_events import _Model, _Phase
+
+    traj = jump_trajectory(h_imp_m=2e-3, params=p, **design)
+    phases = [ph for ph in traj._phases if ph.kind == "flight" and ph.t1 > ph.t0][:3]
+    md = traj._model
+    md0 = _Model(md.k, md.m_i, md.m_o, JumpParams(c_d=p.c_d, g=0.0))
+    osc, r, x0, v0 = md0.rel, md0.r, 1e-2, 1.0
+    only_x = _Phase("flight", 0.0, 1.0, 0.0, r * osc.sig * x0, x0, -osc.sig * x0)
+    only_v = _Phase("flight", 0.0, 1.0, 0.0, -r * v0, -osc.sig * v0 / osc.w0sq, v0)
+    return [(md, ph, ph.t1 - ph.t0) for ph in phases] + [(md0, only_x, 0.0), (md0, only_v, 0.0)]
+
+
+@pytest.mark.parametrize("design,p", [(C, JumpParams()), (D, JumpParams()), (D, JumpParams(c_d=0.0)),
+                                      (OVER, JumpParams()), (_critical(), JumpParams())],
+                         ids=["C", "D", "D undamped", "overdamped", "critical"])
+def test_scalar_flight_equals_the_general_form_to_the_bit(design, p):
+    """The root finders' scalar ``y_i(t)``, ``v_i(t)`` and state (``_Model.flight_at``) give
+    exactly the numbers of the general form ``_Model.flight`` at the same scalar time, and agree
+    with its array form (which rounds squares differently: within a few ulp)."""
+    rng = np.random.default_rng(1)
+    for md, ph, span in _flight_phases(design, p):
+        at = md.flight_at(ph)
+        y_at, v_at = at.y, at.v
+        span = span or 100.0 * md.rel.dt
+        ts = np.concatenate([[0.0, span], rng.uniform(0.0, span, 1500),
+                             rng.uniform(0.0, 20.0 * md.rel.dt, 500)])
+        general = [md.flight(ph, t) for t in ts.tolist()]
+        ys = np.array([y_at(t) for t in ts.tolist()])
+        vs = np.array([v_at(t) for t in ts.tolist()])
+        np.testing.assert_array_equal(ys, [float(g[0]) for g in general])
+        np.testing.assert_array_equal(vs, [float(g[1]) for g in general])
+        for t, g in zip(ts.tolist()[::10], general[::10]):
+            assert at.state(t) == tuple(float(a) for a in g)
+        Y, V, _, _ = md.flight(ph, ts)
+        np.testing.assert_allclose(ys, Y, rtol=1e-12, atol=1e-15 * np.max(np.abs(Y)))
+        np.testing.assert_allclose(vs, V, rtol=1e-12, atol=1e-15 * np.max(np.abs(V)))
+
+
+
+def _answer_all(gen, evaluate):
+    """Run a generator of requests ``(key, t)`` to its end, sending back ``evaluate(t)``."""
+    try:
+        _, t = next(gen)
+        while True:
+            _, t = gen.send(evaluate(t))
+    except StopIteration as stop:
+        return stop.value
+
+
+def test_sampling_in_pieces_finds_the_first_fall_of_the_whole_chunk():
+    """_samples_to_fall (a chunk sampled in growing pieces up to the first fall) returns what
+    _first_fall finds on the whole chunk, whatever the piece sizes: here the first fall is a
+    grazing dip between two positive samples, preceded by sampled minima that do not dip, and
+    a piece boundary falls on each sample for some size."""
+    from snapjump_cli.jump_events import _Chunk, _first_fall, _samples_to_fall
+
+    def F(t):  # minima at t = k + 1/2, the k-th at 0.05 - 0.006 k: the 9th dips below zero
+        return 1.05 - 0.006 * np.floor(t) + np.cos(2.0 * np.pi * t)
+
+    def dF(t):
+        return -2.0 * np.pi * np.sin(2.0 * np.pi * t)
+
+    def f(t):
+        return float(F(t))
+
+    def df(t):
+        return float(dF(t))
+
+    def yv(t):
+        return F(t), dF(t)
+
+    times = 0.0 + 0.075 * np.arange(1.0, 201.0)
+    T_prev = np.array([0.0])
+    T = np.concatenate([T_prev, times])
+    whole = _first_fall(f, df, T, F(T), dF(T))
+    assert whole is not None and 9.0 < whole < 9.5 and np.all(F(T[T <= whole]) > 0.0)
+    for piece, then in [(p, 2 * p) for p in range(1, 160)] + [(1, 1), (7, 100), (130, 3)]:
+        scan = _samples_to_fall(None, f, df, _Chunk(times, 0.0, 1.0, 0, math.inf), T_prev,
+                                F(T_prev), dF(T_prev), piece, then)
+        Tp, Fp, dFp, t = _answer_all(scan, yv)
+        assert t == whole, piece
+        assert Tp[-1] >= whole and np.array_equal(Tp, T[:Tp.size])
+        assert np.array_equal(Fp, F(Tp)) and np.array_equal(dFp, dF(Tp))
+    # no fall in the chunk: all of it sampled
+    scan = _samples_to_fall(None, f, df, _Chunk(times[:100], 0.0, 1.0, 0, math.inf), T_prev,
+                            F(T_prev), dF(T_prev), 7, 14)
+    Tp, Fp, _, t = _answer_all(scan, yv)
+    assert t is None and np.array_equal(Tp, T[:101]) and np.array_equal(Fp, F(Tp))
+
+
+def _time_grid_materialised(h0: float, dt: float, t_end: float):
+    """The time grid as whole arrays (what _time_grid's chunks stand for)."""
+    from snapjump_cli.jump_events import _CHUNK
+
+    h0 = min(h0, dt)
+    n_geo = int(math.ceil(math.log2(dt / h0))) if h0 < dt else 0
+    head = np.cumsum(h0 * 2.0 ** np.arange(n_geo))
+    last = float(head[-1]) if head.size else 0.0
+    chunk = np.concatenate([head, last + dt * np.arange(1, _CHUNK + 1)])
+    while True:
+        sel = chunk[chunk < t_end]
+        if sel.size < chunk.size:
+            yield np.append(sel, t_end)
+            return
+        yield chunk
+        chunk = float(chunk[-1]) + dt * np.arange(1, _CHUNK + 1)
+
+
+def test_time_grid_chunks_hold_the_materialised_times():
+    """_time_grid's chunks make their times on demand, piece by piece: the same numbers, chunks
+    and end as the whole arrays, and count_before counts them."""
+    from snapjump_cli.jump_events import _time_grid
+
+    rng = np.random.default_rng(3)
+    dt = 1e-4
+    ends = [0.5 * dt, dt, 3e-3, 0.4096, 0.4096 + 17 * dt, 1.3, float(4 * 4096 * dt + 5 * dt)]
+    for h0 in (1e-4 * dt, dt, 2 * dt, 3.3e-9):
+        for t_end in ends + list(rng.uniform(0.0, 1.5, 5)):
+            chunks = list(_time_grid(h0, dt, t_end))
+            whole = list(_time_grid_materialised(h0, dt, t_end))
+            assert [c.size for c in chunks] == [w.size for w in whole]
+            for c, w in zip(chunks, whole):
+                assert np.array_equal(c.times(0, c.size), w)
+                cuts = sorted({0, c.size, *rng.integers(0, c.size + 1, 6).tolist()})
+                assert np.array_equal(np.concatenate([c.times(a, b) for a, b in zip(cuts, cuts[1:])]), w)
+                for t in [*w[rng.integers(0, w.size, 4)].tolist(), 0.0, t_end, 2.0, math.inf]:
+                    assert c.count_before(t) == int(np.sum(w < t))
+
+
+@pytest.mark.parametrize("design,h,p", [(C, 5e-3, JumpParams()), (D, 0.0, JumpParams()),
+                                        (B_LIKE, 1e-3, JumpParams()), (OVER, 0.2e-3, JumpParams()),
+                                        (C, 3e-3, JumpParams(alpha=1.0, t_max=0.3))],
+                         ids=["C", "D h=0", "B-like", "overdamped", "C elastic"])
+def test_flight_scan_in_pieces_equals_the_whole_chunk(monkeypatch, design, h, p):
+    """The flight scan samples a chunk of the time grid in growing pieces up to the first
+    impact (_samples_to_fall), the first one up to where the impact must have come; any first
+    piece size, down to one sample, gives exactly the contacts, apexes and phases that sampling
+    whole chunks at once gives."""
+    import snapjump_cli.jump_events as je
+
+    def run() -> tuple:
+        traj = jump_trajectory(h_imp_m=h, params=p, **design)
+        return (traj.result, traj.contact_times, traj.apexes, traj._phases)
+
+    as_is = run()
+    assert as_is[1] and as_is[2]
+    monkeypatch.setattr(je._Model, "fall_time_bound", lambda self, ph: math.inf)
+    monkeypatch.setattr(je, "_PIECE_FIRST", 10**6)
+    assert run() == as_is  # whole chunks
+    monkeypatch.setattr(je._Model, "fall_time_bound", lambda self, ph: 0.0)
+    for piece in (1, 3, 256):  # pieces of 2, then piece, 2 piece, ...
+        monkeypatch.setattr(je, "_PIECE_MIN", piece)
+        assert run() == as_is
+
+
+@pytest.mark.parametrize("name,design,h,p", CASES, ids=[c[0] for c in CASES])
+def test_fall_time_bound_is_an_upper_bound(name, design, h, p):
+    """Every flight reaches the ground by _Model.fall_time_bound of its start (it sizes the
+    first piece of the scan: a wrong bound costs time, not accuracy)."""
+    traj = jump_trajectory(h_imp_m=h, params=p, **design)
+    md = traj._model
+    for ph, tc in zip([ph for ph in traj._phases if ph.kind == "flight"], traj.contact_times):
+        assert ph.t1 - ph.t0 <= md.fall_time_bound(ph)
+
+
+def test_index_scans_of_lists_equal_those_of_arrays():
+    """The sign-change and sampled-extremum scans give the same indices on a list of floats (the
+    short-array path) as on the array: ties, zeros, signed zeros and NaN included."""
+    from snapjump_cli.jump_events import _down_crossings, _sampled_maxima, _sampled_minima
+
+    rng = np.random.default_rng(5)
+    for _ in range(400):
+        n = int(rng.integers(0, 40))
+        a = rng.choice([-1.0, -0.0, 0.0, 0.5, 1.0, 2.0, np.nan], n) if rng.random() < 0.5 \
+            else rng.normal(size=n)
+        for scan in (_down_crossings, _sampled_minima, _sampled_maxima):
+            if scan is not _down_crossings and n < 3:
+                continue
+            assert list(scan(a.tolist())) == [int(k) for k in scan(a)], (scan.__name__, a)
