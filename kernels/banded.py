@@ -62,8 +62,9 @@ def dot_any_order(a: np.ndarray, b: np.ndarray) -> float:
     """``a @ b`` of two equally long vectors, summed in any order (so that LLVM vectorises it).
 
     Reassociation and fused multiply-adds only (no assumptions about NaN or infinity), and only
-    here: the result differs from the sequential sum by round-off. Also the element stiffness's
-    products (:mod:`snapjump_kernels.assembly`).
+    here: the result differs from the sequential sum by round-off. Also the row products of the
+    plain element pass (:func:`snapjump_kernels.assembly._assemble_plain`, for elements other
+    than the grid's Q9).
     """
     s = 0.0
     for k in range(a.size):
