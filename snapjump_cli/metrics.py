@@ -23,7 +23,7 @@ from snapjump_cli.meshdata import solid_volumes
 from snapjump_cli.model import Model
 from snapjump_cli.snap import SnapStates
 
-__all__ = ["snap_metrics", "scene_curve", "snap_sequence", "hermite_p_dV", "path_p_dV", "path_self_crosses",
+__all__ = ["snap_metrics", "scene_curve", "snap_sequence", "hermite_p_dV", "path_p_dV", "path_self_crosses", "loading_peak",
            "path_derivatives"]
 
 _G3 = np.polynomial.legendre.leggauss(4)
@@ -128,6 +128,32 @@ def path_derivatives(points: list[PathPoint], sV: float, sp: float) -> tuple[np.
     return dV, dp
 
 
+def loading_peak(points: list[PathPoint], states: SnapStates, sV: float, sp: float) -> float:
+    """The largest pressure (scaled) on the loading path: from the start up to the upper state,
+    or along the whole traced path when there is no volume limit.
+
+    Taken on the path's cubic Hermite curve (:func:`snapjump_cli.hermite.segment_maxima`): the
+    points alone miss a smooth maximum by the curvature times the square of the step. The path
+    beyond the upper state is left out: where it rises again, how far it was traced (the trace
+    stops once the snap is characterised) would set the value.
+    """
+    pts = list(points)
+    up = states.upper
+    top = -math.inf
+    if up is not None and states.k_before is not None:
+        pts = pts[: states.k_before + 1]
+        if up.s > pts[-1].s:
+            pts.append(up)
+        else:  # (an upper state without an arc length beyond its step's start: its value only)
+            top = float(up.p)
+    p = np.array([pt.p for pt in pts])
+    top = max(top, float(p.max()))
+    if len(pts) < 2:
+        return top
+    _, dp = path_derivatives(pts, sV, sp)
+    return max(top, float(np.max(hermite.segment_maxima(p[:-1], dp[:, 0], p[1:], dp[:, 1]))))
+
+
 def snap_sequence(path: Path, states: SnapStates) -> list[PathPoint]:
     """The states of the snap: the upper state, the path points after it and the lower state when
     the lower state lies on the path, else just the two states."""
@@ -180,10 +206,11 @@ def snap_metrics(
     pole2 = int(mesh.node_sets["pole_upper"][0])
     E_unit = S * L**3
     metrics: dict = {k: None for k in _SNAP_KEYS}
-    metrics["p_max_Pa"] = float(max(pt.p for pt in pts) * S)
     V_curve = np.array([pt.zeta[0] * sV for pt in pts])
     p_curve = np.array([pt.p for pt in pts])
-    metrics["self_crossing"] = path_self_crosses(V_curve, p_curve, *path_derivatives(pts, sV, sp))
+    dV_seg, dp_seg = path_derivatives(pts, sV, sp)
+    metrics["p_max_Pa"] = loading_peak(pts, st, sV, sp) * S
+    metrics["self_crossing"] = path_self_crosses(V_curve, p_curve, dV_seg, dp_seg)
     metrics["snaps"] = st.upper is not None
     if lower_solver is not None:
         metrics["lower_state_solver"] = lower_solver

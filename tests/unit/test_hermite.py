@@ -29,3 +29,18 @@ def test_power_coefficients_match_basis():
     t = np.linspace(-0.5, 1.5, 9)
     h00, h10, h01, h11 = hermite.basis(t)
     np.testing.assert_allclose(np.polyval(c[::-1], t), h00 * y0 + h10 * d0 + h01 * y1 + h11 * d1, atol=1e-13)
+
+
+def test_segment_maxima_against_dense_sampling():
+    rng = np.random.default_rng(5)
+    y0, d0, y1, d1 = rng.normal(size=(4, 200))
+    d0[:5] = 0.0  # flat starts, a quadratic (c3 = 0) and a straight line among the random cubics
+    y0[5], d0[5], y1[5], d1[5] = 0.0, 1.0, 0.0, -1.0  # y = t - t^2: maximum 0.25 at t = 0.5
+    y0[6], d0[6], y1[6], d1[6] = 0.0, 2.0, 2.0, 2.0  # y = 2t
+    t = np.linspace(0.0, 1.0, 20001)[:, None]
+    h00, h10, h01, h11 = hermite.basis(t)
+    dense = (h00 * y0 + h10 * d0 + h01 * y1 + h11 * d1).max(axis=0)
+    got = hermite.segment_maxima(y0, d0, y1, d1)
+    assert got[5] == 0.25 and got[6] == 2.0
+    assert np.all(got >= dense - 1e-14)  # never below a sampled value
+    np.testing.assert_allclose(got, dense, atol=1e-8)  # and the sampling's own error is ~1e-9
