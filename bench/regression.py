@@ -273,7 +273,11 @@ def compare(args) -> int:
             tn_g = sum(r["wall_s"] for r in grid_rows)
             lines += ["", f"## Baseline ({doc['commit'][:12]}, recorded with -j {doc.get('jobs')})", "",
                       f"- CPU-s per design summed over the sample: baseline {tb_g:.1f} s, now {tn_g:.1f} s "
-                      f"(**{tb_g / max(tn_g, 1e-9):.2f}x**)"]
+                      f"(**{tb_g / max(tn_g, 1e-9):.2f}x**)",
+                      f"- the baseline's timings are those of its recording ({doc.get('created_utc', '?')[:10]}, "
+                      f"machine: {doc.get('machine', '?')}), on another day and possibly another machine, "
+                      "whose speed differs by up to ~3.5x: a same-machine comparison needs the old commit run back "
+                      "to back (docs/performance.md, \"Full paper-grid runs\")"]
             lines += ["- (its wall time per design set: CPU-s / jobs)"] + throughput_table(
                 base_rows, bw or tb_g / max(doc.get("jobs", 1), 1), doc.get("jobs", 1))[1:]
         if args.phase_sample:

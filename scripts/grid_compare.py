@@ -5,7 +5,8 @@
 Prints how many rows changed status, each flag (``self_crossing``, ``lower_state_method``,
 ``snaps``, ``mesh_sensitive``) on the rows ok in both, the largest relative change of dE,
 dy_pole, h_imp, V*, p* and p_max (and how many rows moved by more than 0.5 % and 1e-4), and the
-CPU time per valid design of both runs (the ``wall_s`` of each row: mean, p50, p90, max, the
+CPU time per valid design of both runs. Rows are matched by their key, or by the grid index
+(same design parameters) when the two runs' keys differ (key version v1 before 23 November 2026) (the ``wall_s`` of each row: mean, p50, p90, max, the
 designs over 3 s, the split by the way the lower state was found). This is the full-grid answer
 check of the speed work (docs/performance.md, "Full paper-grid runs").
 """
@@ -26,10 +27,16 @@ def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(REPO))
     from snapjump_cli.results import read_results
 
-    old = read_results(a.old).set_index("key")
-    new = read_results(a.new).set_index("key")
+    old, new = read_results(a.old), read_results(a.new)
+    # the row key changed with the key version (v1 -> v2, the settings' ds0); the grid's index does not
+    by = "key" if len(set(old["key"]) & set(new["key"])) else "index"
+    old, new = old.set_index(by), new.set_index(by)
     common = old.index.intersection(new.index)
-    print(f"rows: {len(old)} old, {len(new)} new, {len(common)} in both")
+    if by == "index":  # the same grid: each index must name the same design in both
+        geo = ["eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio"]
+        same = (old.loc[common, geo].astype(float) == new.loc[common, geo].astype(float)).all(axis=1)
+        common = common[same.to_numpy()]
+    print(f"rows: {len(old)} old, {len(new)} new, {len(common)} in both (matched by {by})")
     old, new = old.loc[common], new.loc[common]
     print(f"status changed: {int((old['status'] != new['status']).sum())}")
     ok = (old["status"] == "ok") & (new["status"] == "ok")

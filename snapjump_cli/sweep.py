@@ -74,10 +74,11 @@ log = logging.getLogger(__name__)
 
 #: Largest sweep run without being asked explicitly (``max_designs`` / ``--max-designs``).
 MAX_DESIGNS = 100_000
-#: CPU seconds per solved design on the paper grid's mesh (order 2, nt 2, aspect 3; 2-core Xeon
-#: at 2.5 GHz: the mean over the full paper grid of 23 November 2026 at commit 745b426,
-#: docs/performance.md), the basis of the time estimate printed before a sweep.
-CPU_S_PER_DESIGN = 0.60
+#: CPU seconds per solved design on the paper grid's mesh (order 2, nt 2, aspect 3), the basis of
+#: the time estimate printed before a sweep: the mean over the full paper grid of 23 November 2026 (session 9)
+#: at commit daf4d67 on a 2-core Xeon with AVX-512 was 0.117 s, on the slower 2-core Xeon of the
+#: day before 0.35 s (docs/performance.md); the estimate takes the middle, 0.2 s.
+CPU_S_PER_DESIGN = 0.2
 
 
 @dataclass
@@ -391,21 +392,22 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
 
     bar = None
     stack = ExitStack()
-    if progress:
-        bar = make_progress(len(points), n_resumed, stack)
+    if progress:  # the invalid designs cost nothing: counted as done from the start, out of the rate
+        bar = make_progress(len(points), n_resumed + len(invalid_rows), stack)
 
-    def record(row: dict[str, Any]) -> None:
+    def record(row: dict[str, Any], advance: bool = True) -> None:
         counts[row["status"]] = counts.get(row["status"], 0) + 1
         writer.add(row)
         if bar is not None:
             bar.set_postfix({"ok": counts["ok"], "no_snap": counts["no_snap"], "invalid": counts["invalid_geometry"],
                              "failed": counts["failed"]}, refresh=False)
-            bar.update(1)
+            if advance:
+                bar.update(1)
 
     clients: list[Any] = []
     try:
         for row in invalid_rows:
-            record(row)
+            record(row, advance=False)
         if tasks:
             _solve_all(tasks, solve_fn, warm_up_fn, n_jobs, scheduler, marker_dir, record, clients)
     finally:

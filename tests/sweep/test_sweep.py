@@ -256,3 +256,24 @@ def test_warm_up_failure_is_a_sweep_error(grid_file, tmp_path):
     with pytest.raises(SweepError, match="warm-up .* failed: RuntimeError: numba: cannot compile"):
         run_sweep(load_config(grid_file()), output=tmp_path / "r.parquet", n_jobs=1, solve_fn=fake.fast_solve,
                   warm_up_fn=bad_warm_up, progress=False)
+
+
+def test_progress_counts_invalid_designs_as_done_from_the_start(grid_file, tmp_path, capsys, monkeypatch):
+    """The log-file progress (stderr not a terminal) ends at the full count with the statuses, and
+    its rate covers the solved designs only: the 8 invalid ones are done before the first solve."""
+    import snapjump_cli.sweep as sw
+
+    cfg = load_config(grid_file())
+    made = []
+    real = sw.make_progress
+
+    def spy(total, initial, stack, **kw):
+        made.append((total, initial))
+        return real(total, initial, stack, **kw)
+
+    monkeypatch.setattr(sw, "make_progress", spy)
+    run_sweep(cfg, output=tmp_path / "r.parquet", n_jobs=1, solve_fn=fake.flaky_solve, progress=True)
+    assert made == [(40, 8)]
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.startswith("sweep: 40/40 designs (100 %)"), last
+    assert "ok=4, no_snap=4, invalid=8, failed=24" in last, last
