@@ -40,6 +40,7 @@ __all__ = [
     "FLOAT_RESULT_KEYS",
     "PROVENANCE_COLUMNS",
     "SETTINGS_COLUMNS",
+    "ROW_CHECK_ERRORS",
     "result_schema",
     "fill_row",
     "settings_json",
@@ -86,6 +87,17 @@ PROVENANCE_COLUMNS: tuple[str, ...] = ("host", "pid", "finished_utc", "snapjump_
 #: The columns that must agree between rows computed "the same way" (see :mod:`snapjump_cli.rank`).
 SETTINGS_COLUMNS: tuple[str, ...] = (*MESH_COLUMNS, "solver_settings", "R_i", "mu_i", "J_m", "t_ring_frac",
                                      "w_ring_frac")
+
+#: How the ``error`` of a row failed by the row check of :func:`fill_row` begins (then ``: `` and the
+#: keys or values at fault); a row that failed in the solver starts with the exception's type
+#: instead (``Type: message``).
+ROW_CHECK_ERRORS: dict[str, str] = {
+    "missing": "solver result lacks keys",
+    "type": "solver result has values of the wrong type",
+    "snaps": "solver result has snaps=None",
+    "non_finite": "non-finite metrics in a snapping result",
+    "range": "metrics out of range in a snapping result",
+}
 
 #: Ranges an ``ok`` row must satisfy (the jump model needs them): key -> (test, wording).
 _OK_RANGES: dict[str, tuple[Any, str]] = {
@@ -206,20 +218,20 @@ def fill_row(row: dict[str, Any], result: Any) -> None:
     snaps = values.get("snaps")
     status, error = ("ok" if snaps else "no_snap"), ""
     if missing:
-        status, error = "failed", "solver result lacks keys: " + ", ".join(missing)
+        status, error = "failed", ROW_CHECK_ERRORS["missing"] + ": " + ", ".join(missing)
     elif bad_type:
-        status, error = "failed", "solver result has values of the wrong type: " + ", ".join(bad_type)
+        status, error = "failed", ROW_CHECK_ERRORS["type"] + ": " + ", ".join(bad_type)
     elif snaps is None:
-        status, error = "failed", "solver result has snaps=None (expected true or false)"
+        status, error = "failed", ROW_CHECK_ERRORS["snaps"] + " (expected true or false)"
     elif status == "ok" and (nonfinite or absent):
         status = "failed"
-        error = "non-finite metrics in a snapping result: " + ", ".join(
+        error = ROW_CHECK_ERRORS["non_finite"] + ": " + ", ".join(
             [f"{k}={values[k]}" for k in nonfinite] + [f"{k}=None" for k in absent])
     elif status == "ok":
         out_of_range = [f"{k}={values[k]!r} (expected {what})" for k, (good, what) in _OK_RANGES.items()
                         if values.get(k) is not None and not good(values[k])]
         if out_of_range:
-            status, error = "failed", "metrics out of range in a snapping result: " + ", ".join(out_of_range)
+            status, error = "failed", ROW_CHECK_ERRORS["range"] + ": " + ", ".join(out_of_range)
     for k in nonfinite:  # never store inf; NaN only as null
         values[k] = None
     row.update(values)

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from snapjump_cli import results as res
+from snapjump_cli.rows import ROW_CHECK_ERRORS
 from snapjump_cli.config import SweepConfig, load_config, parse_config
 from snapjump_cli.settings import MeshSettings, SolverSettings
 
@@ -153,7 +154,8 @@ def check_rows(df) -> list[str]:
 
     * status is one of ok / no_snap / invalid_geometry / failed;
     * invalid_geometry and failed rows carry their cause (``error`` non-empty; a failed row's text
-      starts with the exception type, ``Type: message``);
+      starts with the exception type, ``Type: message``, or with the row check's own wording,
+      ``snapjump_cli.rows.ROW_CHECK_ERRORS``);
     * an ok row snaps and holds no NaN / None / inf in any float metric; no row stores inf.
     """
     bad = []
@@ -167,7 +169,8 @@ def check_rows(df) -> list[str]:
             continue
         if st in ("invalid_geometry", "failed") and not err.strip():
             bad.append(f"{where}: {st} without a cause")
-        if st == "failed" and not re.match(r"^[A-Za-z_][\w.]*: |^worker process died|^solver result|^non-finite", err):
+        if st == "failed" and not (re.match(r"^[A-Za-z_][\w.]*: |^worker process died", err)
+                                   or err.startswith(tuple(ROW_CHECK_ERRORS.values()))):
             bad.append(f"{where}: failed row's error does not name its cause: {err[:120]!r}")
         for k in res.FLOAT_RESULT_KEYS:
             v = r[k]

@@ -41,6 +41,15 @@ def test_sample_rows_are_classified_and_deterministic(tmp_path, warm, monkeypatc
     bad.loc[3, ["status", "error"]] = ["failed", ""]
     msgs = "\n".join(sl.check_rows(bad))
     assert "ok row with dE_J = NaN" in msgs and "p_star_Pa = inf" in msgs and "failed without a cause" in msgs
+    # a failed row names its cause by the exception type or by the row check's own wording
+    from snapjump_cli.rows import ROW_CHECK_ERRORS
+
+    failed = a.copy()
+    failed.loc[0, ["status", "error"]] = ["failed", ROW_CHECK_ERRORS["range"] + ": h_imp_m=-2e-05 (expected >= 0)"]
+    failed.loc[1, ["status", "error"]] = ["failed", "SolveFailed: continuation failed"]
+    assert not sl.check_rows(failed)
+    failed.loc[1, "error"] = "something went wrong"
+    assert "does not name its cause" in "\n".join(sl.check_rows(failed))
 
 
 @pytest.mark.parametrize("variant", ["ds0 x0.25", "ds0 x4", "tol /10"])
