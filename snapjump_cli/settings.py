@@ -75,7 +75,8 @@ class SolverSettings:
         continuation silently multiplied it by 2.5: the old default 0.02 meant 0.05, the default
         now; a config that gave ``ds0: X`` then took steps of 2.5 X and now takes X.)
     ds_max : maximum arc length (scaled)
-    max_steps : bound on continuation steps
+    max_steps : bound on continuation steps; three quarters of it bound the post-snap path's way
+        back to V* (beyond that the lower state is sought at fixed volume)
     max_newton : Newton iterations per step before a cut-back
     max_turn_deg : largest allowed turn of the path tangent between steps (catches small folds)
     full : trace the whole curve (to 1.5 p_c or the volume bound) instead of stopping once the snap

@@ -131,6 +131,8 @@ class SnapTracker:
         without a volume limit counts as not snapping
     V_stop : scaled volume bound (in units of ``sV``) of the trace
     full : keep tracing after the snap is characterised (to ``p_stop`` or ``V_stop``)
+    post_snap_steps : steps after the volume limit within which the path must come back to V*
+        (the solver passes :func:`snapjump_cli.solve.post_snap_budget`)
     """
 
     tracer: Tracer

@@ -152,6 +152,14 @@ def solve_scene(
     return SceneResult(metrics=metrics, model=model, path=path, states=st, tracer=tracer, curve_args=(scales, V0))
 
 
+def post_snap_budget(solver: SolverSettings) -> int:
+    """Steps the post-snap path may take to come back to V* before the lower state is sought at
+    fixed volume instead: three quarters of ``max_steps`` (1500 at the default 2000), so that a
+    finer trace, which needs a larger ``max_steps`` anyway, gets a proportionally larger budget
+    (with a fixed 1500, a trace with 50x shorter steps ran out of it on the way back to V*)."""
+    return max(1, (3 * solver.max_steps) // 4)
+
+
 def _trace(scene: Design | CapScene, model: Model, solver: SolverSettings, V0: float
            ) -> tuple[Tracer, SnapStates, Path, str]:
     """Trace the scene's pressure-volume path from the stress-free state until the snap tracker
@@ -167,7 +175,8 @@ def _trace(scene: Design | CapScene, model: Model, solver: SolverSettings, V0: f
         p_stop = 0.5  # E_o at p / mu_o = 0.5 (Fig. 3C)
     else:
         p_stop = 1.5 * sc["p_c"]
-    tracker = SnapTracker(tracer, p_stop=p_stop, V_stop=_V_stop(scene, V0) / sc["sV"], full=solver.full)
+    tracker = SnapTracker(tracer, p_stop=p_stop, V_stop=_V_stop(scene, V0) / sc["sV"], full=solver.full,
+                          post_snap_steps=post_snap_budget(solver))
     failure = ""
     path: Path | None = None
     try:

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from snapjump_cli.designs import FIG1_CAPS, fig1_caps, get_design
-from snapjump_cli.geometry import CapScene
+from snapjump_cli.geometry import CapScene, Design
 from snapjump_cli.lower_state import constrained_instability, descend_at_volume, descent_starts, snap_at_fixed_volume
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.solve import solve_checked, solve_scene, suspicious_snap
@@ -245,3 +245,26 @@ def test_p_max_is_the_loading_peak_independent_of_the_steps(results):
     assert len(fine.path.points) > 4 * len(results["C"].path.points)
     assert abs(m["p_max_Pa"] - f["p_max_Pa"]) <= 1e-5 * f["p_max_Pa"]
     assert m["p_star_Pa"] <= m["p_max_Pa"]
+
+
+def test_a_finer_trace_gets_a_larger_post_snap_budget():
+    """The post-snap path of the grid design (8, 80, 8.33, 82, 1) comes back to V* after ~150
+    steps at the default steps and after ~1500 at 50x shorter ones: with the budget tied to
+    ``max_steps`` (3/4 of it) the fine trace finds the same lower state on the path, not by the
+    fixed-volume fallback (with a fixed 1500 it ran out just before V*)."""
+    import dataclasses
+
+    from snapjump_cli.solve import post_snap_budget
+
+    design = Design(eta_i=8, theta_i_deg=80, eta_o=25 / 3, theta_o_deg=82, mu_ratio=1)
+    mesh = MeshSettings(order=2, nt=2, aspect=3.0)  # the paper grid's mesh
+    coarse = solve_scene(design, mesh, SolverSettings())
+    fine_solver = dataclasses.replace(SolverSettings(), ds0=0.02, ds_max=0.02, max_turn_deg=2.0, max_steps=20000)
+    assert post_snap_budget(SolverSettings()) == 1500 and post_snap_budget(fine_solver) == 15000
+    fine = solve_scene(design, mesh, fine_solver)
+    st = fine.states
+    assert len(fine.path.points) - 1 - st.k_before > 1500  # more than the old fixed budget
+    for r in (coarse, fine):
+        assert r.metrics["lower_state_method"] == "path"
+    assert fine.metrics["dE_J"] == pytest.approx(coarse.metrics["dE_J"], rel=1e-9)
+    assert fine.metrics["dy_pole_m"] == pytest.approx(coarse.metrics["dy_pole_m"], rel=1e-6)
