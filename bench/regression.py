@@ -62,6 +62,19 @@ def _git_commit() -> str:
         return "unknown"
 
 
+def _cpu_text() -> str:
+    """The CPU as the report names it: model name, family/model, clock, vector extension."""
+    import platform
+
+    from bench.runner import cpu_info
+
+    info = cpu_info()
+    name = info.get("cpu_model", "?")
+    if name == "?":
+        name = platform.processor() or platform.machine()
+    return name + (f"; {info['cpu_id']}" if info.get("cpu_id") else "")
+
+
 def scenes(n_grid: int, seed: int) -> list[dict]:
     """The regression scenes as plain dicts (``id``, ``kind`` and the scene's parameters)."""
     from snapjump_cli.config import load_config
@@ -259,13 +272,11 @@ def compare(args) -> int:
     print(f"solve time (sum over rows): baseline {tb:.1f} s, now {tn:.1f} s ({tb / max(tn, 1e-9):.2f}x); "
           f"wall {wall:.1f} s with -j {args.jobs}")
     if args.report:
-        import platform
-
         grid_rows = [r for r in rows if r["kind"] == "grid"]
         base_rows = [base[r["id"]] for r in grid_rows]
         bw = doc.get("wall_grid_s")
         lines = [f"# Throughput on the seeded paper-grid sample", "",
-                 f"Machine: {os.cpu_count()} cores ({platform.processor() or platform.machine()}), load average "
+                 f"Machine: {os.cpu_count()} cores ({_cpu_text()}), load average "
                  f"{os.getloadavg()[0]:.2f} after the run; commit {_git_commit()[:12]}; baseline {doc['commit'][:12]}.",
                  "", "## Now", ""] + throughput_table(grid_rows, wall, args.jobs, len(rows), t_compile)
         if all("wall_s" in r for r in base_rows):

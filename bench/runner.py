@@ -127,20 +127,29 @@ def run_one(scene, mesh, solver, timeout: float, max_repeats: int = 5) -> dict:
 
 
 def cpu_info() -> dict:
-    """CPU model and core count (``/proc/cpuinfo``), load average and Python/numba versions."""
+    """CPU model and core count (``/proc/cpuinfo``: the model name, family/model numbers, clock and
+    widest vector extension, since the name alone may not tell two machines apart), load average
+    and Python/numba versions."""
     import platform
 
-    model = "?"
+    model, fields = "?", {}
     try:
         with open("/proc/cpuinfo") as fh:
             for line in fh:
-                if line.startswith("model name"):
-                    model = line.split(":", 1)[1].strip()
-                    break
+                if not line.strip():
+                    break  # the first processor is enough
+                key, _, value = line.partition(":")
+                fields[key.strip()] = value.strip()
+        model = fields.get("model name", "?")
     except OSError:
         pass
+    flags = set(fields.get("flags", "").split())
+    vec = next((v for v in ("avx512f", "avx2", "avx", "sse4_2") if v in flags), "")
     info = {"cpu_model": model, "cores": os.cpu_count(), "python": platform.python_version(),
             "platform": platform.platform()}
+    if fields:
+        info["cpu_id"] = (f"family {fields.get('cpu family', '?')} model {fields.get('model', '?')}, "
+                          f"{float(fields.get('cpu MHz', 'nan')):.0f} MHz" + (f", {vec}" if vec else ""))
     try:
         info["loadavg"] = os.getloadavg()
     except OSError:
