@@ -6,13 +6,21 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: install run test bench bench-mesh stress clean
 
-install: $(STAMP)
+AOT    := kernels/.aot-tried
+
+install: $(STAMP) $(AOT)
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
+
+# the kernels compiled ahead of time for this CPU (fast start-up; docs/performance.md); if the build
+# fails the kernels run JIT-compiled as before, with the same answers
+$(AOT): $(STAMP) $(wildcard kernels/*.py)
+	SNAPJUMP_NO_AOT=1 $(BIN)/python -c "from snapjump_kernels.aot import main; raise SystemExit(main())"
+	touch $(AOT)
 
 run: install
 	$(BIN)/snapjump -v sweep configs/paper_grid.yaml -o results/paper_grid.parquet
@@ -36,3 +44,4 @@ clean:
 	rm -rf $(VENV) build *.egg-info results bench/out .pytest_cache
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +
 	find . -name '*.nbi' -delete -o -name '*.nbc' -delete
+	rm -f kernels/_aot*.so kernels/_aot.sha256 kernels/_aot_exports.json $(AOT)

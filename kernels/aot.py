@@ -1,0 +1,213 @@
+"""Ahead-of-time compiled kernels: start-up without numba's run-time initialisation.
+
+A process that calls a cached ``@njit`` kernel first pays for numba's own target (its lowering
+registries, ~0.4 s, which also import ``scipy.linalg`` for a BLAS check) and for rebuilding each
+kernel from the cache (~20 ms each). ``python -m snapjump_kernels.aot`` (run by ``make install``)
+compiles the kernels that the solver calls from Python into one extension module,
+``snapjump_kernels/_aot*.so``, with ``numba.pycc`` for this machine's CPU, with the signatures the
+solver actually uses (collected by solving a few scenes first). :func:`install` then puts the
+compiled functions in place of the dispatchers, so a ``snapjump curve`` process never initialises
+numba's target.
+
+Each exported function is a thin wrapper that calls the ``@njit`` kernel, so the kernel keeps its
+own options (``error_model``, ``fastmath``) and the machine code is that of the JIT: the answers
+are bit-identical (``tests/unit/test_aot.py``). A call whose argument types differ from the
+compiled signatures (checked exactly: dtype, dimensions, contiguity) goes to the dispatcher. The extension is used only when it was built
+from the current kernel sources (a hash of them is stored beside it) and ``SNAPJUMP_NO_AOT`` is
+not set; otherwise everything runs through the JIT as before.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Any, Callable
+
+HERE = Path(__file__).resolve().parent
+MODULE = "_aot"
+STAMP = HERE / "_aot.sha256"  # the kernel sources' hash the extension was built from
+EXPORTS = HERE / "_aot_exports.json"  # kernel module -> names compiled (not a .py: it would change the hash)
+#: the kernel modules whose Python-called functions are compiled ahead of time
+MODULES = ("assembly", "banded", "cavity", "corrector", "elements", "harmonics")
+
+
+def source_hash() -> str:
+    """Hash of every kernel source file (the same files the numba cache check hashes)."""
+    digest = hashlib.sha256()
+    for src in sorted(HERE.glob("*.py")):
+        digest.update(src.name.encode())
+        digest.update(src.read_bytes())
+    return digest.hexdigest()
+
+
+def _arg_spec(t: Any) -> list | None:
+    """A JSON-able description of one numba argument type, or None if the check below cannot
+    express it (the signature then stays JIT-only)."""
+    from numba.core import types
+
+    if isinstance(t, types.Array) and isinstance(t.dtype, (types.Float, types.Integer, types.Boolean)):
+        return ["array", str(t.dtype), t.ndim, t.layout, bool(t.mutable)]
+    if isinstance(t, types.Boolean):
+        return ["bool"]
+    if isinstance(t, types.Integer):
+        return ["int"]
+    if isinstance(t, types.Float):
+        return ["float"]
+    return None
+
+
+def _arg_check(spec: list) -> Callable[[Any], bool]:
+    """Whether a Python argument is exactly of the type ``spec`` describes (dtype, dimensions,
+    contiguity, writability for arrays): only then is the compiled function called."""
+    import numpy as np
+
+    kind = spec[0]
+    if kind == "array":
+        dt, nd, layout, mutable = np.dtype(spec[1]), spec[2], spec[3], spec[4]
+        flag = {"C": "C_CONTIGUOUS", "F": "F_CONTIGUOUS"}.get(layout)
+
+        def ok(a: Any) -> bool:
+            return (type(a) is np.ndarray and a.dtype == dt and a.ndim == nd
+                    and (flag is None or a.flags[flag]) and (not mutable or a.flags.writeable))
+
+        return ok
+    if kind == "bool":
+        return lambda a: isinstance(a, (bool, np.bool_))
+    if kind == "int":
+        return lambda a: isinstance(a, (int, np.integer)) and not isinstance(a, (bool, np.bool_))
+    return lambda a: isinstance(a, (float, np.floating))
+
+
+def _dispatch(variants: list[tuple[Callable, list[Callable[[Any], bool]]]], jit: Any) -> Callable:
+    """The kernel as callers see it: the first compiled variant whose argument types match
+    exactly, else the JIT dispatcher."""
+
+    def call(*args):
+        for compiled, checks in variants:
+            if len(args) == len(checks) and all(c(a) for c, a in zip(checks, args)):
+                return compiled(*args)
+        return jit(*args)
+
+    call.__name__ = getattr(jit, "__name__", "kernel")
+    call.__doc__ = getattr(jit, "__doc__", None)
+    call.jit = jit  # the dispatcher, for tests, profiling and the build
+    return call
+
+
+def install() -> bool:
+    """Replace the kernel modules' dispatchers by the ahead-of-time compiled functions, if the
+    extension exists, matches the sources and ``SNAPJUMP_NO_AOT`` is unset; returns whether it did.
+    Called by the package at import, before any caller takes the names."""
+    if os.environ.get("SNAPJUMP_NO_AOT", "") not in ("", "0"):
+        return False
+    try:
+        if STAMP.read_text().strip() != source_hash():
+            return False
+        exports = json.loads(EXPORTS.read_text())
+        ext = importlib.import_module(f"{__package__}.{MODULE}")
+    except (OSError, ImportError, ValueError):
+        return False
+    for modname in MODULES:
+        mod = importlib.import_module(f"{__package__}.{modname}")
+        for name, variants in exports.get(modname, {}).items():
+            jit = getattr(mod, name)
+            compiled = [(getattr(ext, v["export"]), [_arg_check(a) for a in v["args"]]) for v in variants]
+            setattr(mod, name, _dispatch(compiled, jit))
+    return True
+
+
+def _collect_signatures() -> dict[str, dict[str, Any]]:
+    """Solve the scenes whose kernels a run calls (a cap, a design with its lower state off the
+    path, the harmonic check) and return, per kernel module, the dispatchers called from Python
+    with the signatures they were called with."""
+    from numba.core.registry import CPUDispatcher
+
+    from snapjump_cli.geometry import CapScene, Design
+    from snapjump_cli.harmonics import check_harmonics
+    from snapjump_cli.settings import MeshSettings, SolverSettings
+    from snapjump_cli.solve import solve_checked, solve_scene
+
+    solve_scene(CapScene(theta_deg=60.0, eta=30.0, bc="clamped"), MeshSettings(), SolverSettings())
+    solve_scene(CapScene(theta_deg=60.0, eta=30.0, bc="clamped"), MeshSettings(order=1), SolverSettings())
+    off_path = Design(eta_i=5.6, theta_i_deg=80.0, eta_o=15.0, theta_o_deg=82.0, mu_ratio=5.8)  # grid-1543
+    res = solve_checked(off_path, MeshSettings(order=2, nt=2, aspect=3.0), SolverSettings())
+    check_harmonics(res, 1)
+    found: dict[str, dict[str, Any]] = {}
+    for modname in MODULES:
+        mod = importlib.import_module(f"{__package__}.{modname}")
+        for name, obj in vars(mod).items():
+            if isinstance(obj, CPUDispatcher) and obj.__module__ == mod.__name__ and obj.nopython_signatures:
+                found.setdefault(modname, {})[name] = obj
+    return found
+
+
+def _restore_dispatchers() -> None:
+    """Undo :func:`install` in this process (the build must call the dispatchers to type them)."""
+    for modname in MODULES:
+        mod = importlib.import_module(f"{__package__}.{modname}")
+        for name, obj in list(vars(mod).items()):
+            if hasattr(obj, "jit"):
+                setattr(mod, name, obj.jit)
+
+
+def build() -> Path:
+    """Compile the extension (see the module docstring) next to the kernels; returns its path.
+
+    The new file replaces the old one by a rename, so processes that have the old one loaded
+    keep a valid mapping."""
+    import tempfile
+    import warnings
+
+    _restore_dispatchers()
+    found = _collect_signatures()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # numba.pycc's pending deprecation
+        from numba.pycc import CC
+
+    cc = CC(MODULE)
+    cc.target_cpu = "host"  # the JIT's target: the same machine code
+    exports: dict[str, dict[str, list]] = {}
+    for modname, funcs in found.items():
+        for name, disp in funcs.items():
+            for k, sig in enumerate(disp.nopython_signatures):
+                specs = [_arg_spec(t) for t in sig.args]
+                if any(sp is None for sp in specs):
+                    continue
+                params = ", ".join(f"a{i}" for i in range(len(sig.args)))
+                scope: dict[str, Any] = {"kernel": disp}
+                exec(f"def wrapper({params}):\n    return kernel({params})\n", scope)  # noqa: S102
+                export = f"{modname}__{name}__{k}"
+                cc.export(export, sig)(scope["wrapper"])
+                exports.setdefault(modname, {}).setdefault(name, []).append({"export": export, "args": specs})
+    STAMP.unlink(missing_ok=True)  # no stale pairing while the extension is rewritten
+    with tempfile.TemporaryDirectory(dir=HERE) as tmp:
+        cc.output_dir = tmp
+        cc.compile()
+        built = next(Path(tmp).glob(f"{MODULE}*"))
+        target = HERE / built.name
+        os.replace(built, target)
+    EXPORTS.write_text(json.dumps(exports, indent=1) + "\n")
+    STAMP.write_text(source_hash() + "\n")
+    return target
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m snapjump_kernels.aot``: build the extension; exit 0 also when it cannot be built
+    (the JIT remains), with the reason on stderr."""
+    import time
+
+    t0 = time.perf_counter()
+    try:
+        so = build()
+    except Exception as exc:  # noqa: BLE001 - any failure leaves the JIT in place
+        sys.stderr.write(f"snapjump_kernels.aot: not built ({type(exc).__name__}: {exc}); the kernels run JIT-compiled\n")
+        return 0
+    sys.stderr.write(f"snapjump_kernels.aot: built {so.name} in {time.perf_counter() - t0:.0f} s\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
