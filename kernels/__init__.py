@@ -40,13 +40,3 @@ def _drop_stale_cache() -> None:
 
 _drop_stale_cache()
 
-
-def _install_aot() -> bool:
-    """The ahead-of-time compiled kernels in place of the dispatchers, when built for these
-    sources (:mod:`snapjump_kernels.aot`)."""
-    from snapjump_kernels.aot import install
-
-    return install()
-
-
-AOT = _install_aot()

@@ -2,19 +2,21 @@
 
 A process that calls a cached ``@njit`` kernel first pays for numba's own target (its lowering
 registries, ~0.4 s, which also import ``scipy.linalg`` for a BLAS check) and for rebuilding each
-kernel from the cache (~20 ms each). ``python -m snapjump_kernels.aot`` (run by ``make install``)
-compiles the kernels that the solver calls from Python into one extension module,
-``snapjump_kernels/_aot*.so``, with ``numba.pycc`` for this machine's CPU, with the signatures the
-solver actually uses (collected by solving a few scenes first). :func:`install` then puts the
-compiled functions in place of the dispatchers, so a ``snapjump curve`` process never initialises
-numba's target.
+kernel from the cache (~20 ms each). :func:`build` (``make install`` runs it) compiles the kernels
+the solver calls (:data:`snapjump_kernels.calls.KERNELS`) into one extension module,
+``snapjump_kernels/_aot*.so``, with ``numba.pycc`` for this machine's CPU and with the signatures
+the solver actually uses (collected by solving a few scenes first). :mod:`snapjump_kernels.calls`,
+the module the solver imports its kernels from, then hands out the compiled functions, and a
+``snapjump curve`` process neither imports numba nor initialises its target.
 
 Each exported function is a thin wrapper that calls the ``@njit`` kernel, so the kernel keeps its
 own options (``error_model``, ``fastmath``) and the machine code is that of the JIT: the answers
 are bit-identical (``tests/unit/test_aot.py``). A call whose argument types differ from the
-compiled signatures (checked exactly: dtype, dimensions, contiguity) goes to the dispatcher. The extension is used only when it was built
-from the current kernel sources (a hash of them is stored beside it) and ``SNAPJUMP_NO_AOT`` is
-not set; otherwise everything runs through the JIT as before.
+compiled signatures (checked exactly: dtype, dimensions, contiguity, writability) goes to the
+dispatcher, imported on first use. The extension is used only when it was built from the current
+kernel sources (a hash of them is stored beside it) and ``SNAPJUMP_NO_AOT`` is not set; otherwise
+everything runs through the JIT as before. The kernel modules themselves are never modified: a
+kernel calling another still calls its dispatcher.
 """
 from __future__ import annotations
 
@@ -30,8 +32,6 @@ HERE = Path(__file__).resolve().parent
 MODULE = "_aot"
 STAMP = HERE / "_aot.sha256"  # the kernel sources' hash the extension was built from
 EXPORTS = HERE / "_aot_exports.json"  # kernel module -> names compiled (not a .py: it would change the hash)
-#: the kernel modules whose Python-called functions are compiled ahead of time
-MODULES = ("assembly", "banded", "cavity", "corrector", "elements", "harmonics")
 
 
 def source_hash() -> str:
@@ -97,32 +97,65 @@ def _dispatch(variants: list[tuple[Callable, list[Callable[[Any], bool]]]], jit:
     return call
 
 
-def install() -> bool:
-    """Replace the kernel modules' dispatchers by the ahead-of-time compiled functions, if the
-    extension exists, matches the sources and ``SNAPJUMP_NO_AOT`` is unset; returns whether it did.
-    Called by the package at import, before any caller takes the names."""
+def _load() -> tuple[dict[str, dict[str, list]], Any]:
+    """The export table and the extension, if built from the current sources and
+    ``SNAPJUMP_NO_AOT`` is unset; else ``({}, None)``. Imports no numba."""
     if os.environ.get("SNAPJUMP_NO_AOT", "") not in ("", "0"):
-        return False
+        return {}, None
     try:
         if STAMP.read_text().strip() != source_hash():
-            return False
+            return {}, None
         exports = json.loads(EXPORTS.read_text())
         ext = importlib.import_module(f"{__package__}.{MODULE}")
     except (OSError, ImportError, ValueError):
-        return False
-    for modname in MODULES:
-        mod = importlib.import_module(f"{__package__}.{modname}")
-        for name, variants in exports.get(modname, {}).items():
-            jit = getattr(mod, name)
-            compiled = [(getattr(ext, v["export"]), [_arg_check(a) for a in v["args"]]) for v in variants]
-            setattr(mod, name, _dispatch(compiled, jit))
-    return True
+        return {}, None
+    return exports, ext
+
+
+class _LazyJit:
+    """The dispatcher of ``snapjump_kernels.<module>.<name>``, imported (with numba) on first use."""
+
+    def __init__(self, module: str, name: str) -> None:
+        self.module, self.name, self._f = module, name, None
+
+    def __call__(self, *args):
+        if self._f is None:
+            self._f = getattr(importlib.import_module(f"{__package__}.{self.module}"), self.name)
+        return self._f(*args)
+
+
+_TABLE: tuple[dict[str, dict[str, list]], Any] | None = None
+
+
+def kernel(module: str, name: str) -> Callable:
+    """``snapjump_kernels.<module>.<name>`` as the solver calls it: the compiled variants first
+    (exact argument match), the JIT dispatcher otherwise; the plain dispatcher when there is no
+    matching extension (:mod:`snapjump_kernels.calls` builds its names with this)."""
+    global _TABLE
+    if _TABLE is None:
+        _TABLE = _load()
+    exports, ext = _TABLE
+    variants = exports.get(module, {}).get(name)
+    if ext is None:
+        return getattr(importlib.import_module(f"{__package__}.{module}"), name)
+    if not variants:  # not compiled ahead of time: the dispatcher, but only when first called
+        return _LazyJit(module, name)
+    compiled = [(getattr(ext, v["export"]), [_arg_check(a) for a in v["args"]]) for v in variants]
+    return _dispatch(compiled, _LazyJit(module, name))
+
+
+def active() -> bool:
+    """Whether the ahead-of-time compiled kernels are in use in this process."""
+    global _TABLE
+    if _TABLE is None:
+        _TABLE = _load()
+    return _TABLE[1] is not None
 
 
 def _collect_signatures() -> dict[str, dict[str, Any]]:
     """Solve the scenes whose kernels a run calls (a cap, a design with its lower state off the
-    path, the harmonic check) and return, per kernel module, the dispatchers called from Python
-    with the signatures they were called with."""
+    path, the harmonic check) and return the dispatchers of :data:`snapjump_kernels.calls.KERNELS`
+    that were called, per kernel module (each with the signatures it was called with)."""
     from numba.core.registry import CPUDispatcher
 
     from snapjump_cli.geometry import CapScene, Design
@@ -135,22 +168,16 @@ def _collect_signatures() -> dict[str, dict[str, Any]]:
     off_path = Design(eta_i=5.6, theta_i_deg=80.0, eta_o=15.0, theta_o_deg=82.0, mu_ratio=5.8)  # grid-1543
     res = solve_checked(off_path, MeshSettings(order=2, nt=2, aspect=3.0), SolverSettings())
     check_harmonics(res, 1)
+    from snapjump_kernels.calls import KERNELS
+
     found: dict[str, dict[str, Any]] = {}
-    for modname in MODULES:
+    for modname, names in KERNELS.items():
         mod = importlib.import_module(f"{__package__}.{modname}")
-        for name, obj in vars(mod).items():
-            if isinstance(obj, CPUDispatcher) and obj.__module__ == mod.__name__ and obj.nopython_signatures:
+        for name in names:
+            obj = getattr(mod, name)
+            if isinstance(obj, CPUDispatcher) and obj.nopython_signatures:
                 found.setdefault(modname, {})[name] = obj
     return found
-
-
-def _restore_dispatchers() -> None:
-    """Undo :func:`install` in this process (the build must call the dispatchers to type them)."""
-    for modname in MODULES:
-        mod = importlib.import_module(f"{__package__}.{modname}")
-        for name, obj in list(vars(mod).items()):
-            if hasattr(obj, "jit"):
-                setattr(mod, name, obj.jit)
 
 
 def build() -> Path:
@@ -161,7 +188,6 @@ def build() -> Path:
     import tempfile
     import warnings
 
-    _restore_dispatchers()
     found = _collect_signatures()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # numba.pycc's pending deprecation

@@ -49,8 +49,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from snapjump_cli.meshdata import number_dofs
-from snapjump_kernels.banded import band_ldlt, envelope_extents
-from snapjump_kernels.harmonics import harmonic_cavity_matrices, harmonic_element_matrices, scatter_band
+from snapjump_kernels.calls import (
+    band_ldlt,
+    envelope_extents,
+    harmonic_cavity_matrices,
+    harmonic_element_matrices,
+    scatter_band,
+)
 
 log = logging.getLogger(__name__)
 

@@ -54,7 +54,7 @@ import numpy as np
 
 from snapjump_cli.continuation import ContinuationFailed, PathPoint, Tracer, start_point, trace
 from snapjump_cli.snap import SnapStates, root_on_step
-from snapjump_kernels.banded import band_ldlt_solve, sym_band_matvec
+from snapjump_kernels.calls import band_ldlt_solve, sym_band_matvec
 
 log = logging.getLogger(__name__)
 

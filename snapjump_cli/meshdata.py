@@ -38,9 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from snapjump_kernels.banded import envelope_extents
-from snapjump_kernels.cavity import cavity_volume
-from snapjump_kernels.elements import quadrature_geometry
+from snapjump_kernels.calls import cavity_volume, envelope_extents, quadrature_geometry
 
 __all__ = [
     "Mesh",

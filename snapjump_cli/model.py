@@ -31,11 +31,19 @@ import time
 import numpy as np
 
 from snapjump_cli.meshdata import Mesh, cuthill_mckee, fixed_dofs, number_dofs
-from snapjump_kernels.assembly import assemble, evaluate, pressure_mass_inverse, quadrature_jacobians, reference_geometry
-from snapjump_kernels.banded import bordered_factor, bordered_solve, envelope_extents
-from snapjump_kernels.cavity import cavity_assemble
-from snapjump_kernels.corrector import newton_correct
-from snapjump_kernels.elements import element_tables
+from snapjump_kernels.calls import (
+    assemble,
+    bordered_factor,
+    bordered_solve,
+    cavity_assemble,
+    element_tables,
+    envelope_extents,
+    evaluate,
+    newton_correct,
+    pressure_mass_inverse,
+    quadrature_jacobians,
+    reference_geometry,
+)
 
 log = logging.getLogger(__name__)
 

@@ -36,7 +36,7 @@ log = logging.getLogger(__name__)
 
 def summary(scene, mesh) -> dict:
     """The JSON summary of a meshed scene (see the module docstring)."""
-    from snapjump_kernels.cavity import cavity_volume
+    from snapjump_kernels.calls import cavity_volume
 
     from snapjump_cli.geometry import Design, cap_points, cap_volumes, design_points, design_volumes
     from snapjump_cli.mesh import meshed_design, solid_volumes

@@ -48,24 +48,45 @@ def test_not_used_when_built_from_other_sources(tmp_path, monkeypatch):
     stamp = tmp_path / "stamp"
     stamp.write_text("0" * 64 + "\n")
     monkeypatch.setattr(aot, "STAMP", stamp)
-    assert aot.install() is False
+    assert aot._load() == ({}, None)
     monkeypatch.setattr(aot, "STAMP", tmp_path / "missing")
-    assert aot.install() is False
+    assert aot._load() == ({}, None)
 
 
 def test_not_used_when_switched_off(monkeypatch):
     monkeypatch.setenv("SNAPJUMP_NO_AOT", "1")
-    assert aot.install() is False
+    assert aot._load() == ({}, None)
 
 
-@pytest.mark.skipif(not aot.STAMP.is_file(), reason="the ahead-of-time kernels are not built (make install builds them)")
+BUILT = pytest.mark.skipif(not aot.STAMP.is_file(), reason="the ahead-of-time kernels are not built (make install builds them)")
+
+
+@BUILT
+def test_a_curve_process_runs_without_numba():
+    """With the extension built, solving the thin clamped cap never imports numba (the compiled
+    kernels' LAPACK, behind ``np.linalg.inv``, comes from ``scipy.linalg.cython_lapack``)."""
+    code = ("import sys\n"
+            "from snapjump_cli.geometry import CapScene\n"
+            "from snapjump_cli.settings import MeshSettings, SolverSettings\n"
+            "from snapjump_cli.solve import solve_scene\n"
+            "from snapjump_kernels import calls\n"
+            "m = solve_scene(CapScene(theta_deg=60.0, eta=30.0, bc='clamped'), MeshSettings(), SolverSettings()).metrics\n"
+            "assert m['snaps'] and calls.AOT\n"
+            "print(sorted(k for k in sys.modules if k.split('.')[0] == 'numba'))\n")
+    env = dict(os.environ, SNAPJUMP_NO_AOT="0")
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "[]", r.stdout
+
+
+@BUILT
 def test_built_kernels_are_in_use_and_bit_identical(tmp_path):
     """A built extension that matches the sources is in use, and the curve command's answers
     are the same bits with it and with the JIT (the thin clamped cap and design C)."""
-    assert snapjump_kernels.AOT, "kernels/_aot.sha256 exists but the extension was not installed"
-    from snapjump_kernels import banded
+    from snapjump_kernels import calls
 
-    assert hasattr(banded.bordered_factor, "jit")  # the dispatcher is wrapped
+    assert calls.AOT, "kernels/_aot.sha256 exists but the extension is not in use"
+    assert hasattr(calls.bordered_factor, "jit")  # the compiled variants, with the dispatcher behind
     outs = {}
     for mode in ("aot", "jit"):
         env = dict(os.environ, SNAPJUMP_NO_AOT="1" if mode == "jit" else "0")

@@ -1,0 +1,40 @@
+"""The kernels as the solver calls them: compiled ahead of time when built for these sources
+(:mod:`snapjump_kernels.aot`), the ``@njit`` dispatchers otherwise. Importing this module imports
+numba only when there is no matching ahead-of-time build."""
+from __future__ import annotations
+
+from snapjump_kernels.aot import active, kernel
+from snapjump_kernels.band_layout import envelope_extents
+from snapjump_kernels.elements import element_tables, quadrature_geometry
+
+#: kernel module -> the kernels the solver calls from Python (what the ahead-of-time build exports)
+KERNELS: dict[str, tuple[str, ...]] = {
+    "assembly": ("assemble", "evaluate", "pressure_mass_inverse", "quadrature_jacobians", "reference_geometry"),
+    "banded": ("band_ldlt", "band_ldlt_solve", "bordered_factor", "bordered_solve", "sym_band_matvec"),
+    "cavity": ("cavity_assemble", "cavity_volume"),
+    "corrector": ("newton_correct",),
+    "harmonics": ("harmonic_cavity_matrices", "harmonic_element_matrices", "scatter_band"),
+}
+
+assemble = kernel("assembly", "assemble")
+evaluate = kernel("assembly", "evaluate")
+pressure_mass_inverse = kernel("assembly", "pressure_mass_inverse")
+quadrature_jacobians = kernel("assembly", "quadrature_jacobians")
+reference_geometry = kernel("assembly", "reference_geometry")
+band_ldlt = kernel("banded", "band_ldlt")
+band_ldlt_solve = kernel("banded", "band_ldlt_solve")
+bordered_factor = kernel("banded", "bordered_factor")
+bordered_solve = kernel("banded", "bordered_solve")
+sym_band_matvec = kernel("banded", "sym_band_matvec")
+cavity_assemble = kernel("cavity", "cavity_assemble")
+cavity_volume = kernel("cavity", "cavity_volume")
+newton_correct = kernel("corrector", "newton_correct")
+harmonic_cavity_matrices = kernel("harmonics", "harmonic_cavity_matrices")
+harmonic_element_matrices = kernel("harmonics", "harmonic_element_matrices")
+scatter_band = kernel("harmonics", "scatter_band")
+
+#: whether the ahead-of-time compiled kernels are in use in this process
+AOT: bool = active()
+
+__all__ = ["KERNELS", "AOT", "envelope_extents", "element_tables", "quadrature_geometry",
+           *(name for names in KERNELS.values() for name in names)]
