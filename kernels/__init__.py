@@ -4,7 +4,9 @@ Modules: ``gent`` (energy density and its first/second derivatives in the axisym
 deformation-gradient components), ``elements`` (Q4/Q9 shape functions and quadrature),
 ``assembly`` (element loops filling a CSR pattern), ``cavity`` (exact cavity volume with its
 gradient and Hessian), ``banded`` (band LDL^T with the border), ``corrector`` (the Newton
-corrector in one call), ``harmonics`` (the Fourier-harmonic tangents).
+corrector in one call), ``harmonics`` (the Fourier-harmonic tangents); ``band_layout`` (the
+envelope of a sparsity pattern, plain numpy); ``calls`` (the kernels as the solver calls them) and
+``aot`` (their ahead-of-time build).
 
 Every kernel is ``@njit(cache=True)``. numba keys a cached function on its own source file only,
 so a kernel that calls into another file (the corrector calls the assembly) would keep stale
@@ -18,16 +20,21 @@ import hashlib
 from pathlib import Path
 
 
+def source_hash() -> str:
+    """Hash of every kernel source file: it keys the numba cache below and the ahead-of-time
+    build (:mod:`snapjump_kernels.aot`)."""
+    digest = hashlib.sha256()
+    for src in sorted(Path(__file__).resolve().parent.glob("*.py")):
+        digest.update(src.name.encode())
+        digest.update(src.read_bytes())
+    return digest.hexdigest()
+
+
 def _drop_stale_cache() -> None:
-    here = Path(__file__).resolve().parent
-    cache = here / "__pycache__"
+    cache = Path(__file__).resolve().parent / "__pycache__"
     try:
-        digest = hashlib.sha256()
-        for src in sorted(here.glob("*.py")):
-            digest.update(src.name.encode())
-            digest.update(src.read_bytes())
         stamp = cache / "kernels.sha256"
-        current = digest.hexdigest()
+        current = source_hash()
         if stamp.is_file() and stamp.read_text().strip() == current:
             return
         cache.mkdir(exist_ok=True)

@@ -20,7 +20,6 @@ kernel calling another still calls its dispatcher.
 """
 from __future__ import annotations
 
-import hashlib
 import importlib
 import json
 import os
@@ -28,19 +27,12 @@ import sys
 from pathlib import Path
 from typing import Any, Callable
 
+from snapjump_kernels import source_hash
+
 HERE = Path(__file__).resolve().parent
 MODULE = "_aot"
 STAMP = HERE / "_aot.sha256"  # the kernel sources' hash the extension was built from
 EXPORTS = HERE / "_aot_exports.json"  # kernel module -> names compiled (not a .py: it would change the hash)
-
-
-def source_hash() -> str:
-    """Hash of every kernel source file (the same files the numba cache check hashes)."""
-    digest = hashlib.sha256()
-    for src in sorted(HERE.glob("*.py")):
-        digest.update(src.name.encode())
-        digest.update(src.read_bytes())
-    return digest.hexdigest()
 
 
 def _arg_spec(t: Any) -> list | None:
