@@ -14,12 +14,14 @@ own options (``error_model``, ``fastmath``) and the machine code is that of the 
 are bit-identical (``tests/unit/test_aot.py``). A call whose argument types differ from the
 compiled signatures (checked exactly: dtype, dimensions, contiguity, writability) goes to the
 dispatcher, imported on first use. The extension is used only when it was built from the current
-kernel sources (a hash of them is stored beside it) and ``SNAPJUMP_NO_AOT`` is not set; otherwise
+kernel sources (a hash of them is stored beside it) on this CPU (model and feature flags) and
+``SNAPJUMP_NO_AOT`` is not set; otherwise
 everything runs through the JIT as before. The kernel modules themselves are never modified: a
 kernel calling another still calls its dispatcher.
 """
 from __future__ import annotations
 
+import hashlib
 import importlib
 import json
 import os
@@ -89,6 +91,26 @@ def _dispatch(variants: list[tuple[Callable, list[Callable[[Any], bool]]]], jit:
     return call
 
 
+def cpu_signature() -> str:
+    """What identifies this CPU for the compiled code (built for the host CPU, it may use
+    instructions another CPU lacks): the model name and feature flags of ``/proc/cpuinfo``, else
+    ``platform.processor()`` and ``platform.machine()``."""
+    import platform
+
+    fields: dict[str, str] = {}
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if not line.strip():
+                    break
+                key, _, value = line.partition(":")
+                fields[key.strip()] = value.strip()
+    except OSError:
+        pass
+    text = "|".join([fields.get("model name", platform.processor()), fields.get("flags", ""), platform.machine()])
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
 def _load() -> tuple[dict[str, dict[str, list]], Any]:
     """The export table and the extension, if built from the current sources and
     ``SNAPJUMP_NO_AOT`` is unset; else ``({}, None)``. Imports no numba."""
@@ -97,9 +119,12 @@ def _load() -> tuple[dict[str, dict[str, list]], Any]:
     try:
         if STAMP.read_text().strip() != source_hash():
             return {}, None
-        exports = json.loads(EXPORTS.read_text())
+        table = json.loads(EXPORTS.read_text())
+        if table.get("cpu") != cpu_signature():  # built on another CPU (a shared install)
+            return {}, None
+        exports = table["kernels"]
         ext = importlib.import_module(f"{__package__}.{MODULE}")
-    except (OSError, ImportError, ValueError):
+    except (OSError, ImportError, ValueError, KeyError):
         return {}, None
     return exports, ext
 
@@ -207,7 +232,7 @@ def build() -> Path:
         built = next(Path(tmp).glob(f"{MODULE}*"))
         target = HERE / built.name
         os.replace(built, target)
-    EXPORTS.write_text(json.dumps(exports, indent=1) + "\n")
+    EXPORTS.write_text(json.dumps({"cpu": cpu_signature(), "kernels": exports}, indent=1) + "\n")
     STAMP.write_text(source_hash() + "\n")
     return target
 

@@ -53,6 +53,14 @@ def test_not_used_when_built_from_other_sources(tmp_path, monkeypatch):
     assert aot._load() == ({}, None)
 
 
+def test_not_used_on_another_cpu(monkeypatch):
+    if not aot.STAMP.is_file():
+        pytest.skip("the ahead-of-time kernels are not built")
+    assert aot._load()[1] is not None
+    monkeypatch.setattr(aot, "cpu_signature", lambda: "another cpu")
+    assert aot._load() == ({}, None)
+
+
 def test_not_used_when_switched_off(monkeypatch):
     monkeypatch.setenv("SNAPJUMP_NO_AOT", "1")
     assert aot._load() == ({}, None)
