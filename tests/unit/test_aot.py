@@ -11,7 +11,6 @@ import sys
 import numpy as np
 import pytest
 
-import snapjump_kernels
 from snapjump_kernels import aot
 
 
