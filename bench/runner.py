@@ -132,17 +132,10 @@ def cpu_info() -> dict:
     and Python/numba versions."""
     import platform
 
-    model, fields = "?", {}
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if not line.strip():
-                    break  # the first processor is enough
-                key, _, value = line.partition(":")
-                fields[key.strip()] = value.strip()
-        model = fields.get("model name", "?")
-    except OSError:
-        pass
+    from snapjump_kernels.aot import cpu_fields
+
+    fields = cpu_fields()
+    model = fields.get("model name", "?")
     flags = set(fields.get("flags", "").split())
     vec = next((v for v in ("avx512f", "avx2", "avx", "sse4_2") if v in flags), "")
     info = {"cpu_model": model, "cores": os.cpu_count(), "python": platform.python_version(),

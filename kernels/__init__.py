@@ -46,4 +46,3 @@ def _drop_stale_cache() -> None:
 
 
 _drop_stale_cache()
-

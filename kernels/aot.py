@@ -21,6 +21,7 @@ kernel calling another still calls its dispatcher.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import json
@@ -87,33 +88,40 @@ def _dispatch(variants: list[tuple[Callable, list[Callable[[Any], bool]]]], jit:
 
     call.__name__ = getattr(jit, "__name__", "kernel")
     call.__doc__ = getattr(jit, "__doc__", None)
-    call.jit = jit  # the dispatcher, for tests, profiling and the build
+    call.jit = jit  # what a mismatch calls (the dispatcher, imported on first use)
     return call
 
 
-def cpu_signature() -> str:
-    """What identifies this CPU for the compiled code (built for the host CPU, it may use
-    instructions another CPU lacks): the model name and feature flags of ``/proc/cpuinfo``, else
-    ``platform.processor()`` and ``platform.machine()``."""
-    import platform
-
+def cpu_fields() -> dict[str, str]:
+    """The first processor's entries of ``/proc/cpuinfo`` (empty where there is none)."""
     fields: dict[str, str] = {}
     try:
         with open("/proc/cpuinfo") as fh:
             for line in fh:
                 if not line.strip():
-                    break
+                    break  # the first processor is enough
                 key, _, value = line.partition(":")
                 fields[key.strip()] = value.strip()
     except OSError:
         pass
+    return fields
+
+
+def cpu_signature() -> str:
+    """What identifies this CPU for the compiled code (built for the host CPU, it may use
+    instructions another CPU lacks): the model name and feature flags of ``/proc/cpuinfo``, else
+    ``platform.processor()``, with ``platform.machine()``."""
+    import platform
+
+    fields = cpu_fields()
     text = "|".join([fields.get("model name", platform.processor()), fields.get("flags", ""), platform.machine()])
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def _load() -> tuple[dict[str, dict[str, list]], Any]:
-    """The export table and the extension, if built from the current sources and
-    ``SNAPJUMP_NO_AOT`` is unset; else ``({}, None)``. Imports no numba."""
+@functools.lru_cache(maxsize=1)
+def _table() -> tuple[dict[str, dict[str, list]], Any]:
+    """The export table and the extension, read once per process, if built from the current
+    sources on this CPU and ``SNAPJUMP_NO_AOT`` is unset; else ``({}, None)``. Imports no numba."""
     if os.environ.get("SNAPJUMP_NO_AOT", "") not in ("", "0"):
         return {}, None
     try:
@@ -141,20 +149,14 @@ class _LazyJit:
         return self._f(*args)
 
 
-_TABLE: tuple[dict[str, dict[str, list]], Any] | None = None
-
-
 def kernel(module: str, name: str) -> Callable:
     """``snapjump_kernels.<module>.<name>`` as the solver calls it: the compiled variants first
     (exact argument match), the JIT dispatcher otherwise; the plain dispatcher when there is no
     matching extension (:mod:`snapjump_kernels.calls` builds its names with this)."""
-    global _TABLE
-    if _TABLE is None:
-        _TABLE = _load()
-    exports, ext = _TABLE
-    variants = exports.get(module, {}).get(name)
+    exports, ext = _table()
     if ext is None:
         return getattr(importlib.import_module(f"{__package__}.{module}"), name)
+    variants = exports.get(module, {}).get(name)
     if not variants:  # not compiled ahead of time: the dispatcher, but only when first called
         return _LazyJit(module, name)
     compiled = [(getattr(ext, v["export"]), [_arg_check(a) for a in v["args"]]) for v in variants]
@@ -163,10 +165,7 @@ def kernel(module: str, name: str) -> Callable:
 
 def active() -> bool:
     """Whether the ahead-of-time compiled kernels are in use in this process."""
-    global _TABLE
-    if _TABLE is None:
-        _TABLE = _load()
-    return _TABLE[1] is not None
+    return _table()[1] is not None
 
 
 def _collect_signatures() -> dict[str, dict[str, Any]]:

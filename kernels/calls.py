@@ -16,22 +16,8 @@ KERNELS: dict[str, tuple[str, ...]] = {
     "harmonics": ("harmonic_cavity_matrices", "harmonic_element_matrices", "scatter_band"),
 }
 
-assemble = kernel("assembly", "assemble")
-evaluate = kernel("assembly", "evaluate")
-pressure_mass_inverse = kernel("assembly", "pressure_mass_inverse")
-quadrature_jacobians = kernel("assembly", "quadrature_jacobians")
-reference_geometry = kernel("assembly", "reference_geometry")
-band_ldlt = kernel("banded", "band_ldlt")
-band_ldlt_solve = kernel("banded", "band_ldlt_solve")
-bordered_factor = kernel("banded", "bordered_factor")
-bordered_solve = kernel("banded", "bordered_solve")
-sym_band_matvec = kernel("banded", "sym_band_matvec")
-cavity_assemble = kernel("cavity", "cavity_assemble")
-cavity_volume = kernel("cavity", "cavity_volume")
-newton_correct = kernel("corrector", "newton_correct")
-harmonic_cavity_matrices = kernel("harmonics", "harmonic_cavity_matrices")
-harmonic_element_matrices = kernel("harmonics", "harmonic_element_matrices")
-scatter_band = kernel("harmonics", "scatter_band")
+# each name of KERNELS, as the solver calls it (``from snapjump_kernels.calls import evaluate``)
+globals().update({name: kernel(module, name) for module, names in KERNELS.items() for name in names})
 
 #: whether the ahead-of-time compiled kernels are in use in this process
 AOT: bool = active()

@@ -14,6 +14,14 @@ import pytest
 from snapjump_kernels import aot
 
 
+@pytest.fixture(autouse=True)
+def _fresh_table():
+    """``aot._table`` is read once per process: each test reads it afresh, and leaves it so."""
+    aot._table.cache_clear()
+    yield
+    aot._table.cache_clear()
+
+
 def test_argument_checks_are_exact():
     ok = aot._arg_check(["array", "float64", 2, "C", True])
     a = np.zeros((3, 4))
@@ -47,22 +55,23 @@ def test_not_used_when_built_from_other_sources(tmp_path, monkeypatch):
     stamp = tmp_path / "stamp"
     stamp.write_text("0" * 64 + "\n")
     monkeypatch.setattr(aot, "STAMP", stamp)
-    assert aot._load() == ({}, None)
+    assert aot._table() == ({}, None)
     monkeypatch.setattr(aot, "STAMP", tmp_path / "missing")
-    assert aot._load() == ({}, None)
+    assert aot._table() == ({}, None)
 
 
 def test_not_used_on_another_cpu(monkeypatch):
     if not aot.STAMP.is_file():
         pytest.skip("the ahead-of-time kernels are not built")
-    assert aot._load()[1] is not None
+    assert aot._table()[1] is not None
     monkeypatch.setattr(aot, "cpu_signature", lambda: "another cpu")
-    assert aot._load() == ({}, None)
+    aot._table.cache_clear()
+    assert aot._table() == ({}, None)
 
 
 def test_not_used_when_switched_off(monkeypatch):
     monkeypatch.setenv("SNAPJUMP_NO_AOT", "1")
-    assert aot._load() == ({}, None)
+    assert aot._table() == ({}, None)
 
 
 BUILT = pytest.mark.skipif(not aot.STAMP.is_file(), reason="the ahead-of-time kernels are not built (make install builds them)")
