@@ -94,6 +94,28 @@ def _node_b(bx: float, by: float, bn: float, n: float, B: np.ndarray) -> None:
     B[7, 2] = by
 
 
+@njit(cache=True, inline="always")
+def _db_cols(D: np.ndarray, bx: float, by: float, bn: float, n: float, out: np.ndarray) -> None:
+    """``out (9, 3) = D (9x9) @ B`` of one node and harmonic ``n`` (the sparse B of :func:`_node_b`)."""
+    nbn = n * bn
+    for c in range(9):
+        out[c, 0] = D[c, 0] * bx + D[c, 1] * by + D[c, 4] * bn - D[c, 5] * nbn
+        out[c, 1] = D[c, 2] * bx + D[c, 3] * by - D[c, 8] * nbn
+        out[c, 2] = D[c, 4] * nbn - D[c, 5] * bn + D[c, 6] * bx + D[c, 7] * by
+
+
+@njit(cache=True, inline="always")
+def _bt_db(bx: float, by: float, bn: float, n: float, DB: np.ndarray, nk: int, nl: int, K: np.ndarray,
+           oa: int, ob: int) -> None:
+    """``K[oa:oa+nk, ob:ob+nl] += B^T DB`` for one node's sparse B (harmonic ``n``)."""
+    nbn = n * bn
+    for j in range(nl):
+        K[oa, ob + j] += bx * DB[0, j] + by * DB[1, j] + bn * DB[4, j] - nbn * DB[5, j]
+        K[oa + 1, ob + j] += bx * DB[2, j] + by * DB[3, j] - nbn * DB[8, j]
+        if nk > 2:
+            K[oa + 2, ob + j] += nbn * DB[4, j] - bn * DB[5, j] + bx * DB[6, j] + by * DB[7, j]
+
+
 @njit(cache=True)
 def gent3(v: np.ndarray, mu: float, jm: float, want: int, dpsi: np.ndarray, d2psi: np.ndarray, dJ: np.ndarray,
           d2J: np.ndarray) -> tuple:
@@ -221,6 +243,12 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
     DB = np.empty((nen, 9, 3))
     Gv = np.empty((npr, nd))
     Hv = np.empty((npr, nd))
+    bq = np.empty((nen, 3))
+    hk = np.empty(nd, np.int64)  # harmonic index of each element dof
+    for a in range(nen):
+        for k in range(K):
+            for dof in range(_ndof_k(k)):
+                hk[a * nc + _offset(k) + dof] = k
     for e in range(ne):
         m_ = mat[e]
         mu_e = mu[m_]
@@ -297,6 +325,9 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
                 bx = dNdX[e, q, a, 0]
                 by = dNdX[e, q, a, 1]
                 bn = N_ref[q, a] / R
+                bq[a, 0] = bx
+                bq[a, 1] = by
+                bq[a, 2] = bn
                 for k in range(K):
                     _node_b(bx, by, bn, float(hn[k]), Bn[a, k])
             W = Wq[e, q]
@@ -320,40 +351,57 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
                         re[e, o + dof] += s
             if want < 2:
                 continue
-            # tangent: for each pair of harmonics the phi-moment of D, then B^T Dt B
+            # tangent: for each pair of harmonics k <= l the phi-moment of D, then B_k^T Dt B_l
+            # (the B of a node is sparse: _db_cols / _bt_db), mirrored afterwards
+            for j in range(nphi):
+                pq = 0.0
+                for k2 in range(npr):
+                    pq += Np[q, k2] * pel[j, k2]
+                pw = W * pq
+                for c in range(9):
+                    for d in range(9):
+                        Dq[q, j, c, d] += pw * d2Jq[q, j, c, d]
             for k in range(K):
-                for l in range(K):
+                nk = _ndof_k(k)
+                fk = float(hn[k])
+                for l in range(k, K):
+                    fl = float(hn[l])
+                    nl = _ndof_k(l)
                     Dt[:, :] = 0.0
                     for j in range(nphi):
-                        pq = 0.0
-                        for k2 in range(npr):
-                            pq += Np[q, k2] * pel[j, k2]
                         wj = wphi[j]
-                        for c in range(9):
-                            tc = wj * t[j, k, c]
-                            for d in range(9):
-                                Dt[c, d] += tc * t[j, l, d] * (Dq[q, j, c, d] + W * pq * d2Jq[q, j, c, d])
-                    nl = _ndof_k(l)
-                    nk = _ndof_k(k)
+                        ck = wj * t[j, k, 0]
+                        sk = wj * t[j, k, 5]
+                        cl = t[j, l, 0]
+                        sl = t[j, l, 5]
+                        wcc = ck * cl
+                        wcs = ck * sl
+                        wsc = sk * cl
+                        wss = sk * sl
+                        for c in range(5):
+                            for d in range(5):
+                                Dt[c, d] += wcc * Dq[q, j, c, d]
+                            for d in range(5, 9):
+                                Dt[c, d] += wcs * Dq[q, j, c, d]
+                        for c in range(5, 9):
+                            for d in range(5):
+                                Dt[c, d] += wsc * Dq[q, j, c, d]
+                            for d in range(5, 9):
+                                Dt[c, d] += wss * Dq[q, j, c, d]
                     for b in range(nen):
-                        for c in range(9):
-                            for dof in range(nl):
-                                s = 0.0
-                                for d in range(9):
-                                    s += Dt[c, d] * Bn[b, l, d, dof]
-                                DB[b, c, dof] = s
+                        _db_cols(Dt, bq[b, 0], bq[b, 1], bq[b, 2], fl, DB[b])
                     for a in range(nen):
                         oa = a * nc + _offset(k)
                         for b in range(nen):
                             ob = b * nc + _offset(l)
-                            for i in range(nk):
-                                for jj in range(nl):
-                                    s = 0.0
-                                    for c in range(9):
-                                        s += Bn[a, k, c, i] * DB[b, c, jj]
-                                    Ke[e, oa + i, ob + jj] += s
+                            _bt_db(bq[a, 0], bq[a, 1], bq[a, 2], fk, DB[b], nk, nl, Ke[e], oa, ob)
         if want < 2:
             continue
+        # the elastic blocks of harmonics k < l were formed once: their transposes are the (l, k) blocks
+        for i in range(nd):
+            for jj in range(nd):
+                if hk[i] < hk[jj]:
+                    Ke[e, jj, i] = Ke[e, i, jj]
         # volumetric constraint stiffness: sum_j w_j kappa G_j^T M^-1 G_j
         for j in range(nphi):
             Gv[:, :] = 0.0
@@ -380,11 +428,13 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
                         s += Minv[e, k2, l2] * Gv[l2, i]
                     Hv[k2, i] = wphi[j] * ka * s
             for i in range(nd):
-                for jj in range(nd):
+                for jj in range(i, nd):
                     s = 0.0
                     for k2 in range(npr):
                         s += Gv[k2, i] * Hv[k2, jj]
                     Ke[e, i, jj] += s
+                    if jj != i:
+                        Ke[e, jj, i] += s
     return E, True, re, Ke
 
 
