@@ -54,7 +54,7 @@ from snapjump_cli.snap import SnapStates, SnapTracker, root_on_step
 log = logging.getLogger(__name__)
 
 __all__ = ["Bifurcation", "FollowResult", "locate_bifurcation", "follow_branch", "default_harmonics",
-           "FOLLOW_KEYS", "followed_metrics", "lowest_eigen"]
+           "FOLLOW_KEYS", "followed_metrics", "apply_followed", "lowest_eigen", "ground_height", "branch_curve"]
 
 #: Keys :func:`followed_metrics` adds to a design's metrics (SI units).
 FOLLOW_KEYS: tuple[str, ...] = (
@@ -66,9 +66,9 @@ FOLLOW_KEYS: tuple[str, ...] = (
 
 def default_harmonics(n_c: int, N: int | None = None) -> list[int]:
     """The harmonics kept for a branch of harmonic ``n_c``: ``0, n_c, 2 n_c, ...`` up to ``N``
-    (default ``max(2 n_c, 2)``)."""
-    if N is None:
-        N = max(2 * n_c, 2)
+    (default ``max(2 n_c, 4)``: for ``n_c = 1``, ``N = 2`` is not enough, docs/harmonics.md)."""
+    if N is None or N == 0:
+        N = max(2 * n_c, 4)
     if N < n_c:
         raise ValueError(f"N = {N} is below the critical harmonic {n_c}")
     return [0] + list(range(n_c, N + 1, n_c))
@@ -167,6 +167,23 @@ class FollowResult:
     metrics: dict = field(default_factory=dict)
 
 
+def branch_curve(fr: FollowResult) -> dict:
+    """The followed branch in SI units for plots: ``V_m3``, ``p_Pa`` per traced point (from the
+    bifurcation) and, for a snap, ``snap_V_m3`` / ``snap_p_Pa`` (upper state, the branch after
+    it, lower state) and ``kind``."""
+    mh, sc = fr.model, fr.tracer.sc
+    L3, S = mh.L**3, mh.S
+    pts = fr.path.points
+    out = {"V_m3": np.array([pt.zeta[0] * sc[0] for pt in pts]) * L3,
+           "p_Pa": np.array([pt.p for pt in pts]) * S, "kind": fr.kind, "n": fr.bif.n, "N": int(mh.hn[-1])}
+    st = fr.states
+    if st.upper is not None and st.lower is not None:
+        seq = snap_sequence(fr.path, st)
+        out["snap_V_m3"] = np.array([pt.zeta[0] * sc[0] for pt in seq]) * L3
+        out["snap_p_Pa"] = np.array([pt.p for pt in seq]) * S
+    return out
+
+
 class _BranchTracker(SnapTracker):
     """The snap tracker on a branch that starts at its bifurcation point: after the first step it
     tells a subcritical branch (the volume falls at once: the start is the volume limit) from a
@@ -227,7 +244,7 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     z_c = tr.zeta(U_c, bif.p)[0]
     start = PathPoint(U_c, bif.p, z_c, np.zeros(len(z_c)), du_ds, 0.0, 0.0)
     sc = tr0.sc
-    tracker0 = getattr(result, "tracker_settings", None)
+    tracker0 = getattr(result, "stop_args", None)
     p_stop = tracker0["p_stop"] if tracker0 else 1.5 * max(pt.p for pt in result.path.points)
     V_stop = tracker0["V_stop"] if tracker0 else 30.0 * max(pt.zeta[0] for pt in result.path.points)
     post = tracker0["post_snap_steps"] if tracker0 else 1500
@@ -288,8 +305,18 @@ def _branch_metrics(fr: FollowResult, sc: np.ndarray) -> dict:
         follow_dE_rel_diff=abs(dE - dE_path) / max(abs(dE), 1e-300) if math.isfinite(dE_path) else None,
         V_star_m3=float(up.zeta[0] * sc[0] * L**3), p_star_Pa=float(up.p * S),
         dy_pole_m=(_pole_height(mh, up.u, pole1) - _pole_height(mh, lo.u, pole1)) * L,
-        p_lower_Pa=float(lo.p * S),
+        p_lower_Pa=float(lo.p * S), dE_norm=dE, lower_state_method=st.lower_method or None,
     )
+    out["dE_rel_diff"] = out["follow_dE_rel_diff"]
+    out["dy_pole_norm"] = out["dy_pole_m"] / L
+    nsets = mesh.node_sets
+    if "pole_upper" in nsets:
+        pole2 = int(nsets["pole_upper"][0])
+        out["dy_pole_upper_m"] = (_pole_height(mh, up.u, pole2) - _pole_height(mh, lo.u, pole2)) * L
+        if "outer_pole_lower" in nsets:
+            z = mh.section(up.u, 0.0)[:, 1] * L
+            out["L0_m"] = float(0.5 * (z[nsets["outer_pole_lower"][0]] + z[nsets["outer_pole_upper"][0]])
+                                - 0.5 * (z[pole1] + z[pole2]))
     if "ground" in mesh.node_sets and len(mesh.node_sets["ground"]):
         g = np.asarray(mesh.node_sets["ground"], np.int64)
         out["h_imp_m"] = (_pole_height(mh, up.u, pole1) - ground_height(mh, up.u, g)) * L
@@ -333,8 +360,33 @@ def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | Non
         out["follow_wall_s"] = time.perf_counter() - t0
         return out, fr
     out["followed"] = True
-    for k in ("dE_J", "dy_pole_m", "h_imp_m", "V_star_m3", "p_star_Pa", "dE_energy_J", "dE_path_J",
-              "follow_amplitude_m", "p_lower_Pa"):
-        out[k] = fm.get(k)
+    for k in fm:
+        if k not in out or k in _REPLACED:
+            out[k] = fm[k]
     out["follow_wall_s"] = time.perf_counter() - t0
     return out, fr
+
+
+#: The row keys a followed answer replaces (the axisymmetric values of the first five stay in
+#: ``axisym_*``).
+_REPLACED = ("dE_J", "dE_norm", "dE_energy_J", "dE_path_J", "dE_rel_diff", "dy_pole_m", "dy_pole_norm",
+             "dy_pole_upper_m", "h_imp_m", "V_star_m3", "p_star_Pa", "p_lower_Pa", "L0_m", "lower_state_method")
+
+
+def apply_followed(result, check: dict, N: int = 0) -> None:
+    """Follow the branch of ``result`` (a :class:`snapjump_cli.solve.SceneResult` with its harmonic
+    ``check``) and make its snap the design's answer in ``result.metrics`` (the keys of
+    :data:`snapjump_cli.rows.FOLLOW_ROW_KEYS`; the replaced keys of a followed design describe the
+    followed snap). A design that stays axisymmetric, or whose branch cannot be followed to a snap,
+    keeps its axisymmetric answer (``followed`` False; ``follow_note`` says why)."""
+    m = result.metrics
+    t0 = time.perf_counter()
+    out, fr = followed_metrics(result, check, N=N or None)
+    result.follow = fr
+    m.update({k: out.get(k) for k in FOLLOW_KEYS})
+    m["follow_amplitude_m"] = out.get("follow_amplitude_m")
+    if out["followed"]:
+        for k in _REPLACED:
+            if k in out:
+                m[k] = out[k]
+    m["wall_s"] = (m.get("wall_s") or 0.0) + (time.perf_counter() - t0)
