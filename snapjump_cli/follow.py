@@ -66,9 +66,10 @@ FOLLOW_KEYS: tuple[str, ...] = (
 
 def default_harmonics(n_c: int, N: int | None = None) -> list[int]:
     """The harmonics kept for a branch of harmonic ``n_c``: ``0, n_c, 2 n_c, ...`` up to ``N``
-    (default ``max(2 n_c, 4)``: for ``n_c = 1``, ``N = 2`` is not enough, docs/harmonics.md)."""
+    (default ``4 n_c``: with ``2 n_c`` the second-order field is complete but the branch's
+    quartic term is not, and the branch folds back spuriously; docs/harmonics.md)."""
     if N is None or N == 0:
-        N = max(2 * n_c, 4)
+        N = 4 * n_c
     if N < n_c:
         raise ValueError(f"N = {N} is below the critical harmonic {n_c}")
     return [0] + list(range(n_c, N + 1, n_c))
@@ -164,6 +165,7 @@ class FollowResult:
     lower_method: str = ""
     lower_note: str = ""
     failure: str = ""
+    micro_folds: list = field(default_factory=list)  # (V, dE) of folds traced through (scaled)
     metrics: dict = field(default_factory=dict)
 
 
@@ -184,12 +186,20 @@ def branch_curve(fr: FollowResult) -> dict:
     return out
 
 
+@dataclass
 class _BranchTracker(SnapTracker):
     """The snap tracker on a branch that starts at its bifurcation point: after the first step it
     tells a subcritical branch (the volume falls at once: the start is the volume limit) from a
-    supercritical one (it rises, and the tracker finds the branch's own limit)."""
+    supercritical one (it rises, and the tracker finds the branch's own limit).
+
+    A fold whose snap would release less than ``micro_dE`` (scaled energy) is not taken for the
+    actuator's snap: the branch comes back to that volume with almost the same energy (a small
+    dynamic jump, after which inflation goes on along the branch). It is recorded in
+    ``micro_folds`` and the trace goes on to the branch's next volume limit."""
 
     kind: str = ""
+    micro_dE: float = 0.0
+    micro_folds: list = field(default_factory=list)
 
     def __call__(self, path: Path) -> str | None:
         pts = path.points
@@ -201,11 +211,28 @@ class _BranchTracker(SnapTracker):
                 self.states.upper = a
             else:
                 self.kind = "supercritical"
-        return super().__call__(path)
+        reason = super().__call__(path)
+        st = self.states
+        if reason == "snap characterised" and self.micro_dE > 0:
+            pb = self.tracer.pb
+            dE = pb.energy(st.upper.u) - pb.energy(st.lower.u)
+            if dE < self.micro_dE:
+                self.micro_folds.append((float(st.upper.zeta[0]), float(dE)))
+                log.debug("branch: fold at V = %.9g releases %.3g < %.3g: traced on", st.upper.zeta[0], dE,
+                          self.micro_dE)
+                self.states = SnapStates(p_max=st.p_max)
+                self.kind = "supercritical"
+                return None
+        return reason
+
+
+#: A fold of a followed branch whose snap releases less than this fraction of the axisymmetric
+#: snap's energy is traced through, not reported as the actuator's snap.
+MICRO_FOLD_DE = 1e-2
 
 
 def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: int | None = None,
-                  solver=None) -> FollowResult:
+                  micro: float = MICRO_FOLD_DE) -> FollowResult:
     """Trace the branch of ``bif`` with the harmonics ``hn`` (default :func:`default_harmonics`)
     from the bifurcation through its volume limit to the lower state at that volume.
 
@@ -214,7 +241,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     result : the axisymmetric :class:`snapjump_cli.solve.SceneResult`
     bif : :func:`locate_bifurcation`'s answer
     hn, n_phi : harmonics and phi rule of the :class:`MultiHarmonicModel`
-    solver : :class:`snapjump_cli.settings.SolverSettings` (default: the result's tracer's)
+    micro : a fold of the branch releasing less than this fraction of the axisymmetric snap's
+        energy is traced through (``micro_folds``), not reported as the snap
 
     Returns
     -------
@@ -249,6 +277,9 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     V_stop = tracker0["V_stop"] if tracker0 else 30.0 * max(pt.zeta[0] for pt in result.path.points)
     post = tracker0["post_snap_steps"] if tracker0 else 1500
     tracker = _BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post)
+    st0 = result.states
+    if st0 is not None and st0.upper is not None and st0.lower is not None:
+        tracker.micro_dE = micro * (base.energy(st0.upper.u) - base.energy(st0.lower.u))
     failure = ""
     try:
         path = trace(mh, cfg, tracker, tracer=tr, start=start)
@@ -256,7 +287,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
         failure = str(exc)
         path = getattr(exc, "path", None) or Path(points=[start])
     st = tracker.states
-    fr = FollowResult(bif, mh, path, st, tr, tracker.kind if st.upper is not None else "", failure=failure)
+    fr = FollowResult(bif, mh, path, st, tr, tracker.kind if st.upper is not None else "", failure=failure,
+                      micro_folds=list(tracker.micro_folds))
     if st.upper is not None:
         low = find_lower_state(tr, st, path.points, failure or path.stop_reason)
         st.lower, st.lower_method = low.state, low.method
@@ -289,8 +321,11 @@ def _branch_metrics(fr: FollowResult, sc: np.ndarray) -> dict:
     E_unit = S * L**3
     out = {"follow_kind": fr.kind or None, "follow_N": int(mh.hn[-1]), "follow_n": fr.bif.n,
            "follow_V_bif_m3": float(fr.bif.zeta[0] * sc[0] * L**3), "follow_p_bif_Pa": float(fr.bif.p * S),
-           "follow_lower_method": fr.lower_method or None, "follow_note": fr.failure or fr.lower_note or "",
-           "snaps": st.upper is not None and st.lower is not None}
+           "follow_lower_method": fr.lower_method or None,
+           "follow_note": "; ".join(x for x in (fr.failure, fr.lower_note, (
+               f"{len(fr.micro_folds)} fold(s) releasing < {MICRO_FOLD_DE:g} of the axisymmetric dE traced through"
+               if fr.micro_folds else "")) if x),
+           "snaps": st.upper is not None and st.lower is not None, "follow_micro_folds": len(fr.micro_folds)}
     if st.upper is None or st.lower is None:
         return out
     up, lo = st.upper, st.lower

@@ -93,7 +93,7 @@ class SolverSettings:
         bifurcates there (:mod:`snapjump_cli.follow`) and report its snap as the design's answer
         (needs ``harmonics >= 1``; the axisymmetric answer is kept in the ``axisym_*`` keys)
     follow_N : highest harmonic of the followed branch's Fourier series (0 = the default,
-        ``max(2 n_c, 4)`` for the critical harmonic ``n_c``)
+        ``4 n_c`` for the critical harmonic ``n_c``)
     """
 
     tol: float = 1e-8

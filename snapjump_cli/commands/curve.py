@@ -146,7 +146,7 @@ def _text(scene, m: dict) -> str:
                    "bifurcates there (nonlinear Fourier series of that harmonic and its multiples) to its own "
                    "snap, and report that snap as the answer (the axisymmetric one as axisym_*).")
 @click.option("--follow-N", "follow_N", type=click.IntRange(0, 16), default=0, show_default=True, metavar="N",
-              help="Highest harmonic of the followed branch (0: max(2 n_c, 4) for the critical harmonic n_c).")
+              help="Highest harmonic of the followed branch (0: 4 n_c for the critical harmonic n_c).")
 @verbosity_options
 def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, overwrite: bool, harmonics: int,
             follow: bool, follow_N: int, **kw) -> None:
