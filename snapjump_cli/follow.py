@@ -232,7 +232,7 @@ MICRO_FOLD_DE = 1e-2
 
 
 def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: int | None = None,
-                  micro: float = MICRO_FOLD_DE) -> FollowResult:
+                  micro: float = MICRO_FOLD_DE, max_steps: int | None = None) -> FollowResult:
     """Trace the branch of ``bif`` with the harmonics ``hn`` (default :func:`default_harmonics`)
     from the bifurcation through its volume limit to the lower state at that volume.
 
@@ -243,6 +243,7 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     hn, n_phi : harmonics and phi rule of the :class:`MultiHarmonicModel`
     micro : a fold of the branch releasing less than this fraction of the axisymmetric snap's
         energy is traced through (``micro_folds``), not reported as the snap
+    max_steps : bound on the branch's continuation steps (default: the axisymmetric trace's)
 
     Returns
     -------
@@ -264,6 +265,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     U_c = mh.embed(bif.u)
     Phi = mh.embed(np.zeros(base.n), {bif.n: bif.mode})
     cfg = replace(tr0.cfg, fused=False, mixed_tangent=False)
+    if max_steps is not None:
+        cfg = replace(cfg, max_steps=int(max_steps))
     tr = Tracer(mh, cfg)
     alpha = tr.alpha
     if alpha <= 0.0:
