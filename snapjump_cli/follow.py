@@ -162,6 +162,7 @@ class FollowResult:
     states: SnapStates
     tracer: Tracer
     kind: str  # "supercritical", "subcritical" or "" (no snap on the branch)
+    first_kind: str = ""  # how the branch leaves the bifurcation (before folds traced through)
     lower_method: str = ""
     lower_note: str = ""
     failure: str = ""
@@ -198,6 +199,7 @@ class _BranchTracker(SnapTracker):
     ``micro_folds`` and the trace goes on to the branch's next volume limit."""
 
     kind: str = ""
+    first_kind: str = ""  # the verdict of the first step (before any fold was traced through)
     micro_dE: float = 0.0
     micro_folds: list = field(default_factory=list)
 
@@ -211,6 +213,7 @@ class _BranchTracker(SnapTracker):
                 self.states.upper = a
             else:
                 self.kind = "supercritical"
+            self.first_kind = self.kind
         reason = super().__call__(path)
         st = self.states
         if reason == "snap characterised" and self.micro_dE > 0:
@@ -290,7 +293,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
         failure = str(exc)
         path = getattr(exc, "path", None) or Path(points=[start])
     st = tracker.states
-    fr = FollowResult(bif, mh, path, st, tr, tracker.kind if st.upper is not None else "", failure=failure,
+    fr = FollowResult(bif, mh, path, st, tr, tracker.kind if st.upper is not None else "", tracker.first_kind,
+                      failure=failure,
                       micro_folds=list(tracker.micro_folds))
     if st.upper is not None:
         low = find_lower_state(tr, st, path.points, failure or path.stop_reason)

@@ -92,7 +92,7 @@ def test_leaving_along_the_mode_is_a_symmetric_pitchfork(cap):
     # (path points are accepted by the error test at tol_path = 1e-6 in the arc-length metric)
     assert lin.V == pytest.approx(pts[1].zeta[0] * fr.tracer.sc[0], rel=1e-7)
     assert lin.p == pytest.approx(pts[1].p, rel=1e-6)
-    assert fr.kind == ("subcritical" if lin.V < V_c else "supercritical")
+    assert fr.first_kind == ("subcritical" if lin.V < V_c else "supercritical")
 
 
 def test_a_design_that_stays_axisymmetric_keeps_its_answer():
