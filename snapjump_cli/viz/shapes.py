@@ -71,7 +71,7 @@ def state_caption(p_Pa: float, V_m3: float, volume_symbol: str = "V") -> str:
 class SectionDrawing:
     """A mesh's section as polygons for matplotlib, mirrored about the axis.
 
-    Every element is split into ``m x m`` sub-cells (``m`` = 3 for Q9, 2 for Q4), each coloured by
+    Every element is split into ``m x m`` sub-cells (by default ``m`` = 3 for Q9, 2 for Q4), each coloured by
     the largest principal stretch at its centre; region boundaries (inner cap, ring, outer cap)
     are drawn as lines along the curved element edges. Coordinates are drawn in millimetres,
     heights above ``y_ground``.
@@ -79,14 +79,15 @@ class SectionDrawing:
     Parameters
     ----------
     mesh : the reference mesh (:class:`snapjump_cli.meshdata.Mesh`, metres)
+    subdivision : sub-cells per element side (default: 3 for Q9, 2 for Q4)
     """
 
-    def __init__(self, mesh) -> None:
+    def __init__(self, mesh, subdivision: int | None = None) -> None:
         self.mesh = mesh
         self.X = np.asarray(mesh.nodes, float)
         self.elements = np.asarray(mesh.elements)
         self.order = int(mesh.order)
-        m = 3 if self.order == 2 else 2
+        m = subdivision or (3 if self.order == 2 else 2)
         g = np.linspace(-1.0, 1.0, m + 1)
         c = 0.5 * (g[:-1] + g[1:])
         corners = []
