@@ -183,14 +183,23 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
         jobs.append(("--animation", wanted["--animation"],
                      lambda t: write_animation(mesh, steps, t, title=title, volume_symbol=vsym)))
     stage = Stage()
+    current = ""
     try:
-        for _, final, job in jobs:
+        for opt, final, job in jobs:
+            current = f"{opt} {final}"
             job(stage.file(final))
         if "--export" in wanted:
             from snapjump_cli.viz.export import export_steps
 
+            current = f"--export {wanted['--export']}"
             export_steps(res, steps, wanted["--export"], revolve=revolve, stage=stage)
+        current = "the outputs"
         written = stage.commit()
+    except OSError as e:
+        stage.discard()
+        import click
+
+        raise click.ClickException(f"could not write {current}: {e.strerror or e}; nothing written") from None
     except BaseException:
         stage.discard()
         raise
