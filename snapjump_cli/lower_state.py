@@ -92,7 +92,8 @@ class LowerState:
     message: str = ""
 
 
-def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint], why: str = "") -> LowerState:
+def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint], why: str = "",
+                     control: Tracer | None = None) -> LowerState:
     """The lower state of a snap: on the path if the tracker found a stable one, else at fixed volume.
 
     Parameters
@@ -102,6 +103,10 @@ def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint]
     points : the traced path's points (post-snap points are start states of the descent)
     why : why the path gave no lower state (the continuation's failure or stop reason), for the
         messages
+    control : another control than the cavity volume (a gas in series,
+        :class:`snapjump_cli.air_snap.GasControlled`): a tracer whose problem's first measure is
+        the controlled volume; the lower state is then found at that volume, by the fixed-volume
+        path only (no energy descent)
 
     Returns
     -------
@@ -114,14 +119,14 @@ def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint]
     note = ""
     if states.lower is not None:
         lin = tracer.pb.linearize(states.lower.u, states.lower.p)
-        n_unstable = constrained_instability(tracer, lin) if lin is not None else 1
+        n_unstable = constrained_instability(control or tracer, lin) if lin is not None else 1
         if n_unstable <= 0:
             return LowerState(states.lower, states.lower_method)
         note = f"the path returned to V* on an unstable branch ({n_unstable} unstable modes)"
     reason = note or why
-    low, msg = snap_at_fixed_volume(tracer, states.upper)
+    low, msg = snap_at_fixed_volume(tracer, states.upper, control=control)
     solver = "volume-path"
-    if low is None:
+    if low is None and control is None:
         log.debug("%s; falling back on the energy descent", msg)
         solver = "energy-descent"
         # from the upper state along its unstable mode first; post-snap path points as fallbacks
@@ -190,6 +195,8 @@ class _FixedVolumeLinearization:
         B = np.stack([-lin.g, -e], axis=1)
         C = np.stack([pb.c_V * lin.g, c_x[:n]], axis=1)
         D = np.array([[0.0, 0.0], [float(c_x[n]), float(c_F)]])
+        if pb.control is not None:  # the volume equation's dependence on the pressure (the gas)
+            D[0, 0] = pb.c_V * float(pb.control.compliance(float(self.u[-1])))
         s = _MultiBorderedSolver(base, B, C, D)
         if not np.all(np.isfinite(s.S)) or abs(np.linalg.det(s.S)) == 0.0:
             return None
@@ -208,10 +215,14 @@ class FixedVolumeProblem:
     e : the controlled direction (length ``model.n``; a unit vector on one dof is a point force)
     c_V : weight of the volume equation (force / volume)
     p_floor : floor of the pressure in the residual reference (as in the pressure-volume trace)
+    control : the controlled problem of another control than the cavity volume (its
+        ``extra_volume(p)`` and ``compliance(p)``: the constraint is ``V(u) + extra_volume(p) =
+        V_star``), or ``None``
     """
 
-    def __init__(self, model, V_star: float, e: np.ndarray, c_V: float, p_floor: float) -> None:
+    def __init__(self, model, V_star: float, e: np.ndarray, c_V: float, p_floor: float, control=None) -> None:
         self.model, self.V_star, self.c_V, self.p_floor = model, V_star, c_V, p_floor
+        self.control = control
         self.e = np.ascontiguousarray(e, dtype=float)
         self.n = model.n + 1
 
@@ -222,6 +233,8 @@ class FixedVolumeProblem:
         R = np.empty(self.n)
         R[:-1] = lin.R - F * self.e
         R[-1] = self.c_V * (lin.V - self.V_star)
+        if self.control is not None:
+            R[-1] = self.c_V * (lin.V + float(self.control.extra_volume(x[-1])) - self.V_star)
         return _FixedVolumeLinearization(self, x, F, R, lin)
 
     def measures(self, x: np.ndarray, F: float, lin=None):
@@ -235,8 +248,8 @@ class FixedVolumeProblem:
         return float(np.linalg.norm(lin.lin.g)) * max(abs(float(lin.u[-1])), self.p_floor)
 
 
-def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400, max_zeros: int = 6
-                         ) -> tuple[PathPoint | None, str]:
+def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400, max_zeros: int = 6,
+                         control: Tracer | None = None) -> tuple[PathPoint | None, str]:
     """The stable state at ``V*`` reached from the upper state (see the module docstring).
 
     Parameters
@@ -245,6 +258,8 @@ def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400,
     upper : the upper state (the first volume limit point)
     max_steps : continuation steps of one fixed-volume path
     max_zeros : zeros of ``F`` examined on one path before giving up
+    control : another control than the cavity volume (see :func:`find_lower_state`): the
+        constraint, the polish, the stability and the energy (``potential``) are its problem's
 
     Returns
     -------
@@ -260,6 +275,9 @@ def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400,
         return None, "upper state outside the material domain"
     V_star = lin_up.V
     W_up = lin_up.E
+    if control is not None:
+        V_star = lin_up.V + float(control.pb.extra_volume(upper.p))
+        W_up = control.pb.potential(lin_up.E, upper.p)
     p_floor = 1e-3 * sp
     ref_up = float(np.linalg.norm(lin_up.g)) * max(abs(upper.p), p_floor)
     x0 = np.concatenate([upper.u, [upper.p]])
@@ -276,10 +294,11 @@ def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400,
         attempts += [("mode", upper.du_ds / nrm, d, math.sqrt(model.n) * sw) for d in (1.0, -1.0)]
     msgs = []
     for name, e, direction, s_w in attempts:
-        pb = FixedVolumeProblem(model, V_star, e, c_V=ref_up / sV, p_floor=p_floor)
+        pb = FixedVolumeProblem(model, V_star, e, c_V=ref_up / sV, p_floor=p_floor,
+                                control=control.pb if control is not None else None)
         fcfg = replace(cfg, scales=(s_w, sp * sV / s_w), max_steps=max_steps)  # force = p V / length
         found, msg, n_steps, n_newton = _follow(tracer, pb, fcfg, x0, direction, W_up, V_star / sV,
-                                                1e-3 * cfg.tol * ref_up, max_zeros)
+                                                1e-3 * cfg.tol * ref_up, max_zeros, control)
         if found is not None:
             lin, it = found
             t, v, q, z = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
@@ -290,29 +309,36 @@ def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400,
 
 
 def _follow(tracer: Tracer, pb: FixedVolumeProblem, fcfg, x0: np.ndarray, direction: float, W_up: float,
-            V_target: float, F_tol: float, max_zeros: int):
+            V_target: float, F_tol: float, max_zeros: int, control: Tracer | None = None):
     """Follow the fixed-volume path from ``x0`` along ``direction * e``; returns
-    ``((linearisation, iterations) or None, message, steps, Newton iterations)``."""
+    ``((linearisation, iterations) or None, message, steps, Newton iterations)``. With ``control``
+    the energies compared are its problem's ``potential`` and the zeros are polished and judged
+    under that control."""
     model = tracer.pb
+    ctl = control or tracer
+
+    def energy(E: float, p: float) -> float:
+        return E if control is None else control.pb.potential(E, p)
     ftr = Tracer(pb, fcfg)
     state = {"zeros": 0, "found": None}
 
     def stop(path) -> str | None:
         pts = path.points
         a, b = pts[-2], pts[-1]
-        if not model.energy(b.u[:-1]) <= W_up + 1e-9 * max(1.0, abs(W_up)):
+        if not energy(model.energy(b.u[:-1]), float(b.u[-1])) <= W_up + 1e-9 * max(1.0, abs(W_up)):
             return "climbed above the upper state's energy"
         if not (a.p * b.p < 0.0 or (b.p == 0.0 and a.p != 0.0)):
             return None
         state["zeros"] += 1
         root = root_on_step(ftr, a, b, pts[-3] if len(pts) > 2 else None, lambda pt: pt.p, F_tol, 40)
-        res = tracer.correct(root.u[:-1].copy(), float(root.u[-1]), None, None, 0.0, target=(0, V_target))
+        res = ctl.correct(root.u[:-1].copy(), float(root.u[-1]), None, None, 0.0, target=(0, V_target))
         if res is not None:
             lin, it = res
-            n_unstable = constrained_instability(tracer, lin)
-            below = lin.E < W_up - 1e-12 * max(1.0, abs(W_up))
+            n_unstable = constrained_instability(ctl, lin)
+            W = energy(lin.E, lin.p)
+            below = W < W_up - 1e-12 * max(1.0, abs(W_up))
             log.debug("fixed-volume path: F = 0 at w = %.6g (%d unstable, W %.6g vs upper %.6g)",
-                      float(pb.e @ lin.u), n_unstable, lin.E, W_up)
+                      float(pb.e @ lin.u), n_unstable, W, W_up)
             if n_unstable == 0 and below:
                 state["found"] = (lin, it)
                 return "stable state at V*"
@@ -329,23 +355,29 @@ def _follow(tracer: Tracer, pb: FixedVolumeProblem, fcfg, x0: np.ndarray, direct
 
 
 def constrained_instability(tracer: Tracer, lin) -> int:
-    """Number of unstable modes of the equilibrium ``lin`` under volume control.
+    """Number of unstable modes of the equilibrium ``lin`` under the control of ``tracer``'s
+    problem: its first path measure (the cavity volume; or the volume a syringe dispenses through
+    a gas of compliance ``c = dV_d/dp``, the measure's pressure derivative).
 
     With ``K`` the tangent and ``g = dV/du``, the inertia of the bordered matrix gives
-    ``neg(Z^T K Z) = neg(K) - [g^T K^-1 g < 0]`` (Haynsworth), ``Z`` spanning ``g``'s complement.
+    ``neg(Z^T K Z) = neg(K) - [g^T K^-1 g < 0]`` (Haynsworth), ``Z`` spanning ``g``'s complement;
+    under the gas the stiffness is ``K + g g^T / c`` and ``neg = neg(K) - [c + g^T K^-1 g < 0]``.
     Returns -1 if the inertia is not available (SuperLU solver).
     """
     z, dz_du, dz_dp = tracer.zeta(lin.u, lin.p)
-    return _constrained_negatives(lin.factor(dz_du[0], 0.0), lin.g)
+    if dz_dp[0] == 0.0:  # volume control
+        return _constrained_negatives(lin.factor(dz_du[0], 0.0), lin.g)
+    return _constrained_negatives(lin.factor(dz_du[0], float(dz_dp[0])), lin.g, float(dz_dp[0]) * float(tracer.sc[0]))
 
 
-def _constrained_negatives(solver, g: np.ndarray) -> int:
-    """Negative eigenvalues of ``K`` restricted to ``g^T du = 0`` from a bordered solver's
-    ``LDL^T`` (Haynsworth); -1 if the inertia is not available."""
+def _constrained_negatives(solver, g: np.ndarray, c: float = 0.0) -> int:
+    """Negative eigenvalues of ``K`` restricted to ``g^T du = 0`` (with a compliance ``c > 0``:
+    of ``K + g g^T / c``) from a bordered solver's ``LDL^T`` (Haynsworth); -1 if the inertia is
+    not available."""
     if solver is None or getattr(solver, "n_negative", -1) < 0:
         return -1
     gKg = -float(g @ solver.Kib)  # Kib = K^-1 (-g)
-    return int(solver.n_negative - (1 if gKg < 0 else 0))
+    return int(solver.n_negative - (1 if c + gKg < 0 else 0))
 
 
 def descend_at_volume(
