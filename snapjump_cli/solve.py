@@ -289,7 +289,8 @@ def _solve_mesh_checked(
         ``mesh_sensitive``, ``mesh_check``, ``dE_J_coarse`` and ``dy_pole_m_coarse``.
     """
     t0 = time.perf_counter()
-    res = solve_scene(scene, mesh, solver, fluid=fluid)
+    air = {"fluid": fluid} if fluid is not None and fluid.is_air else {}
+    res = solve_scene(scene, mesh, solver, **air)
     m = res.metrics
     m.update(mesh_sensitive=False, dE_J_coarse=None, dy_pole_m_coarse=None, mesh_check="")
     why = suspicious_snap(m) if check_mesh else ""
@@ -301,7 +302,7 @@ def _solve_mesh_checked(
     finer = MeshSettings(order=mesh.order, nt=nt, aspect=aspect)
     coarse = m
     try:
-        res = solve_scene(scene, finer, solver, fluid=fluid)
+        res = solve_scene(scene, finer, solver, **air)
         m = res.metrics
         m.update(mesh_sensitive=False, mesh_check=f"{why}; re-solved at nt={finer.nt}"
                  + (f", aspect={finer.aspect:.3g}" if finer.aspect != mesh.aspect else ""))
