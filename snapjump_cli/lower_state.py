@@ -105,8 +105,7 @@ def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint]
         messages
     control : another control than the cavity volume (a gas in series,
         :class:`snapjump_cli.air_snap.GasControlled`): a tracer whose problem's first measure is
-        the controlled volume; the lower state is then found at that volume, by the fixed-volume
-        path only (no energy descent)
+        the controlled volume; the lower state is then found at that volume
 
     Returns
     -------
@@ -126,12 +125,12 @@ def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint]
     reason = note or why
     low, msg = snap_at_fixed_volume(tracer, states.upper, control=control)
     solver = "volume-path"
-    if low is None and control is None:
+    if low is None:
         log.debug("%s; falling back on the energy descent", msg)
         solver = "energy-descent"
         # from the upper state along its unstable mode first; post-snap path points as fallbacks
-        for start in [None] + descent_starts(points, states.upper, states.k_before):
-            low, msg = descend_at_volume(tracer, states.upper, start=start)
+        for start in [None] + descent_starts(points, states.upper, states.k_before, control=control):
+            low, msg = descend_at_volume(tracer, states.upper, start=start, control=control)
             if low is not None:
                 break
     if low is not None:
@@ -382,7 +381,7 @@ def _constrained_negatives(solver, g: np.ndarray, c: float = 0.0) -> int:
 
 def descend_at_volume(
     tracer: Tracer, upper: PathPoint, kick: float = 0.2, max_iter: int = 2000, tol: float | None = None,
-    start: PathPoint | None = None,
+    start: PathPoint | None = None, control: Tracer | None = None,
 ) -> tuple[PathPoint | None, str]:
     """The stable state reached from the upper state at fixed volume by energy descent.
 
@@ -400,6 +399,9 @@ def descend_at_volume(
     Started at ``kick`` (scaled arc length) along the path tangent at the volume limit, the
     unstable direction of the fold, or at ``start`` (a post-snap path point; its volume is
     brought back to ``V*`` by at most ``max(0.05, 0.01 V*)`` per iteration).
+    With ``control`` (a gas in series, :func:`find_lower_state`) the constraint is its first
+    measure ``V + e(p) = V_d*`` (the bordered row gains the compliance ``c = e'(p)``) and the merit
+    is ``W + G(p) - p (V + e(p) - V_d*)``, whose stationary points are the equilibria at ``V_d*``.
 
     Returns
     -------
@@ -408,6 +410,9 @@ def descend_at_volume(
     cfg = tracer.cfg
     tol = cfg.tol if tol is None else tol
     V_star = upper.zeta[0]
+    ctl = control or tracer
+    if control is not None:
+        V_star = float(control.zeta(upper.u, upper.p)[0][0])
     pb = tracer.pb
     if start is not None:
         u, p = start.u.copy(), start.p
@@ -429,12 +434,12 @@ def descend_at_volume(
                 p = upper.p + kick * upper.dp_ds
                 continue
             E_new = lin.E
-            z, dz_du, dz_dp = tracer.zeta(u, p, lin)
+            z, dz_du, dz_dp = ctl.zeta(u, p, lin)
             h = float(z[0] - V_star)
             base = None
         else:
             # a trial step: energy and volume decide; the stiffness is assembled only if it is taken
-            lin, E_trial, h_trial, outside = _trial_step(tracer, u, p, accepted, V_star)
+            lin, E_trial, h_trial, outside = _trial_step(tracer, u, p, accepted, V_star, control)
             if outside:
                 dh_max *= 0.5
             if lin is None:
@@ -444,10 +449,11 @@ def descend_at_volume(
                 E_new, h = E_trial, h_trial
                 sigma_rel *= 0.25
                 base = None
-            z, dz_du, dz_dp = tracer.zeta(u, p, lin)
+            z, dz_du, dz_dp = ctl.zeta(u, p, lin)
+        c = float(dz_dp[0])  # the control's compliance (0 at fixed volume)
         if base is None:
-            base = lin.factor(dz_du[0], 0.0)  # unshifted: the inertia, and Newton's step once sigma -> 0
-            n_unstable = _constrained_negatives(base, lin.g)
+            base = lin.factor(dz_du[0], c)  # unshifted: the inertia, and Newton's step once sigma -> 0
+            n_unstable = _constrained_negatives(base, lin.g, c * float(ctl.sc[0]))
         accepted = (u, p, lin, E_new, h, base, n_unstable)
         ref = tracer.residual_scale(lin, dz_du, p)
         rn = float(np.linalg.norm(lin.R)) / ref
@@ -463,7 +469,7 @@ def descend_at_volume(
             return PathPoint(lin.u, lin.p, zz, t, v, q, float("nan"), it), f"descent converged {how}in {it} iterations"
         # the smallest shift (from the current sigma_rel up) that makes the shifted system
         # positive definite on the constraint: the step then goes downhill in every mode
-        solver, sigma_rel = _descent_solver(lin, dz_du, base, n_unstable, sigma_rel)
+        solver, sigma_rel = _descent_solver(lin, dz_du, base, n_unstable, sigma_rel, c, c * float(ctl.sc[0]))
         if solver is None:
             return None, f"descent: no positive definite shift at iteration {it}"
         # restore the volume gradually when starting far from V* (a homotopy in the constraint)
@@ -475,9 +481,10 @@ def descend_at_volume(
     return None, f"descent did not converge in {max_iter} iterations"
 
 
-def _trial_step(tracer: Tracer, u: np.ndarray, p: float, accepted: tuple, V_star: float) -> tuple:
+def _trial_step(tracer: Tracer, u: np.ndarray, p: float, accepted: tuple, V_star: float, control=None) -> tuple:
     """Judge a trial step of :func:`descend_at_volume` from ``accepted`` (the last accepted
-    iterate ``(u, p, lin, E, h, ...)``) to ``(u, p)``.
+    iterate ``(u, p, lin, E, h, ...)``) to ``(u, p)`` (with ``control``: under its constraint,
+    ``h`` of both iterates taken at the new multiplier ``p``).
 
     Returns ``(lin, E, h, outside)``: the linearisation at ``(u, p)`` if the step is taken, else
     ``None``; its energy and volume error (meaningful if taken); ``outside`` when the step left
@@ -485,13 +492,17 @@ def _trial_step(tracer: Tracer, u: np.ndarray, p: float, accepted: tuple, V_star
     largest volume change per iteration).
     """
     pb = tracer.pb
-    _, _, _, E0, h0, _, _ = accepted
+    _, p0, _, E0, h0, _, _ = accepted
     ev = pb.energy_volume(u)
     ok = ev is not None
     E_new = h = math.nan
     if ok:
         E_new = ev[0]
         h = float(ev[1] / tracer.sc[0] - V_star)
+        if control is not None:  # V + e(p) - V_d*, both at the new p (the gas energy G(p) then cancels)
+            h += float(control.pb.extra_volume(p)) / tracer.sc[0]
+    if control is not None:
+        h0 += (float(control.pb.extra_volume(p)) - float(control.pb.extra_volume(p0))) / tracer.sc[0]
     # compare with the new multiplier: merit W - p (V - V*); while the volume is still
     # being restored from a start far from V* any step inside the material domain is
     # taken. (With a tight threshold here, steps that overshot to |V - V*| ~ 1e-5 were
@@ -503,32 +514,41 @@ def _trial_step(tracer: Tracer, u: np.ndarray, p: float, accepted: tuple, V_star
     return lin, E_new, h, not ok and not feasible
 
 
-def _descent_solver(lin, dz_du: np.ndarray, base, n_unstable: int, sigma_rel: float) -> tuple:
+def _descent_solver(lin, dz_du: np.ndarray, base, n_unstable: int, sigma_rel: float, c: float = 0.0,
+                    c_model: float = 0.0) -> tuple:
     """The smallest shift, from ``sigma_rel`` up (by factors of 8), that makes the shifted system
     of :func:`descend_at_volume` positive definite on the constraint: ``(solver, sigma_rel)``, or
     ``(None, sigma_rel)`` if none up to ``1e6`` does. Without unstable modes and with
-    ``sigma_rel <= 1e-10`` the unshifted factorisation ``base`` is used (Newton's step)."""
+    ``sigma_rel <= 1e-10`` the unshifted factorisation ``base`` is used (Newton's step). ``c``: the
+    bordered row's compliance (``c_model`` in the model's units; 0 at fixed volume)."""
     solver = None
     while sigma_rel <= 1e6:
         if n_unstable != 0 or sigma_rel > 1e-10:
-            solver = lin.factor(dz_du[0], 0.0, shift=sigma_rel * lin.diag_abs())
+            solver = lin.factor(dz_du[0], c, shift=sigma_rel * lin.diag_abs())
         else:
             solver = base
-        if solver is not None and (n_unstable == 0 or _constrained_negatives(solver, lin.g) == 0):
+        if solver is not None and (n_unstable == 0 or _constrained_negatives(solver, lin.g, c_model) == 0):
             break
         sigma_rel = max(sigma_rel * 8.0, 1e-10)
         solver = None
     return solver, sigma_rel
 
 
-def descent_starts(path_points: list[PathPoint], upper: PathPoint, k_before: int, n: int = 3) -> list[PathPoint]:
-    """Start states for :func:`descend_at_volume`: post-snap path points whose volume is closest
-    to ``V*``, skipping the first fifth of the post-snap arc (the flat neighbourhood of the
-    degenerate saddle, where a descent would crawl)."""
+def descent_starts(path_points: list[PathPoint], upper: PathPoint, k_before: int, n: int = 3,
+                   control: Tracer | None = None) -> list[PathPoint]:
+    """Start states for :func:`descend_at_volume`: post-snap path points whose volume (with
+    ``control``: its controlled volume) is closest to ``V*``, skipping the first fifth of the
+    post-snap arc (the flat neighbourhood of the degenerate saddle, where a descent would crawl)."""
     after = path_points[k_before + 1 :]
     if not after:
         return []
     s0, s1 = upper.s, after[-1].s
     far = [pt for pt in after if pt.s >= s0 + 0.2 * (s1 - s0)]
+    if control is not None:
+        def vd(pt: PathPoint) -> float:
+            return float(control.zeta(pt.u, pt.p)[0][0])
+
+        far.sort(key=lambda pt: abs(vd(pt) - vd(upper)))
+        return far[:n]
     far.sort(key=lambda pt: abs(pt.zeta[0] - upper.zeta[0]))
     return far[:n]

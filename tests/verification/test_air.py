@@ -9,7 +9,7 @@ from scipy.optimize import brentq
 
 from snapjump_cli.designs import get_design
 from snapjump_cli.fluid import FluidSettings
-from snapjump_cli.lower_state import constrained_instability, snap_at_fixed_volume
+from snapjump_cli.lower_state import constrained_instability, descend_at_volume, snap_at_fixed_volume
 from snapjump_cli.settings import SolverSettings
 from snapjump_cli.solve import solve_checked, solve_scene
 
@@ -144,3 +144,15 @@ def test_lower_state_off_the_path_under_the_gas(air_C):
 
     assert np.abs(low.u - st.lower.u).max() < 1e-10
     assert energy(st.upper) - energy(low) == pytest.approx(energy(st.upper) - energy(st.lower), rel=1e-10)
+
+
+def test_energy_descent_under_the_gas():
+    """The fallback, the energy descent at fixed dispensed volume, lands on the path's post-snap
+    state too (from the upper state along its unstable mode)."""
+    res = solve_scene(get_design("C"), fluid=_air(45.0))
+    air = res.air
+    st = air.states
+    low, msg = descend_at_volume(air.tracer, st.upper, control=air.control)
+    assert low is not None, msg
+    assert np.abs(low.u - st.lower.u).max() < 1e-9 and low.p == pytest.approx(st.lower.p, rel=1e-9)
+    assert air.unstable_modes(low) == 0
