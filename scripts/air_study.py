@@ -64,10 +64,11 @@ _CAV0: dict = {}
 def _V_cav0(name: str, mesh: MeshSettings) -> float:
     """The cavity volume of the stress-free design [m^3] (the meshed one, as the solver's)."""
     if name not in _CAV0:
-        from snapjump_cli.mesh import mesh_scene
-        from snapjump_cli.solve import build_model
-        from snapjump_cli.settings import SolverSettings
         import numpy as np
+
+        from snapjump_cli.mesh import mesh_scene
+        from snapjump_cli.settings import SolverSettings
+        from snapjump_cli.solve import build_model
 
         d = get_design(name)
         model = build_model(d, mesh_scene(d, mesh), SolverSettings())
@@ -97,10 +98,14 @@ def crossing(a) -> None:
 
 
 def fig_s9(a) -> None:
-    from snapjump_cli.fluid import GasLaw
-    from snapjump_cli.plots import _pyplot  # noqa: PLC2701 - the package's own figure helper
+    import matplotlib
 
-    plt = _pyplot()
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from snapjump_cli.fluid import GasLaw
+
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11.0, 4.4))
     w = solve_checked(get_design(a.design), a.mesh)
     c = w.curve
@@ -117,8 +122,6 @@ def fig_s9(a) -> None:
                 label=f"air, V0_sys = {V0:g} ml: dE = {m['dE_J'] * 1e3:.4g} mJ")
         a1.plot([m["V_disp_m3"] * 1e6] * 2, [m["p_before_Pa"] / 1e3, m["p_after_Pa"] / 1e3], "--", color=col, lw=1.2)
         gas = GasLaw(m["air_V0_m3"], m["air_p0_Pa"], m["air_gamma"])
-        import numpy as np
-
         pp = np.linspace(m["p_before_Pa"], m["p_after_Pa"], 40)
         V_up = cc["air_snap_V_m3"][0] - c["V0_m3"]
         a2.plot((V_up + gas.expelled(pp[0]) - gas.expelled(pp)) * 1e6, pp / 1e3, "--", color=col, lw=1.2,
