@@ -271,6 +271,11 @@ class AirSnap:
         """The cavity volume of the stress-free state (scaled)."""
         return model.volume(np.zeros(model.n))
 
+    def dispensed(self, V_m3, p_Pa, model) -> np.ndarray:
+        """The dispensed volume [m^3] at cavity volumes ``V_m3`` and pressures ``p_Pa`` (SI arrays)."""
+        gas = self.fluid.gas()
+        return np.asarray(V_m3, dtype=float) - self.V_cav0(model) * model.L**3 + gas.expelled(np.asarray(p_Pa, dtype=float))
+
     def curve(self, model, path: Path, scales: tuple[float, float, float], V0: float) -> dict:
         """The dispensed volume along the traced path (``V_disp_m3``) and the air snap's states
         (``air_snap_Vd_m3``, ``air_snap_V_m3``, ``air_snap_p_Pa``: upper, path points, lower), SI."""

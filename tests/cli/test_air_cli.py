@@ -2,6 +2,7 @@
 the YAML, ``rank`` on the air answer (docs/air.md)."""
 from __future__ import annotations
 
+import csv
 import json
 
 import pandas as pd
@@ -24,8 +25,11 @@ def test_curve_air_json_csv_and_plot(capsys, tmp_path):
     assert m["fluid"] == "air" and m["air_V0_m3"] == pytest.approx(45e-6) and m["air_gamma"] == 1.4
     assert m["p_before_Pa"] > m["p_after_Pa"] > 0 and m["dV_snap_m3"] > 0
     assert m["dE_J"] != m["water_dE_J"] and m["y_jump_m"] > m["h_imp_m"] and m["water_y_jump_m"] > 0
-    lines = csv_path.read_text().splitlines()
-    assert lines[0] == "p_Pa,V_m3,y_pole_m,strain_energy_J,arc_length,V_disp_m3"
+    rows = list(csv.DictReader(csv_path.read_text().splitlines()))
+    assert list(rows[0])[-1] == "V_disp_m3" and float(rows[0]["V_disp_m3"]) == pytest.approx(0.0, abs=1e-12)
+    up = next(r for r in rows if r["state"] == "upper")  # the named states are the air snap's
+    assert float(up["p_Pa"]) == pytest.approx(m["p_before_Pa"], rel=1e-12)
+    assert float(up["V_disp_m3"]) == pytest.approx(m["V_disp_m3"], rel=1e-9)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
