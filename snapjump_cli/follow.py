@@ -54,7 +54,8 @@ from snapjump_cli.snap import SnapStates, SnapTracker, root_on_step
 log = logging.getLogger(__name__)
 
 __all__ = ["Bifurcation", "FollowResult", "locate_bifurcation", "follow_branch", "default_harmonics",
-           "FOLLOW_KEYS", "followed_metrics", "apply_followed", "lowest_eigen", "ground_height", "branch_curve"]
+           "FOLLOW_KEYS", "followed_metrics", "apply_followed", "lowest_eigen", "ground_height", "branch_curve",
+           "followed_shape_states"]
 
 #: Keys :func:`followed_metrics` adds to a design's metrics (SI units).
 FOLLOW_KEYS: tuple[str, ...] = (
@@ -432,3 +433,20 @@ def apply_followed(result, check: dict, N: int = 0) -> None:
             if k in out:
                 m[k] = out[k]
     m["wall_s"] = (m.get("wall_s") or 0.0) + (time.perf_counter() - t0)
+
+
+def followed_shape_states(fr: FollowResult) -> list:
+    """The followed snap's upper and lower states as :class:`snapjump_cli.viz.shapes.ShapeState`
+    (SI), each with its two meridian sections ``phi = 0`` (right half) and ``phi = pi`` (left half)."""
+    from snapjump_cli.viz.shapes import ShapeState
+
+    mh, st, sc = fr.model, fr.states, fr.tracer.sc
+    if st.upper is None or st.lower is None:
+        return []
+    L, S = mh.L, mh.S
+    out = []
+    for name, pt in (("followed upper state", st.upper), ("followed lower state", st.lower)):
+        out.append(ShapeState(f"{name} (n = {fr.bif.n})", float(pt.p * S), float(pt.zeta[0] * sc[0] * L**3),
+                              mh.section(pt.u, 0.0) * L, mh.section(pt.u, math.pi) * L,
+                              note="left: phi = pi, right: phi = 0"))
+    return out

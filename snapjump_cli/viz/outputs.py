@@ -188,8 +188,13 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
     if "--shapes" in wanted:
         from snapjump_cli.viz.shapes import key_shape_states, plot_shapes
 
+        shape_states = key_shape_states(steps, mesh.nodes)
+        if getattr(res, "follow", None) is not None:  # the followed snap's states, both meridian sections
+            from snapjump_cli.follow import followed_shape_states
+
+            shape_states += followed_shape_states(res.follow)
         jobs.append(("--shapes", wanted["--shapes"], lambda t: plot_shapes(
-            mesh, key_shape_states(steps, mesh.nodes), t, title=title, volume_symbol=vsym)))
+            mesh, shape_states, t, title=title, volume_symbol=vsym)))
     if "--animation" in wanted:
         from snapjump_cli.viz.animation import write_animation
 
