@@ -437,7 +437,10 @@ def apply_followed(result, check: dict, N: int = 0) -> None:
 
 def followed_shape_states(fr: FollowResult) -> list:
     """The followed snap's upper and lower states as :class:`snapjump_cli.viz.shapes.ShapeState`
-    (SI), each with its two meridian sections ``phi = 0`` (right half) and ``phi = pi`` (left half)."""
+    (SI), each with its two meridian sections ``phi = 0`` (right half) and ``phi = pi`` (left half).
+    The colour is computed from each section as if it were an axisymmetric map: away from the axis
+    it is close to the 3D stretch in the section's plane, but near the axis the ``n = 1`` part
+    (which moves the axis sideways) makes its hoop stretch meaningless."""
     from snapjump_cli.viz.shapes import ShapeState
 
     mh, st, sc = fr.model, fr.states, fr.tracer.sc
@@ -448,5 +451,5 @@ def followed_shape_states(fr: FollowResult) -> list:
     for name, pt in (("followed upper state", st.upper), ("followed lower state", st.lower)):
         out.append(ShapeState(f"{name} (n = {fr.bif.n})", float(pt.p * S), float(pt.zeta[0] * sc[0] * L**3),
                               mh.section(pt.u, 0.0) * L, mh.section(pt.u, math.pi) * L,
-                              note="left: phi = pi, right: phi = 0"))
+                              note="colour: each section read as an axisymmetric map"))
     return out
