@@ -86,7 +86,7 @@ class SolverSettings:
         in the arc-length metric); the limit point, the lower state and the descent always use
         ``tol`` (a residual test)
     harmonics : check the traced states against non-axisymmetric perturbations ``cos n phi``,
-        ``n = 1..harmonics`` (:mod:`snapjump_cli.harmonics`; 0 = off, the default)
+        ``n = 1..harmonics`` (:mod:`snapjump_cli.fe.harmonics`; 0 = off, the default)
     u_scale : scale of the RMS displacement in the arc length, in units of the pole-displacement
         scale (0 = arc length in (V, p, pole) only)
     """

@@ -9,7 +9,7 @@ harmonic check's ``asym_first``, ``asym_n``, ``asym_V_m3``, ``asym_p_Pa``, ``asy
 diagnostics (``dE_rel_diff``, ``dy_pole_upper_m``, ``p_lower_Pa``, mesh size, ``max_dilatation``,
 timings, ``stop_reason``; ``E_o_J`` for an outer cap alone).
 
-A scene is solved exactly as a sweep solves a design (:func:`snapjump_cli.solve.solve_checked`):
+A scene is solved exactly as a sweep solves a design (:func:`snapjump_cli.fe.solve.solve_checked`):
 a suspicious snap is re-solved on a finer mesh and the refined answer is reported, so ``curve``
 and the ranked table give one answer per design and mesh.
 """
@@ -27,7 +27,7 @@ import numpy as np
 
 from snapjump_cli.cli import verbosity_options
 from snapjump_cli.errors import BadInput
-from snapjump_cli.scenes import (
+from snapjump_cli.commands.options import (
     mesh_options,
     mesh_settings_from_options,
     pick_mesh_options,
@@ -57,7 +57,7 @@ def to_jsonable(metrics: dict) -> dict:
 
 
 def _write_csv(curve: dict, path: Path) -> None:
-    from snapjump_cli.results import replace_atomic
+    from snapjump_cli.files import replace_atomic
 
     cols = ["p_Pa", "V_m3", "y_pole_m", "energy_J", "s"]
     names = ["p_Pa", "V_m3", "y_pole_m", "strain_energy_J", "arc_length"]
@@ -143,11 +143,11 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
       snapjump curve --cap outer --theta 90 --eta 16.5
     """
     from snapjump_cli.settings import SolverSettings
-    from snapjump_cli.solve import SolveFailed, solve_checked
+    from snapjump_cli.fe.solve import SolveFailed, solve_checked
 
     scene = scene_from_options(**pick_scene_options(kw))
     ms = mesh_settings_from_options(**pick_mesh_options(kw))
-    from snapjump_cli.results import check_writable
+    from snapjump_cli.files import check_writable
 
     for p, suffix in ((csv_path, ".csv"), (plot_path, ".png")):
         if p is not None:
@@ -164,7 +164,7 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
     if csv_path is not None:
         _write_csv(res.curve, csv_path)
     if plot_path is not None:
-        from snapjump_cli.plots import plot_pv_curve
+        from snapjump_cli.plots.figures import plot_pv_curve
 
         plot_pv_curve(res.curve, m, plot_path, title=getattr(scene, "name", None) or "")
     if fmt == "json":
