@@ -85,7 +85,7 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
     # every output place is checked before anything is written
     check_writable(out, BadInput, overwrite=overwrite)
     if plots_dir is not None:
-        from snapjump_cli.plots.figures import PLOT_FILES
+        from snapjump_cli.viz.figures import PLOT_FILES
 
         check_writable(plots_dir, BadInput, what="folder")
         for name in PLOT_FILES:
@@ -115,7 +115,7 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
     n_jumped = int(ranked["jumped"].fillna(False).astype(bool).sum())
     files = [out]
     if plots_dir is not None:
-        from snapjump_cli.plots.figures import make_plots
+        from snapjump_cli.viz.figures import make_plots
 
         files += make_plots(ranked, plots_dir)
     say = (lambda line: click.echo(line, err=True)) if fmt != "text" else click.echo

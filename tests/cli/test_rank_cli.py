@@ -130,7 +130,7 @@ def test_rank_module_has_command_and_main(capsys):
 
 
 def test_plots_with_no_snapping_design(tmp_path):
-    from snapjump_cli.plots.figures import make_plots
+    from snapjump_cli.viz.figures import make_plots
 
     df = pd.DataFrame({"status": ["no_snap"], "dE_J": [0.0], "dy_pole_m": [math.nan], "R_i": [0.03],
                        "mu_i": [0.35e6], "mu_ratio": [1.0], "eta_i": [6.0], "theta_i_deg": [80.0], "eta_o": [10.0],

@@ -1,2 +1,0 @@
-"""Figures (matplotlib, imported inside the functions that draw): :mod:`.figures` (the ranked
-table's figures and the pressure-volume curve)."""
