@@ -104,7 +104,7 @@ def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint]
     why : why the path gave no lower state (the continuation's failure or stop reason), for the
         messages
     control : another control than the cavity volume (a gas in series,
-        :class:`snapjump_cli.air_snap.GasControlled`): a tracer whose problem's first measure is
+        :class:`snapjump_cli.fe.air_snap.GasControlled`): a tracer whose problem's first measure is
         the controlled volume; the lower state is then found at that volume
 
     Returns

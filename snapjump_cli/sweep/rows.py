@@ -78,7 +78,7 @@ INT_RESULT_KEYS: frozenset[str] = frozenset({"n_steps", "n_newton", "n_nodes", "
 OPTIONAL_FLOAT_KEYS: frozenset[str] = frozenset({"dE_J_coarse", "dy_pole_m_coarse", "asym_V_m3", "asym_p_Pa"})
 #: The keys of the harmonic check (all null when it is off).
 ASYM_KEYS: tuple[str, ...] = ("asym_first", "asym_n", "asym_V_m3", "asym_p_Pa", "asym_lower_stable")
-#: The keys of a snap under air (``fluid: air``, :mod:`snapjump_cli.air_snap`): the fluid, the gas and
+#: The keys of a snap under air (``fluid: air``, :mod:`snapjump_cli.fe.air_snap`): the fluid, the gas and
 #: the pressures, volumes and energies of the air snap, and the water snap's answers; ``fluid`` is
 #: ``"water"`` and the others null in a water row.
 AIR_KEYS: tuple[str, ...] = (

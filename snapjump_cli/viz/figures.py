@@ -336,7 +336,7 @@ def plot_air_curves(curve: dict, metrics: dict, path: str | Path, title: str = "
     volume) and the air snap (at constant dispensed volume: the actuator grows as the gas expands,
     eq 9).
     """
-    from snapjump_cli.fluid import GasLaw
+    from snapjump_cli.fe.fluid import GasLaw
 
     plt = _pyplot()
     V0 = curve["V0_m3"]

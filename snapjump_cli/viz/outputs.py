@@ -76,7 +76,7 @@ class Stage:
 
     def file(self, final: Path) -> Path:
         """A temporary file for ``final`` (same folder and suffix)."""
-        from snapjump_cli.sweep.results import current_umask
+        from snapjump_cli.files import current_umask
 
         fd, name = tempfile.mkstemp(prefix=f".{final.stem}.", suffix=f".tmp{final.suffix}", dir=final.parent)
         os.close(fd)
@@ -86,7 +86,7 @@ class Stage:
 
     def folder(self, final: Path) -> Path:
         """A temporary folder for ``final`` (replaced whole on commit)."""
-        from snapjump_cli.sweep.results import current_umask
+        from snapjump_cli.files import current_umask
 
         name = tempfile.mkdtemp(prefix=f".{final.name}.", dir=final.parent)
         os.chmod(name, 0o777 & ~current_umask())
