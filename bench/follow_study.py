@@ -26,12 +26,12 @@ SCENES = {
 
 
 def run(name: str) -> dict:
-    from snapjump_cli.designs import get_design
-    from snapjump_cli.follow import default_harmonics, follow_branch, locate_bifurcation
-    from snapjump_cli.geometry import CapScene
-    from snapjump_cli.harmonics import check_harmonics
+    from snapjump_cli.geometry.designs import get_design
+    from snapjump_cli.fe.follow import default_harmonics, follow_branch, locate_bifurcation
+    from snapjump_cli.geometry.caps import CapScene
+    from snapjump_cli.fe.harmonics import check_harmonics
     from snapjump_cli.settings import MeshSettings, SolverSettings
-    from snapjump_cli.solve import solve_scene
+    from snapjump_cli.fe.solve import solve_scene
 
     kind, arg = SCENES[name]
     scene = get_design(arg) if kind == "design" else CapScene(**arg)

@@ -86,11 +86,11 @@ class SolverSettings:
         in the arc-length metric); the limit point, the lower state and the descent always use
         ``tol`` (a residual test)
     harmonics : check the traced states against non-axisymmetric perturbations ``cos n phi``,
-        ``n = 1..harmonics`` (:mod:`snapjump_cli.harmonics`; 0 = off, the default)
+        ``n = 1..harmonics`` (:mod:`snapjump_cli.fe.harmonics`; 0 = off, the default)
     u_scale : scale of the RMS displacement in the arc length, in units of the pole-displacement
         scale (0 = arc length in (V, p, pole) only)
     follow : when the harmonic check finds a harmonic unstable before V*, trace the branch that
-        bifurcates there (:mod:`snapjump_cli.follow`) and report its snap as the design's answer
+        bifurcates there (:mod:`snapjump_cli.fe.follow`) and report its snap as the design's answer
         (needs ``harmonics >= 1``; the axisymmetric answer is kept in the ``axisym_*`` keys)
     follow_N : highest harmonic of the followed branch's Fourier series (0 = the default,
         ``4 n_c`` for the critical harmonic ``n_c``)

@@ -126,10 +126,10 @@ def _text(summary: dict, result: Any, output: Path, files: list[Path], from_path
 @verbosity_options
 def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | None, from_path: Path | None,
             fmt: str, plots: bool, progress: bool) -> None:
-    from snapjump_cli.config import ConfigError
+    from snapjump_cli.sweep.config import ConfigError
     from snapjump_cli.optimize import (OptimizeInputError, cache_paths, load_spec, make_plots, read_from,
                                        run_optimize, write_result)
-    from snapjump_cli.sweep import SweepError, SweepInputError
+    from snapjump_cli.sweep.run import SweepError, SweepInputError
 
     try:
         sp = load_spec(spec)
@@ -152,7 +152,7 @@ def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | N
     bar = None
     stack = ExitStack()
     if progress and not is_quiet():
-        from snapjump_cli.sweep import make_progress
+        from snapjump_cli.sweep.run import make_progress
 
         bar = make_progress(budget if budget is not None else sp.budget, 0, stack, desc="optimize", unit="solve")
 

@@ -61,9 +61,10 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
             alpha: float, fmt: str, exclude_asymmetric: bool, overwrite: bool) -> None:
     import pyarrow as pa
 
-    from snapjump_cli import results as res
+    from snapjump_cli.files import check_writable
+    from snapjump_cli.sweep import results as res
     from snapjump_cli.jump import JumpParams
-    from snapjump_cli.rank import RankInputError, rank_results, settings_mix, top_frame, top_table
+    from snapjump_cli.jump.rank import RankInputError, rank_results, settings_mix, top_frame, top_table
 
     try:
         params = JumpParams(rho=rho, c_d=c_d, alpha=alpha)
@@ -82,13 +83,13 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
     if out.resolve() == results.resolve():
         raise BadInput(f"-o/--output: {out} would overwrite the input results file")
     # every output place is checked before anything is written
-    res.check_writable(out, BadInput, overwrite=overwrite)
+    check_writable(out, BadInput, overwrite=overwrite)
     if plots_dir is not None:
-        from snapjump_cli.plots import PLOT_FILES
+        from snapjump_cli.viz.figures import PLOT_FILES
 
-        res.check_writable(plots_dir, BadInput, what="folder")
+        check_writable(plots_dir, BadInput, what="folder")
         for name in PLOT_FILES:
-            res.check_writable(plots_dir / name, BadInput, overwrite=overwrite)
+            check_writable(plots_dir / name, BadInput, overwrite=overwrite)
         try:
             import matplotlib  # noqa: F401
         except ImportError as e:
@@ -114,7 +115,7 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
     n_jumped = int(ranked["jumped"].fillna(False).astype(bool).sum())
     files = [out]
     if plots_dir is not None:
-        from snapjump_cli.plots import make_plots
+        from snapjump_cli.viz.figures import make_plots
 
         files += make_plots(ranked, plots_dir)
     say = (lambda line: click.echo(line, err=True)) if fmt != "text" else click.echo

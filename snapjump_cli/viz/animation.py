@@ -47,7 +47,7 @@ def write_animation(mesh, steps, path: str | Path, *, title: str = "", volume_sy
 
     Parameters
     ----------
-    mesh : the reference mesh (:class:`snapjump_cli.meshdata.Mesh`)
+    mesh : the reference mesh (:class:`snapjump_cli.mesh.data.Mesh`)
     steps : the scene's states in path order
     path : the ``.gif`` file (written atomically)
     title : the scene
@@ -63,7 +63,7 @@ def write_animation(mesh, steps, path: str | Path, *, title: str = "", volume_sy
     from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.colors import Normalize
 
-    from snapjump_cli.results import replace_atomic
+    from snapjump_cli.files import replace_atomic
 
     plt = _pyplot()
     draw = SectionDrawing(mesh, subdivision=2)  # 4 sub-cells an element: the frames draw ~2x faster

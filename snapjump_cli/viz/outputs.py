@@ -32,7 +32,7 @@ def check_outputs(paths: dict[str, Path | None], revolve: int, overwrite: bool) 
     """Raise :class:`BadInput` (one line) for an unusable output: a wrong suffix, a missing folder,
     an existing file without ``overwrite``, ``--revolve`` without ``--export`` or below 3 sectors, a
     missing optional package. ``paths`` maps the option (``"--shapes"``, ...) to its path or None."""
-    from snapjump_cli.results import check_writable
+    from snapjump_cli.files import check_writable
 
     for opt, p in paths.items():
         if p is None:
@@ -76,7 +76,7 @@ class Stage:
 
     def file(self, final: Path) -> Path:
         """A temporary file for ``final`` (same folder and suffix)."""
-        from snapjump_cli.results import current_umask
+        from snapjump_cli.files import current_umask
 
         fd, name = tempfile.mkstemp(prefix=f".{final.stem}.", suffix=f".tmp{final.suffix}", dir=final.parent)
         os.close(fd)
@@ -86,7 +86,7 @@ class Stage:
 
     def folder(self, final: Path) -> Path:
         """A temporary folder for ``final`` (replaced whole on commit)."""
-        from snapjump_cli.results import current_umask
+        from snapjump_cli.files import current_umask
 
         name = tempfile.mkdtemp(prefix=f".{final.name}.", dir=final.parent)
         os.chmod(name, 0o777 & ~current_umask())
@@ -134,7 +134,7 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
 
     Parameters
     ----------
-    res : the :class:`~snapjump_cli.solve.SceneResult`
+    res : the :class:`~snapjump_cli.fe.solve.SceneResult`
     scene : its scene (the title, and ``ΔV`` for a single cap's supplied volume)
     metrics : the reported metrics (JSON-ready), for the p-V plot
     paths : option -> path (``--csv``, ``--plot``, ``--shapes``, ``--animation``, ``--export``)
@@ -145,7 +145,7 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
     list of Path
         The files (and the ``.pvd``'s step folder) written.
     """
-    from snapjump_cli.geometry import CapScene
+    from snapjump_cli.geometry.caps import CapScene
 
     wanted = {k: v for k, v in paths.items() if v is not None}
     if not wanted:
@@ -166,18 +166,18 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
         steps = path_steps(res)
     mesh = res.model.mesh if res.model is not None else None
     jobs: list[tuple[str, Path, Callable[[Path], object]]] = []
-    air = getattr(res, "air", None)  # inflated with air (snapjump_cli.air_snap): its snap, and V_d per step
+    air = getattr(res, "air", None)  # inflated with air (snapjump_cli.fe.air_snap): its snap, and V_d per step
     if "--csv" in wanted:
         columns = steps.columns()
         if air is not None:
             columns["V_disp_m3"] = list(air.dispensed(steps.V_m3, steps.p_Pa, res.model))
         jobs.append(("--csv", wanted["--csv"], lambda t: _write_csv(columns, t)))
     if "--plot" in wanted:
-        from snapjump_cli.plots import plot_air_curves, plot_pv_curve
+        from snapjump_cli.viz.figures import plot_air_curves, plot_pv_curve
 
         branch = None
         if getattr(res, "follow", None) is not None:  # the followed branch beside the axisymmetric path
-            from snapjump_cli.follow import branch_curve
+            from snapjump_cli.fe.follow import branch_curve
 
             branch = branch_curve(res.follow)
         if air is None:
@@ -186,12 +186,10 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
         else:
             jobs.append(("--plot", wanted["--plot"], lambda t: plot_air_curves(res.curve, metrics, t, title=title)))
     if "--shapes" in wanted:
-        from snapjump_cli.viz.shapes import key_shape_states, plot_shapes
+        from snapjump_cli.viz.shapes import followed_shape_states, key_shape_states, plot_shapes
 
         shape_states = key_shape_states(steps, mesh.nodes)
         if getattr(res, "follow", None) is not None:  # the followed snap's states, both meridian sections
-            from snapjump_cli.follow import followed_shape_states
-
             shape_states += followed_shape_states(res.follow)
         jobs.append(("--shapes", wanted["--shapes"], lambda t: plot_shapes(
             mesh, shape_states, t, title=title, volume_symbol=vsym)))

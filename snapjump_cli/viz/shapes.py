@@ -17,7 +17,8 @@ import numpy as np
 
 from snapjump_cli.viz.fields import element_points, principal_stretch
 
-__all__ = ["ShapeState", "SectionDrawing", "plot_shapes", "key_shape_states", "state_caption", "STRETCH_LABEL"]
+__all__ = ["ShapeState", "SectionDrawing", "plot_shapes", "key_shape_states", "followed_shape_states", "state_caption",
+           "STRETCH_LABEL"]
 
 log = logging.getLogger(__name__)
 
@@ -78,7 +79,7 @@ class SectionDrawing:
 
     Parameters
     ----------
-    mesh : the reference mesh (:class:`snapjump_cli.meshdata.Mesh`, metres)
+    mesh : the reference mesh (:class:`snapjump_cli.mesh.data.Mesh`, metres)
     subdivision : sub-cells per element side (default: 3 for Q9, 2 for Q4)
     """
 
@@ -182,7 +183,7 @@ class SectionDrawing:
     def name_parts(self, ax: Any, r: float, ylo: float, yhi: float) -> None:
         """Name the parts of the undeformed section on its left half (a design: inner cap, ring,
         outer cap): the outer cap from above, the others from below the ground line."""
-        from snapjump_cli.meshdata import REGION_NAMES
+        from snapjump_cli.mesh.data import REGION_NAMES
 
         if ylo > -0.15 * r or len(set(self.mesh.region.tolist())) < 2:
             return
@@ -218,7 +219,7 @@ def plot_shapes(mesh, states: Sequence[ShapeState], path: str | Path, *, title: 
 
     Parameters
     ----------
-    mesh : the reference mesh the states displace (:class:`snapjump_cli.meshdata.Mesh`)
+    mesh : the reference mesh the states displace (:class:`snapjump_cli.mesh.data.Mesh`)
     states : the states (:class:`ShapeState`); each is drawn mirrored about the axis, or, with
         ``x_pi``, as its two meridian sections (left ``phi = pi``, right ``phi = 0``)
     path : the PNG file, written atomically
@@ -234,7 +235,7 @@ def plot_shapes(mesh, states: Sequence[ShapeState], path: str | Path, *, title: 
     from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.colors import Normalize
 
-    from snapjump_cli.results import replace_atomic
+    from snapjump_cli.files import replace_atomic
 
     plt = _pyplot()
     draw = SectionDrawing(mesh)
@@ -326,4 +327,22 @@ def key_shape_states(steps, X: np.ndarray) -> list[ShapeState]:
         else:
             out.append(ShapeState("last traced state (no snap)", float(steps.p_Pa[k]), float(steps.V_m3[k]),
                                   X + steps.U[k]))
+    return out
+
+
+def followed_shape_states(fr) -> list[ShapeState]:
+    """The followed snap's upper and lower states (``fr``: :class:`snapjump_cli.fe.follow.FollowResult`)
+    (SI), each with its two meridian sections ``phi = 0`` (right half) and ``phi = pi`` (left half).
+    The colour is computed from each section as if it were an axisymmetric map: away from the axis
+    it is close to the 3D stretch in the section's plane, but near the axis the ``n = 1`` part
+    (which moves the axis sideways) makes its hoop stretch meaningless."""
+    mh, st, sc = fr.model, fr.states, fr.tracer.sc
+    if st.upper is None or st.lower is None:
+        return []
+    L, S = mh.L, mh.S
+    out = []
+    for name, pt in (("followed upper state", st.upper), ("followed lower state", st.lower)):
+        out.append(ShapeState(f"{name} (n = {fr.bif.n})", float(pt.p * S), float(pt.zeta[0] * sc[0] * L**3),
+                              mh.section(pt.u, 0.0) * L, mh.section(pt.u, np.pi) * L,
+                              note="colour: each section read as an axisymmetric map"))
     return out

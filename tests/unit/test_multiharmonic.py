@@ -1,4 +1,4 @@
-"""The nonlinear multi-harmonic model (snapjump_cli.multiharmonic, kernels/multiharmonic.py).
+"""The nonlinear multi-harmonic model (snapjump_cli.fe.multiharmonic, kernels/multiharmonic.py).
 
 Checks, each able to fail on a wrong term:
 
@@ -16,11 +16,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.harmonics import harmonic_operator
-from snapjump_cli.model import Model
-from snapjump_cli.multiharmonic import MultiHarmonicModel, component_index
-from snapjump_cli.verification import sphere_mesh
-from test_harmonics_fd import Energy3D
+from snapjump_cli.fe.harmonics import harmonic_operator
+from snapjump_cli.fe.model import Model
+from snapjump_cli.fe.multiharmonic import MultiHarmonicModel, component_index
+from tests.sphere import sphere_mesh
+from tests.unit.test_harmonics_fd import Energy3D
 
 
 def _model(order: int, bulk: float = 50.0) -> Model:

@@ -1,4 +1,4 @@
-"""Following the branch that bifurcates from the axisymmetric path (snapjump_cli.follow).
+"""Following the branch that bifurcates from the axisymmetric path (snapjump_cli.fe.follow).
 
 * the bifurcation is located where the harmonic check's inertia changes, with a zero eigenvalue;
 * leaving along the mode: the branch's first states are equilibria of the multi-harmonic model,
@@ -15,12 +15,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.follow import default_harmonics, follow_branch, locate_bifurcation
-from snapjump_cli.geometry import CapScene
-from snapjump_cli.harmonics import check_harmonics, harmonic_operator
-from snapjump_cli.multiharmonic import MultiHarmonicModel
+from snapjump_cli.fe.follow import default_harmonics, follow_branch, locate_bifurcation
+from snapjump_cli.geometry.caps import CapScene
+from snapjump_cli.fe.harmonics import check_harmonics, harmonic_operator
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.solve import solve_checked, solve_scene
+from snapjump_cli.fe.solve import solve_checked, solve_scene
 
 
 @pytest.fixture(scope="module")
@@ -105,7 +104,7 @@ def test_a_design_that_stays_axisymmetric_keeps_its_answer():
 
 
 def test_design_B_snaps_at_its_subcritical_bifurcation():
-    from snapjump_cli.designs import get_design
+    from snapjump_cli.geometry.designs import get_design
 
     res = solve_checked(get_design("B"), MeshSettings(), SolverSettings(harmonics=4, follow=True))
     m = res.metrics
