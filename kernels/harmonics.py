@@ -209,11 +209,10 @@ def harmonic_element_matrices(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, 
                 for b in range(a + 1):
                     jb = 3 * b
                     for c in range(3):
-                        F = DBf[b, :, c]
-                        Hh = DBh[b, :, c]
-                        K[ia, jb + c] += bx * F[0] + by * F[1] + bn * F[4] - nbn * Hh[0]
-                        K[ia + 1, jb + c] += bx * F[2] + by * F[3] - nbn * Hh[3]
-                        K[ia + 2, jb + c] += nbn * F[4] - bn * Hh[0] + bx * Hh[1] + by * Hh[2]
+                        K[ia, jb + c] += bx * DBf[b, 0, c] + by * DBf[b, 1, c] + bn * DBf[b, 4, c] - nbn * DBh[b, 0, c]
+                        K[ia + 1, jb + c] += bx * DBf[b, 2, c] + by * DBf[b, 3, c] - nbn * DBh[b, 3, c]
+                        K[ia + 2, jb + c] += (nbn * DBf[b, 4, c] - bn * DBh[b, 0, c] + bx * DBh[b, 1, c]
+                                              + by * DBh[b, 2, c])
             # dilatation constraint: G_k = sum_q W Np_qk dJ/df B_f
             dJ = dJq[q]
             for a in range(nen):
