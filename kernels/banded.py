@@ -25,11 +25,6 @@ from numba import njit
 from snapjump_kernels.band_layout import envelope_extents  # noqa: F401 - numba-free, re-exported
 
 
-def full_extents(n: int, kl: int) -> np.ndarray:
-    """The extents of a full band (no envelope information)."""
-    return np.minimum(kl, n - 1 - np.arange(n, dtype=np.int64))
-
-
 #: Columns per block of :func:`band_ldlt` (its trailing update is a rank-``_NB`` update; the update
 #: is written out term by term for 6 columns, any other value takes a generic, slower loop).
 _NB = 6

@@ -31,7 +31,7 @@ class Problem(Protocol):
         With ``stiffness=False`` only ``.R`` is needed (no ``factor``).
 
         Optional auxiliary field: a problem that accepts ``linearize(u, p, aux=a)`` builds the
-        tangent with ``a`` and gives ``.aux`` (the field at ``u``) and ``.aux_step(x)`` (its
+        tangent with ``a`` and gives ``.aux`` (the field at ``u``) and ``.aux_dir(x)`` (its
         linearised change for a correction ``x``) on the result."""
         ...
 
