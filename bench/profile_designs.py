@@ -1,5 +1,5 @@
 """Per-design cost of a sweep solve: steps, Newton iterations, assemblies, factorisations, time
-per iteration and the element pass against its flop count (issue 10's before/after table).
+per iteration and the element pass against its flop count.
 
     .venv/bin/python -m bench.profile_designs [--repeat 3] [--designs D C grid-0037 grid-1543]
 
