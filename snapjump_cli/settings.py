@@ -89,6 +89,11 @@ class SolverSettings:
         ``n = 1..harmonics`` (:mod:`snapjump_cli.fe.harmonics`; 0 = off, the default)
     u_scale : scale of the RMS displacement in the arc length, in units of the pole-displacement
         scale (0 = arc length in (V, p, pole) only)
+    follow : when the harmonic check finds a harmonic unstable before V*, trace the branch that
+        bifurcates there (:mod:`snapjump_cli.fe.follow`) and report its snap as the design's answer
+        (needs ``harmonics >= 1``; the axisymmetric answer is kept in the ``axisym_*`` keys)
+    follow_N : highest harmonic of the followed branch's Fourier series (0 = the default,
+        ``4 n_c`` for the critical harmonic ``n_c``)
     """
 
     tol: float = 1e-8
@@ -102,6 +107,8 @@ class SolverSettings:
     u_scale: float = 1.0
     tol_path: float = 1e-6
     harmonics: int = 0
+    follow: bool = False
+    follow_N: int = 0
 
     def __post_init__(self) -> None:
         _check(self, {
@@ -116,6 +123,9 @@ class SolverSettings:
             "bulk_ratio": (lambda v: _is_num(v) and v > 0, "a number > 0"),
             "u_scale": (lambda v: _is_num(v) and v >= 0, "a number >= 0"),
             "harmonics": (lambda v: _is_int(v) and 0 <= v <= 64, "an integer in [0, 64]"),
+            "follow": (lambda v: isinstance(v, bool) and (not v or self.harmonics >= 1),
+                       "true or false (true needs harmonics >= 1)"),
+            "follow_N": (lambda v: _is_int(v) and 0 <= v <= 16, "an integer in [0, 16]"),
         })
 
     def as_dict(self) -> dict:
