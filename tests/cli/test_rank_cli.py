@@ -224,3 +224,41 @@ def test_asymmetric_designs_are_flagged_or_excluded(tmp_path, capsys, results_fi
     assert cells.count("2") == 1 and set(cells) <= {"2", "-"}
     code, out, _ = _run(capsys, str(results_file), "-o", str(tmp_path / "c.parquet"))
     assert "asym_n" not in out  # no harmonic check in the file: no column
+
+
+def test_followed_rows_rank_by_the_followed_answer_and_show_the_axisymmetric_one(tmp_path, capsys, results_file):
+    df = res.read_results(results_file)
+    ok = df.index[df["status"] == "ok"]
+    fol = df.copy()
+    j = df.loc[ok, "dE_J"].astype(float).idxmax()  # the strongest snap: it jumps, and less with half dE
+    fol["asym_first"] = pd.array([False] * len(df), dtype="boolean")
+    fol["asym_n"] = pd.array([None] * len(df), dtype="Int64")
+    fol["followed"] = pd.array([False] * len(df), dtype="boolean")
+    for k in ("dE_J", "dy_pole_m", "h_imp_m"):
+        fol["axisym_" + k] = df[k]
+    # row j went asymmetric first: its followed snap releases half the energy of the axisymmetric one
+    fol.loc[j, "asym_first"], fol.loc[j, "asym_n"], fol.loc[j, "followed"] = True, 1, True
+    fol.loc[j, "dE_J"] = 0.5 * df.loc[j, "dE_J"]
+    f = tmp_path / "followed.parquet"
+    fol.to_parquet(f)
+    for extra in ((), ("--exclude-asymmetric",)):  # a followed row is never excluded: its snap happens
+        out_file = tmp_path / f"r{len(extra)}.parquet"
+        code, out, _ = _run(capsys, str(f), "-o", str(out_file), *extra)
+        assert code == 0 and "axisym_y_mm" in out.splitlines()[1] and "followed" in out.splitlines()[1]
+        ranked = res.read_results(out_file)
+        row = ranked[ranked["followed"].fillna(False).astype(bool)].iloc[0]
+        assert row["rank"] is not pd.NA and row["y_jump_m"] > 0
+        # the followed answer ranks; the axisymmetric answer's jump is shown beside it
+        assert row["y_jump_axisym_m"] > row["y_jump_m"]
+        others = ranked[~ranked["followed"].fillna(False).astype(bool) & (ranked["status"] == "ok")]
+        assert (others["y_jump_axisym_m"] == others["y_jump_m"]).all()
+
+
+def test_follow_needs_the_harmonic_check():
+    from snapjump_cli.commands.curve import main as curve_main
+    from snapjump_cli.settings import SettingsError, SolverSettings
+
+    with pytest.raises(SettingsError, match="follow"):
+        SolverSettings(follow=True)
+    assert SolverSettings(harmonics=4, follow=True).follow
+    assert curve_main(["--design", "B", "--follow"]) == 2
