@@ -94,6 +94,9 @@ class SolverSettings:
         (needs ``harmonics >= 1``; the axisymmetric answer is kept in the ``axisym_*`` keys)
     follow_N : highest harmonic of the followed branch's Fourier series (0 = the default,
         ``4 n_c`` for the critical harmonic ``n_c``)
+    margins : report the smallest eigenvalue of every harmonic's tangent ``n = 0..harmonics`` along
+        the loading path (:mod:`snapjump_cli.fe.margins`; needs ``harmonics >= 1``; about one
+        shift-invert eigenvalue solve per harmonic and path state: several times the solve)
     """
 
     tol: float = 1e-8
@@ -109,6 +112,7 @@ class SolverSettings:
     harmonics: int = 0
     follow: bool = False
     follow_N: int = 0
+    margins: bool = False
 
     def __post_init__(self) -> None:
         _check(self, {
@@ -126,6 +130,8 @@ class SolverSettings:
             "follow": (lambda v: isinstance(v, bool) and (not v or self.harmonics >= 1),
                        "true or false (true needs harmonics >= 1)"),
             "follow_N": (lambda v: _is_int(v) and 0 <= v <= 16, "an integer in [0, 16]"),
+            "margins": (lambda v: isinstance(v, bool) and (not v or self.harmonics >= 1),
+                        "true or false (true needs harmonics >= 1)"),
         })
 
     def as_dict(self) -> dict:

@@ -212,6 +212,9 @@ def _text(scene, m: dict) -> str:
               help="With --harmonics: when a harmonic loses stability before V*, trace the branch that "
                    "bifurcates there (nonlinear Fourier series of that harmonic and its multiples) to its own "
                    "snap, and report that snap as the answer (the axisymmetric one as axisym_*).")
+@click.option("--margins", is_flag=True,
+              help="With --harmonics: the smallest eigenvalue of every harmonic's tangent n = 0..N (in mu_i/R_i^2) "
+                   "along the path: asym_margin, asym_margin_n, asym_margin_V_m3, and margin_n0.. columns in --csv.")
 @click.option("--follow-N", "follow_N", type=click.IntRange(0, 16), default=0, show_default=True, metavar="N",
               help="Highest harmonic of the followed branch (0: 4 n_c for the critical harmonic n_c).")
 @click.option("--air-ml", "air_ml", type=FiniteFloat(), default=None, metavar="V0",
@@ -225,7 +228,8 @@ def _text(scene, m: dict) -> str:
 @verbosity_options
 def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, overwrite: bool, harmonics: int,
             shapes_path: Path | None, animation_path: Path | None, export_path: Path | None, revolve: int,
-            air_ml: float | None, gamma: float | None, p0: float | None, follow: bool, follow_N: int, **kw) -> None:
+            air_ml: float | None, gamma: float | None, p0: float | None, follow: bool, follow_N: int, margins: bool,
+            **kw) -> None:
     """Trace one scene's pressure-volume path through its limit points and report the snap.
 
     \b
@@ -243,6 +247,8 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
 
     if follow and harmonics < 1:
         raise BadInput("--follow needs --harmonics N with N >= 1 (the check that finds the bifurcation)")
+    if margins and harmonics < 1:
+        raise BadInput("--margins needs --harmonics N with N >= 1 (the harmonics whose margins are reported)")
     scene = scene_from_options(**pick_scene_options(kw))
     ms = mesh_settings_from_options(**pick_mesh_options(kw))
     fluid = _fluid(air_ml, gamma, p0, harmonics)
@@ -253,7 +259,7 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
     check_outputs(outputs, revolve, overwrite)
     try:
         res = solve_checked(scene, ms, SolverSettings(full=full, harmonics=harmonics, follow=follow,
-                                                      follow_N=follow_N), fluid=fluid)
+                                                      follow_N=follow_N, margins=margins), fluid=fluid)
     except SolveFailed as exc:
         raise click.ClickException(f"solve failed: {exc}") from None
     m = to_jsonable(res.metrics)

@@ -50,6 +50,7 @@ class SceneResult:
     curve_args: tuple | None = field(default=None, repr=False)  # (scales, V0) for :func:`scene_curve`
     stop_args: dict | None = field(default=None, repr=False)  # the snap tracker's bounds (p_stop, V_stop, ...)
     follow: object | None = field(default=None, repr=False)  # the followed branch (snapjump_cli.fe.follow)
+    margins: np.ndarray | None = field(default=None, repr=False)  # (states, 1 + harmonics): V and margins
     air: object | None = field(default=None, repr=False)  # the air snap (:class:`snapjump_cli.fe.air_snap.AirSnap`)
     _curve: dict | None = field(default=None, init=False, repr=False)
 
@@ -265,6 +266,7 @@ def solve_checked(
     m = res.metrics
     m.update({k: None for k in ASYM_KEYS})
     m.update({k: None for k in FOLLOW_ROW_KEYS})
+    m.update(asym_margin=None, asym_margin_n=None, asym_margin_V_m3=None)
     if solver.harmonics > 0 and res.model is not None and res.path is not None:
         from snapjump_cli.fe.harmonics import check_harmonics
 
@@ -273,6 +275,11 @@ def solve_checked(
         m.update({k: h.get(k) for k in ASYM_KEYS})
         m["asym_wall_s"] = time.perf_counter() - t0
         m["wall_s"] = (m.get("wall_s") or 0.0) + m["asym_wall_s"]
+        if solver.margins:
+            from snapjump_cli.fe.margins import path_margins
+
+            summary, res.margins = path_margins(res, solver.harmonics)
+            m.update(summary)
         if solver.follow:
             from snapjump_cli.fe.follow import apply_followed
 

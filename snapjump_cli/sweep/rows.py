@@ -71,17 +71,19 @@ RESULT_KEYS: tuple[str, ...] = (
     "asym_first", "asym_n", "asym_V_m3", "asym_p_Pa", "asym_lower_stable",
     "followed", "follow_n", "follow_N", "follow_kind", "follow_V_bif_m3", "follow_note",
     "axisym_dE_J", "axisym_dy_pole_m", "axisym_h_imp_m", "axisym_V_star_m3", "axisym_p_star_Pa",
+    "asym_margin", "asym_margin_n", "asym_margin_V_m3",
 )
 BOOL_RESULT_KEYS: frozenset[str] = frozenset({"snaps", "self_crossing", "mesh_sensitive", "asym_first",
                                               "asym_lower_stable", "followed"})
 STR_RESULT_KEYS: frozenset[str] = frozenset({"lower_state_method", "mesh_check", "follow_kind", "follow_note"})
 INT_RESULT_KEYS: frozenset[str] = frozenset({"n_steps", "n_newton", "n_nodes", "n_elements", "n_dofs", "asym_n",
-                                             "follow_n", "follow_N"})
+                                             "follow_n", "follow_N", "asym_margin_n"})
 #: Float metrics that may be null in an ok row (set only after a mesh-sensitivity re-solve, or only
 #: by the harmonic check, ``solver.harmonics > 0``, and then only when a harmonic lost stability).
 OPTIONAL_FLOAT_KEYS: frozenset[str] = frozenset({"dE_J_coarse", "dy_pole_m_coarse", "asym_V_m3", "asym_p_Pa",
                                                  "follow_V_bif_m3", "axisym_dE_J", "axisym_dy_pole_m",
-                                                 "axisym_h_imp_m", "axisym_V_star_m3", "axisym_p_star_Pa"})
+                                                 "axisym_h_imp_m", "axisym_V_star_m3", "axisym_p_star_Pa",
+                                                 "asym_margin", "asym_margin_V_m3"})
 #: The keys of the harmonic check (all null when it is off).
 ASYM_KEYS: tuple[str, ...] = ("asym_first", "asym_n", "asym_V_m3", "asym_p_Pa", "asym_lower_stable")
 #: The keys of the followed branch (``solver.follow``; all null when it is off): ``followed`` says

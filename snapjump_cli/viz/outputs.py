@@ -15,6 +15,8 @@ import tempfile
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
+
 from snapjump_cli.errors import BadInput
 
 __all__ = ["OUTPUT_SUFFIXES", "check_outputs", "write_outputs", "Stage"]
@@ -171,6 +173,13 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
         columns = steps.columns()
         if air is not None:
             columns["V_disp_m3"] = list(air.dispensed(steps.V_m3, steps.p_Pa, res.model))
+        if getattr(res, "margins", None) is not None:  # every step's margins (snapjump_cli.fe.margins)
+            from snapjump_cli.fe.margins import state_margins
+
+            n_max = res.margins.shape[1] - 2
+            table = np.array([state_margins(res.model, u, p, n_max) for u, p in zip(steps.u, steps.p_scaled)])
+            for n in range(n_max + 1):
+                columns[f"margin_n{n}"] = list(table[:, n])
         jobs.append(("--csv", wanted["--csv"], lambda t: _write_csv(columns, t)))
     if "--plot" in wanted:
         from snapjump_cli.viz.figures import plot_air_curves, plot_pv_curve

@@ -51,6 +51,7 @@ def fast_solve(design, mesh, solver) -> dict:
     out.update(mesh_sensitive=False, mesh_check="", dE_J_coarse=None, dy_pole_m_coarse=None, asym_first=None,
                asym_n=None, asym_V_m3=None, asym_p_Pa=None, asym_lower_stable=None)
     out.update({k: None for k in FOLLOW_ROW_KEYS})
+    out.update(asym_margin=None, asym_margin_n=None, asym_margin_V_m3=None)
     out.update({k: None for k in AIR_KEYS}, fluid="water")
     out.update(
         dE_J=dE, dE_norm=dE / (design.mu_i * design.R_i ** 3), dE_energy_J=dE, dE_path_J=dE * (1 + 1e-6),

@@ -1,0 +1,96 @@
+"""How far each harmonic is from losing stability along a path: the margins (docs/harmonics.md, section 11).
+
+The harmonic check (:mod:`snapjump_cli.fe.harmonics`) gives a sign per harmonic and state. The
+margin is the number behind it: the smallest eigenvalue of the pencil ``(K_n, M_n)`` (rigid modes
+gauged out), ``n = 0..n_max``, in units of ``mu_i / R_i^2``: an energy per mean-square
+displacement of the 3D perturbation, independent of the mesh and of the bulk penalty, so another
+code can compute the same number (the generalised eigenvalue against the displacement mass
+matrix). For ``n = 0`` it is that of the axisymmetric tangent itself (no volume constraint: it turns
+negative past the pressure maximum, where volume control still holds the path).
+
+Each margin is found by shift-invert Lanczos and certified by the band ``LDL^T`` inertia of
+``K_n - (lambda - delta) M_n``: no eigenvalue lies below it (else the shift is moved below and the
+search repeated).
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from snapjump_cli.fe.harmonics import HarmonicOperator, harmonic_operator
+
+log = logging.getLogger(__name__)
+
+__all__ = ["smallest_eigenvalue", "state_margins", "path_margins", "MARGIN_KEYS"]
+
+#: The row keys of :func:`path_margins` (null unless ``solver: {margins: true}``).
+MARGIN_KEYS: tuple[str, ...] = ("asym_margin", "asym_margin_n", "asym_margin_V_m3")
+
+
+def _eig_near(op: HarmonicOperator, u: np.ndarray, p: float, sigma: float):
+    import scipy.sparse.linalg as spla
+
+    K = op.matrix(u, p)
+    if K is None:
+        return None
+    keep = np.setdiff1d(np.arange(op.ndof), op.gauge_dofs(u))
+    K = K[keep][:, keep].tocsc()
+    M = op.mass()[keep][:, keep].tocsc()
+    vals = spla.eigsh(K, k=2, M=M, sigma=sigma, which="LM", return_eigenvectors=False)
+    return float(np.min(vals))
+
+
+def smallest_eigenvalue(op: HarmonicOperator, u: np.ndarray, p: float, shift: float = 2.0,
+                        rel: float = 1e-6) -> float | None:
+    """The smallest eigenvalue of ``(K_n, M_n)`` at ``(u, p)`` (scaled units: ``mu_i / R_i^2``),
+    certified by the inertia; ``None`` outside the Gent domain."""
+    mu = float(np.min(op.model.mu))
+    sigma = -shift * mu
+    for _ in range(6):
+        lam = _eig_near(op, u, p, sigma)
+        if lam is None:
+            return None
+        delta = rel * max(abs(lam), mu)
+        below = op.inertia(u, p, tol=(delta - lam) / mu)  # eigenvalues below lam - delta
+        if below == 0:
+            return lam
+        sigma = lam - 10.0 * max(abs(lam), mu)  # a lower one exists: search below
+    log.warning("harmonic %d: smallest eigenvalue not certified", op.n)
+    return lam
+
+
+def state_margins(model, u: np.ndarray, p: float, n_max: int, free_body: bool | None = None) -> np.ndarray:
+    """The margins of harmonics ``0..n_max`` at one state, ``(n_max + 1,)`` (NaN outside the domain)."""
+    out = np.full(n_max + 1, np.nan)
+    for n in range(n_max + 1):
+        lam = smallest_eigenvalue(harmonic_operator(model, n, free_body), u, p)
+        if lam is not None:
+            out[n] = lam
+    return out
+
+
+def path_margins(result, n_max: int) -> tuple[dict, np.ndarray]:
+    """The margins along a solved scene's loading path (every path point up to the volume limit,
+    and the upper state) and the smallest one of a non-axisymmetric harmonic met there.
+
+    Returns
+    -------
+    (summary, table)
+        ``summary``: ``asym_margin`` (the smallest margin of ``n = 1..n_max`` before ``V*``, in
+        ``mu_i / R_i^2``), ``asym_margin_n`` (its harmonic), ``asym_margin_V_m3`` (where);
+        ``table``: ``(n_states, n_max + 2)``, the volume [m^3] and the margins of ``n = 0..n_max``.
+    """
+    model, pts, st = result.model, result.path.points, result.states
+    states = list(pts[: st.k_before + 1]) + [st.upper] if st.upper is not None else list(pts)
+    sV = result.tracer.sc[0]
+    rows = []
+    for pt in states:
+        rows.append(np.concatenate([[pt.zeta[0] * sV * model.L**3], state_margins(model, pt.u, pt.p, n_max)]))
+    table = np.array(rows)
+    summary = {k: None for k in MARGIN_KEYS}
+    asym = table[:, 2:]
+    if asym.size and np.isfinite(asym).any():
+        i, j = np.unravel_index(np.nanargmin(asym), asym.shape)
+        summary.update(asym_margin=float(asym[i, j]), asym_margin_n=int(j + 1), asym_margin_V_m3=float(table[i, 0]))
+    return summary, table

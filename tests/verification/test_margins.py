@@ -1,0 +1,55 @@
+"""The margins: the smallest eigenvalue of each harmonic's tangent along the path (fe/margins.py)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg as sl
+
+from snapjump_cli.fe.harmonics import check_harmonics, harmonic_operator
+from snapjump_cli.fe.margins import path_margins, smallest_eigenvalue
+from snapjump_cli.fe.solve import solve_checked, solve_scene
+from snapjump_cli.geometry.caps import CapScene
+from snapjump_cli.settings import MeshSettings, SolverSettings
+
+
+@pytest.fixture(scope="module")
+def cap():
+    res = solve_scene(CapScene(theta_deg=30.0, eta=50.0, bc="clamped"), MeshSettings(nt=1, aspect=2.0),
+                      SolverSettings())
+    return res
+
+
+@pytest.mark.parametrize("n", [0, 1, 2])
+def test_the_margin_is_the_smallest_generalised_eigenvalue(cap, n):
+    op = harmonic_operator(cap.model, n)
+    pt = cap.path.points[cap.states.k_before]  # near the volume limit: some harmonics unstable
+    keep = np.setdiff1d(np.arange(op.ndof), op.gauge_dofs(pt.u))
+    K = op.matrix(pt.u, pt.p).toarray()[np.ix_(keep, keep)]
+    M = op.mass().toarray()[np.ix_(keep, keep)]
+    dense = sl.eigh(K, M, eigvals_only=True)[0]
+    # K carries the bulk penalty (kappa = 1e4 mu): its condition number ~1e9 limits the dense
+    # solver's smallest eigenvalue to ~1e-7 relative
+    assert smallest_eigenvalue(op, pt.u, pt.p) == pytest.approx(dense, rel=1e-6, abs=1e-10)
+
+
+def test_the_margins_agree_with_the_check(cap):
+    chk = check_harmonics(cap, 3, refine=0, scan_all=True)
+    summary, table = path_margins(cap, 3)
+    pts = list(cap.path.points[: cap.states.k_before + 1]) + [cap.states.upper]
+    assert table.shape == (len(pts), 5)
+    mu = float(np.min(cap.model.mu))
+    for pt, row in zip(pts, table):
+        for n in (1, 2, 3):
+            unstable = harmonic_operator(cap.model, n).inertia(pt.u, pt.p) > 0
+            assert unstable == (row[1 + n] < -1e-6 * mu)
+    assert chk["asym_first"] and summary["asym_margin"] < 0
+    assert table[0, 1] > 0  # the stress-free state is stable in every harmonic, n = 0 included
+    assert summary["asym_margin_V_m3"] == table[np.argmin(table[:, 2:].min(axis=1)), 0]
+
+
+def test_solve_reports_them_when_asked():
+    scene = CapScene(theta_deg=30.0, eta=25.0, bc="clamped")
+    m = solve_checked(scene, MeshSettings(nt=1, aspect=2.0), SolverSettings(harmonics=2, margins=True)).metrics
+    assert m["asym_first"] is False and m["asym_margin"] > 0 and m["asym_margin_n"] in (1, 2)
+    m = solve_checked(scene, MeshSettings(nt=1, aspect=2.0), SolverSettings(harmonics=2)).metrics
+    assert m["asym_margin"] is None
