@@ -19,20 +19,7 @@ import pytest
 from snapjump_cli.fe.harmonics import harmonic_operator
 from snapjump_cli.fe.model import Model
 from snapjump_cli.fe.multiharmonic import MultiHarmonicModel, component_index
-from tests.sphere import sphere_mesh
-from tests.unit.test_harmonics_fd import Energy3D
-
-
-def _model(order: int, bulk: float = 50.0) -> Model:
-    m = sphere_mesh(1.0, 1.4, 2, 3, order)
-    mat = (np.arange(m.n_elements) % 2).astype(np.int8)  # two materials
-    m = type(m)(**{**m.__dict__, "material": mat})
-    return Model(m, np.array([1.0, 1.0 / 5.8]), np.array([24.0, 18.0]), bulk, 1.0, 1.0)
-
-
-def _state(M: Model, seed: int) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    return 0.15 * M.free_vector(M.X) + 0.01 * rng.standard_normal(M.n)  # inflated, distorted, not in equilibrium
+from tests.unit.test_harmonics_fd import Energy3D, _model, _state
 
 
 def _smooth_modes(M: Model, hn, scale: float, shift: float = 0.0) -> dict:
