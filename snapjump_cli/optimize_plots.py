@@ -3,8 +3,6 @@ design's path through the box; PNG files written atomically."""
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -27,17 +25,9 @@ def _pyplot() -> Any:
 
 
 def _save_atomic(fig: Any, path: Path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=150)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    from snapjump_cli.files import write_atomic
+
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=150, format="png"))
 
 
 _STAGE_COLOURS = {"start": "#1f77b4", "init": "#17becf", "poll": "#7f7f7f", "pattern": "#ff7f0e", "cross": "#bcbd22",

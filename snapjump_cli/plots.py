@@ -39,11 +39,11 @@ def _pyplot() -> Any:
 
 
 def _save(fig: Any, path: str | Path, dpi: int) -> Path:
-    """Write a figure atomically (a temporary file in the same folder, then a rename)."""
-    from snapjump_cli.results import replace_atomic
+    """Write a figure atomically (:func:`snapjump_cli.files.write_atomic`)."""
+    from snapjump_cli.files import write_atomic
 
     fmt = Path(path).suffix.lstrip(".").lower() or "png"
-    return replace_atomic(lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt), path)
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt))
 
 
 def _ok(df: pd.DataFrame) -> pd.DataFrame:

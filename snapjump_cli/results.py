@@ -11,16 +11,15 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import platform
 import subprocess
 import sys
-import tempfile
 from datetime import datetime, timezone
 from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping
 
+from snapjump_cli.files import write_atomic
 from snapjump_cli.rows import (  # the row contract, re-exported for readers of result files
     BOOL_RESULT_KEYS,
     FLOAT_RESULT_KEYS,
@@ -51,9 +50,6 @@ __all__ = [
     "rows_to_table",
     "write_table_atomic",
     "write_frame_atomic",
-    "replace_atomic",
-    "current_umask",
-    "check_writable",
     "read_results",
     "pandas_types_mapper",
     "read_metadata",
@@ -100,73 +96,14 @@ def rows_to_table(rows: Iterable[Mapping[str, Any]], meta: Mapping[str, Any] | N
 
 
 def write_table_atomic(table: pa.Table, path: str | Path) -> Path:
-    """Write a parquet file atomically: a temporary file in the same folder, then ``os.replace``.
+    """Write a parquet file atomically (:func:`snapjump_cli.files.write_atomic`: a temporary file
+    in the target's folder, then a rename; links followed, devices and FIFOs refused).
 
     A reader (or a resumed sweep) therefore sees either the complete file or none.
     """
     import pyarrow.parquet as pq
 
-    def write(tmp: Path) -> None:
-        pq.write_table(table, tmp)
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return replace_atomic(write, path)
-
-
-def check_writable(path: str | Path, error: type[Exception] = OSError, what: str = "",
-                   overwrite: bool = True) -> Path:
-    """Make sure a file can be created at ``path``, without writing anything: its folder, or the
-    nearest existing folder above it (the writer creates the rest), is a writable folder, and
-    (``overwrite=False``) no file is there already. Raises ``error`` with one line naming the path
-    otherwise (an ancestor that is a regular file, a read-only folder, an existing file without
-    ``--overwrite``, ...)."""
-    path = Path(path)
-    if not overwrite and what != "folder" and path.is_file():
-        raise error(f"{path}: exists; pass --overwrite to replace it")
-    folder = path if what == "folder" else path.parent
-    anc = folder
-    while not anc.exists() and anc != anc.parent:
-        anc = anc.parent
-    if anc.exists() and not anc.is_dir():
-        raise error(f"{path}: cannot write here, {anc} is a file, not a folder")
-    try:  # a real probe: permission bits say nothing to root, nor about read-only file systems
-        fd, probe = tempfile.mkstemp(prefix=".snapjump-probe-", dir=anc)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as e:
-        raise error(f"{path}: the folder {anc} is not writable ({e.strerror})") from None
-    if what != "folder" and path.is_dir():
-        raise error(f"{path}: is a directory, expected a file path")
-    return path
-
-
-def current_umask() -> int:
-    """The process umask (read without changing it for longer than two system calls)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def replace_atomic(write: Callable[[Path], Any], path: str | Path) -> Path:
-    """Create ``path`` atomically: ``write(tmp)`` writes a temporary file in the same folder, which
-    then replaces ``path`` (mode from the umask). Nothing is left behind if ``write`` fails."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent)
-    os.close(fd)
-    try:
-        os.chmod(tmp, 0o666 & ~current_umask())
-        write(Path(tmp))
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path
+    return write_atomic(path, lambda tmp: pq.write_table(table, tmp))
 
 
 def write_frame_atomic(df: pd.DataFrame, path: str | Path, meta: Mapping[str, Any] | None = None) -> Path:

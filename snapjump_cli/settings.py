@@ -3,11 +3,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass, asdict, fields
 
-__all__ = ["MeshSettings", "SolverSettings", "SettingsError", "NT_MAX", "ASPECT_MAX"]
+__all__ = ["MeshSettings", "SolverSettings", "SettingsError", "NT_MAX", "ASPECT_MAX", "LIMIT_SETTINGS", "without_limits"]
 
 #: Bounds of the mesh density, the same for the YAML configs and the command-line options.
 NT_MAX = 64
 ASPECT_MAX = 100.0
+#: The solver settings that bound a design's resources (CPU time, mesh size) without changing its
+#: answer: left out of design keys, of a row's ``solver_settings`` and of the comparison of runs.
+LIMIT_SETTINGS: tuple[str, ...] = ("time_limit_s", "max_nodes")
+
+
+def without_limits(solver: object) -> object:
+    """A solver-settings mapping (e.g. read back from a file's metadata) without
+    :data:`LIMIT_SETTINGS`, for comparing runs; anything else is returned unchanged."""
+    if isinstance(solver, dict):
+        return {k: v for k, v in solver.items() if k not in LIMIT_SETTINGS}
+    return solver
 
 
 class SettingsError(ValueError):
@@ -89,6 +100,12 @@ class SolverSettings:
         ``n = 1..harmonics`` (:mod:`snapjump_cli.harmonics`; 0 = off, the default)
     u_scale : scale of the RMS displacement in the arc length, in units of the pole-displacement
         scale (0 = arc length in (V, p, pole) only)
+    time_limit_s : CPU seconds one design (or scene) may take, the mesh check's re-solve and the
+        harmonic check included; beyond it the solve stops with a failure saying so (the paper
+        grid's slowest design takes about 1.3 s)
+    max_nodes : largest mesh solved, in nodes; a larger one is refused before it is solved (and,
+        when the count is already clear from the element counts, before it is meshed), saying its
+        size (the paper grid's largest mesh has 333 nodes, 1707 at nt 4)
     """
 
     tol: float = 1e-8
@@ -102,6 +119,8 @@ class SolverSettings:
     u_scale: float = 1.0
     tol_path: float = 1e-6
     harmonics: int = 0
+    time_limit_s: float = 300.0
+    max_nodes: int = 20_000
 
     def __post_init__(self) -> None:
         _check(self, {
@@ -116,10 +135,16 @@ class SolverSettings:
             "bulk_ratio": (lambda v: _is_num(v) and v > 0, "a number > 0"),
             "u_scale": (lambda v: _is_num(v) and v >= 0, "a number >= 0"),
             "harmonics": (lambda v: _is_int(v) and 0 <= v <= 64, "an integer in [0, 64]"),
+            "time_limit_s": (lambda v: _is_num(v) and v > 0, "a number of seconds > 0"),
+            "max_nodes": (lambda v: _is_int(v) and 10 <= v <= 10_000_000, "an integer in [10, 10000000]"),
         })
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+    def numerics(self) -> dict:
+        """The settings that decide the answer: :meth:`as_dict` without :data:`LIMIT_SETTINGS`."""
+        return {k: v for k, v in asdict(self).items() if k not in LIMIT_SETTINGS}
 
     @classmethod
     def field_names(cls) -> tuple[str, ...]:

@@ -19,6 +19,7 @@ import numpy as np
 
 from snapjump_cli.continuation import ContinuationFailed, ContinuationSettings, Path, Tracer, trace
 from snapjump_cli.geometry import CapScene, Design
+from snapjump_cli.limits import TimeLimitExceeded, time_limit
 from snapjump_cli.lower_state import find_lower_state
 from snapjump_cli.meshdata import Mesh
 from snapjump_cli.metrics import scene_curve, snap_metrics
@@ -116,13 +117,19 @@ def solve_scene(
     Raises
     ------
     SolveFailed
-        when the continuation fails before the snap is characterised.
+        when the continuation fails before the snap is characterised, or the mesh has more than
+        ``solver.max_nodes`` nodes (then before it is solved).
     """
-    from snapjump_cli.mesh import mesh_scene  # lazily: gmsh
+    from snapjump_cli.mesh import MeshTooLarge, mesh_scene  # lazily: gmsh
 
     t0 = time.perf_counter()
-    if mesh is None:
-        mesh = mesh_scene(scene, mesh_settings)
+    try:
+        if mesh is None:
+            mesh = mesh_scene(scene, mesh_settings, max_nodes=solver.max_nodes)
+        elif mesh.n_nodes > solver.max_nodes:
+            raise MeshTooLarge(mesh.n_nodes, solver.max_nodes)
+    except MeshTooLarge as exc:
+        raise SolveFailed(f"not solved: {exc}") from None
     t_mesh = time.perf_counter() - t0
     sc = _scales(scene)
     scales = (sc["sV"], sc["sp"], sc["sw"])
@@ -223,7 +230,19 @@ def solve_checked(
     (``solver.harmonics > 0``) the Fourier-harmonic stability check of the reported solve
     (:func:`snapjump_cli.harmonics.check_harmonics`: ``asym_first``, ``asym_n``, ``asym_V_m3``,
     ``asym_p_Pa``, ``asym_lower_stable``; all None when it is off).
+
+    All of it runs within ``solver.time_limit_s`` CPU seconds (:mod:`snapjump_cli.limits`);
+    beyond them :class:`SolveFailed` says so.
     """
+    try:
+        with time_limit(solver.time_limit_s):
+            return _solve_and_check(scene, mesh, solver, check_mesh)
+    except TimeLimitExceeded as exc:
+        raise SolveFailed(f"stopped: {exc}") from None
+
+
+def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool
+                     ) -> SceneResult:
     res = _solve_mesh_checked(scene, mesh, solver, check_mesh)
     m = res.metrics
     m.update({k: None for k in ASYM_KEYS})

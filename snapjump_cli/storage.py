@@ -29,7 +29,7 @@ from snapjump_cli import results as res
 from snapjump_cli.config import DesignPoint
 from snapjump_cli.errors import SweepInputError
 from snapjump_cli.geometry import Design
-from snapjump_cli.settings import MeshSettings, SolverSettings
+from snapjump_cli.settings import MeshSettings, SolverSettings, without_limits
 
 __all__ = [
     "KEY_VERSION",
@@ -91,7 +91,7 @@ _NEUTRAL_SETTINGS = {"harmonics": 0}
 
 
 def _key_settings(solver: SolverSettings) -> dict[str, Any]:
-    return {k: v for k, v in solver.as_dict().items() if not (k in _NEUTRAL_SETTINGS and v == _NEUTRAL_SETTINGS[k])}
+    return {k: v for k, v in solver.numerics().items() if not (k in _NEUTRAL_SETTINGS and v == _NEUTRAL_SETTINGS[k])}
 
 
 def _typed(d: Mapping[str, Any]) -> dict[str, Any]:
@@ -245,8 +245,9 @@ def check_compatible(output: str | Path, keys: set[str], config: Mapping[str, An
             break
     diffs = []
     for k in ("mesh", "solver", "materials", "ring", "R_i"):
-        if k in old and old.get(k) != config.get(k):
-            diffs.append(f"{k} {old.get(k)} -> {config.get(k)}")
+        a, b = (without_limits(old.get(k)), without_limits(config.get(k))) if k == "solver" else (old.get(k), config.get(k))
+        if k in old and a != b:
+            diffs.append(f"{k} {a} -> {b}")
     grid_old = old.get("points", old.get("grid"))
     grid_new = config.get("points", config.get("grid"))
     if grid_old is not None and grid_old != grid_new:

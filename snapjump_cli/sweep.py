@@ -36,9 +36,10 @@ from pathlib import Path
 from typing import Any, Callable
 
 from snapjump_cli import results as res
-from snapjump_cli.config import DesignPoint, SweepConfig
+from snapjump_cli.config import MAX_DESIGNS, DesignPoint, SweepConfig
 from snapjump_cli.errors import SweepError, SweepInputError
 from snapjump_cli.execution import SolveFn, connect, default_solver, execute
+from snapjump_cli.files import check_writable, follow_links
 from snapjump_cli.geometry import Design, InvalidDesign, centre_offset, outer_radius
 from snapjump_cli.rows import settings_json
 from snapjump_cli.settings import MeshSettings
@@ -72,8 +73,6 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: Largest sweep run without being asked explicitly (``max_designs`` / ``--max-designs``).
-MAX_DESIGNS = 100_000
 #: CPU seconds per solved design on the paper grid's mesh (order 2, nt 2, aspect 3), the basis of
 #: the time estimate printed before a sweep: the mean over the full paper grid of 23 November 2026 (session 9)
 #: at commit daf4d67 on a 2-core Xeon with AVX-512 was 0.117 s, on the slower 2-core Xeon of the
@@ -261,10 +260,13 @@ def run_sweep(
             f"(~{_fmt_duration(estimate_seconds(config.n_designs, config.mesh, os.cpu_count() or 1))} on this "
             f"machine); check the grid, or raise the limit with --max-designs")
     chunk = int(chunk_size if chunk_size is not None else config.chunk_size)
-    parts = parts_dir(output)
     if output.exists() and output.is_dir():
         raise SweepInputError(f"{output}: is a directory, expected a parquet file path")
-    res.check_writable(output, SweepInputError)
+    check_writable(output, SweepInputError)
+    if follow_links(output) != output:  # a link: the shared file it points to is the output
+        log.info("%s is a link to %s: writing that file (its lock and parts beside it)", output, follow_links(output))
+        output = follow_links(output)
+    parts = parts_dir(output)
     output.parent.mkdir(parents=True, exist_ok=True)  # the lock and the parts live beside the output
 
     with OutputLock(output):
@@ -312,7 +314,7 @@ def _stamp(config: SweepConfig) -> dict[str, Any]:
     git = res.git_commit()
     return {"snapjump_version": __version__,
             "git_commit": (git["commit"] + ("+dirty" if git.get("dirty") else "")) if git else None,
-            "solver_settings": settings_json(config.solver.as_dict())}
+            "solver_settings": settings_json(config.solver.numerics())}
 
 
 def _solve_all(tasks: list[dict[str, Any]], solve_fn: SolveFn, warm_up_fn: Callable[[], Any] | None, n_jobs: int,

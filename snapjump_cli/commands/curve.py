@@ -27,6 +27,7 @@ import numpy as np
 
 from snapjump_cli.cli import verbosity_options
 from snapjump_cli.errors import BadInput
+from snapjump_cli.settings import SolverSettings
 from snapjump_cli.scenes import (
     mesh_options,
     mesh_settings_from_options,
@@ -39,6 +40,8 @@ from snapjump_cli.scenes import (
 __all__ = ["command", "main", "to_jsonable"]
 
 log = logging.getLogger(__name__)
+
+_SOLVER_DEFAULTS = SolverSettings()
 
 
 def to_jsonable(metrics: dict) -> dict:
@@ -57,19 +60,14 @@ def to_jsonable(metrics: dict) -> dict:
 
 
 def _write_csv(curve: dict, path: Path) -> None:
-    from snapjump_cli.results import replace_atomic
-
+    """The traced path as CSV into ``path`` (a temporary file of :class:`AtomicFiles`)."""
     cols = ["p_Pa", "V_m3", "y_pole_m", "energy_J", "s"]
     names = ["p_Pa", "V_m3", "y_pole_m", "strain_energy_J", "arc_length"]
-
-    def write(tmp: Path) -> None:
-        with open(tmp, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(names)
-            for row in zip(*(curve[c] for c in cols)):
-                w.writerow([f"{float(x):.12g}" for x in row])
-
-    replace_atomic(write, path)
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(names)
+        for row in zip(*(curve[c] for c in cols)):
+            w.writerow([f"{float(x):.12g}" for x in row])
 
 
 def _text(scene, m: dict) -> str:
@@ -126,13 +124,19 @@ def _text(scene, m: dict) -> str:
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Draw the p-V curve (paper Fig. 2A normalisation, dE shaded) to this PNG file.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing --csv / --plot file (refused by default).")
+@click.option("--time-limit", "time_limit_s", type=click.FloatRange(min=0, min_open=True, max=1e9),
+              default=_SOLVER_DEFAULTS.time_limit_s, show_default=True, metavar="SECONDS",
+              help="CPU seconds the solve may take (the mesh check's re-solve included); beyond them it stops "
+                   "with an error saying so.")
+@click.option("--max-nodes", type=click.IntRange(10, 10_000_000), default=_SOLVER_DEFAULTS.max_nodes,
+              show_default=True, metavar="N", help="Refuse to solve a mesh of more than N nodes.")
 @click.option("--harmonics", type=click.IntRange(0, 64), default=0, show_default=True, metavar="N",
               help="Check every path state up to the snap and the lower state against non-axisymmetric "
                    "modes cos(n phi), n = 1..N (Fourier-harmonic tangents; 0 = off). Reports asym_first, "
                    "asym_n, asym_V_m3, asym_p_Pa and asym_lower_stable.")
 @verbosity_options
 def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, overwrite: bool, harmonics: int,
-            **kw) -> None:
+            time_limit_s: float, max_nodes: int, **kw) -> None:
     """Trace one scene's pressure-volume path through its limit points and report the snap.
 
     \b
@@ -142,13 +146,11 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
       snapjump curve --design C --plot c.png --csv c.csv
       snapjump curve --cap outer --theta 90 --eta 16.5
     """
-    from snapjump_cli.settings import SolverSettings
+    from snapjump_cli.files import AtomicFiles, check_writable
     from snapjump_cli.solve import SolveFailed, solve_checked
 
     scene = scene_from_options(**pick_scene_options(kw))
     ms = mesh_settings_from_options(**pick_mesh_options(kw))
-    from snapjump_cli.results import check_writable
-
     for p, suffix in ((csv_path, ".csv"), (plot_path, ".png")):
         if p is not None:
             if p.suffix.lower() != suffix:
@@ -156,17 +158,24 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
             if not p.parent.exists():
                 raise BadInput(f"{p}: directory {p.parent} does not exist")
             check_writable(p, BadInput, overwrite=overwrite)
+    if plot_path is not None:
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError as e:
+            raise click.ClickException(f"--plot needs matplotlib (pip install 'snapjump[plots]'): {e}") from None
     try:
-        res = solve_checked(scene, ms, SolverSettings(full=full, harmonics=harmonics))
+        res = solve_checked(scene, ms, SolverSettings(full=full, harmonics=harmonics, time_limit_s=time_limit_s,
+                                                      max_nodes=max_nodes))
     except SolveFailed as exc:
         raise click.ClickException(f"solve failed: {exc}") from None
     m = to_jsonable(res.metrics)
-    if csv_path is not None:
-        _write_csv(res.curve, csv_path)
-    if plot_path is not None:
-        from snapjump_cli.plots import plot_pv_curve
+    with AtomicFiles() as out:  # both files or neither (a plot that fails leaves no CSV behind)
+        if csv_path is not None:
+            out.add(csv_path, lambda tmp: _write_csv(res.curve, tmp))
+        if plot_path is not None:
+            from snapjump_cli.plots import plot_pv_curve
 
-        plot_pv_curve(res.curve, m, plot_path, title=getattr(scene, "name", None) or "")
+            out.add(plot_path, lambda tmp: plot_pv_curve(res.curve, m, tmp, title=getattr(scene, "name", None) or ""))
     if fmt == "json":
         click.echo(json.dumps(m, sort_keys=False))
     else:

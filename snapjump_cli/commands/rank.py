@@ -62,6 +62,7 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
     import pyarrow as pa
 
     from snapjump_cli import results as res
+    from snapjump_cli.files import check_writable
     from snapjump_cli.jump import JumpParams
     from snapjump_cli.rank import RankInputError, rank_results, settings_mix, top_frame, top_table
 
@@ -82,13 +83,13 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
     if out.resolve() == results.resolve():
         raise BadInput(f"-o/--output: {out} would overwrite the input results file")
     # every output place is checked before anything is written
-    res.check_writable(out, BadInput, overwrite=overwrite)
+    check_writable(out, BadInput, overwrite=overwrite)
     if plots_dir is not None:
         from snapjump_cli.plots import PLOT_FILES
 
-        res.check_writable(plots_dir, BadInput, what="folder")
+        check_writable(plots_dir, BadInput, what="folder")
         for name in PLOT_FILES:
-            res.check_writable(plots_dir / name, BadInput, overwrite=overwrite)
+            check_writable(plots_dir / name, BadInput, overwrite=overwrite)
         try:
             import matplotlib  # noqa: F401
         except ImportError as e:

@@ -72,7 +72,7 @@ def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str 
     from snapjump_cli.sweep import MAX_DESIGNS, SweepError, SweepInputError, parts_dir, run_sweep
 
     try:
-        config = load_config(grid)
+        config = load_config(grid, max_designs or MAX_DESIGNS)
     except ConfigError as e:
         raise BadInput(str(e)) from None
     if n_jobs == 0:
