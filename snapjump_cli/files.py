@@ -24,7 +24,7 @@ from typing import Any, Callable
 
 __all__ = ["OutputError", "SYSTEM_FOLDERS", "current_umask", "follow_links", "output_target", "check_writable", "write_atomic",
            "AtomicFiles",
-           "describe_os_error"]
+           "describe_os_error", "os_error_reason"]
 
 #: Folders nothing is ever written under (device nodes, kernel interfaces).
 SYSTEM_FOLDERS: tuple[str, ...] = ("/dev", "/proc", "/sys")
@@ -36,9 +36,10 @@ class OutputError(OSError):
     ``errno`` is that of the underlying failure (e.g. ``ENOSPC``), or ``None`` for a refused path.
     """
 
-    def __init__(self, message: str, errno: int | None = None) -> None:
+    def __init__(self, message: str, errno: int | None = None, reason: str | None = None) -> None:
         super().__init__(message)
         self.errno = errno
+        self.reason = reason  # of a failed write: why, in words
 
     def __str__(self) -> str:
         return str(self.args[0])
@@ -187,7 +188,10 @@ def _fsync_folder(p: str | os.PathLike) -> None:
         os.close(fd)
 
 
-def _reason(e: BaseException) -> str:
+def os_error_reason(e: BaseException) -> str:
+    """Why an OS error happened, in words (``no space left on the device``, ``Permission denied``)."""
+    if isinstance(e, OutputError) and e.reason:
+        return e.reason
     text = str(e)
     if getattr(e, "errno", None) == errno_mod.ENOSPC or "No space left" in text:
         return "no space left on the device"
@@ -200,7 +204,7 @@ def describe_os_error(e: OSError, path: str | os.PathLike | None = None) -> str:
     if isinstance(e, OutputError):
         return str(e)
     where = e.filename if e.filename is not None else path
-    return f"{where}: {_reason(e)}" if where is not None else _reason(e)
+    return f"{where}: {os_error_reason(e)}" if where is not None else os_error_reason(e)
 
 
 class AtomicFiles:
@@ -234,7 +238,8 @@ class AtomicFiles:
             target.parent.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=f".tmp{target.suffix}", dir=target.parent)
         except OSError as e:
-            raise OutputError(f"{shown}: cannot write it ({_reason(e)})", e.errno) from None
+            why = os_error_reason(e)
+            raise OutputError(f"{shown}: cannot write it ({why})", e.errno, why) from None
         self._pending.append((Path(tmp), target, shown))
         try:
             try:
@@ -244,10 +249,11 @@ class AtomicFiles:
             write(Path(tmp))
             _fsync_file(tmp)
         except OSError as e:
-            if isinstance(e, OutputError):
+            if isinstance(e, OutputError) and e.reason is None:  # a refused path
                 raise
-            raise OutputError(f"{shown}: cannot write it ({_reason(e)}); the previous file, if any, is unchanged",
-                              e.errno) from None
+            why = os_error_reason(e)  # (also of a write nested in ``write``, named here by its target)
+            raise OutputError(f"{shown}: cannot write it ({why}); the previous file, if any, is unchanged",
+                              e.errno, why) from None
         return path
 
     def discard(self) -> None:
@@ -268,7 +274,8 @@ class AtomicFiles:
                 try:
                     os.replace(tmp, target)
                 except OSError as e:
-                    raise OutputError(f"{shown}: cannot write it ({_reason(e)})", e.errno) from None
+                    why = os_error_reason(e)
+                    raise OutputError(f"{shown}: cannot write it ({why})", e.errno, why) from None
                 self._pending.pop(0)
                 folders.append(target.parent)
         finally:

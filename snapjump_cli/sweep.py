@@ -407,13 +407,23 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
                 bar.update(1)
 
     clients: list[Any] = []
+    stopped_by: BaseException | None = None
     try:
         for row in invalid_rows:
             record(row, advance=False)
         if tasks:
             _solve_all(tasks, solve_fn, warm_up_fn, n_jobs, scheduler, marker_dir, record, clients)
+    except BaseException as exc:
+        stopped_by = exc
+        raise
     finally:
-        writer.flush()  # keep every finished row, also on Ctrl-C or errors
+        try:
+            writer.flush()  # keep every finished row, also on Ctrl-C or errors
+        except OSError as e:  # after another error: that one is reported (once, if it is this one)
+            if stopped_by is None:
+                raise
+            if not isinstance(stopped_by, OSError):
+                log.warning("could not write the last %d finished rows: %s", len(writer.buffer), e)
         stack.close()
         if bar is not None:
             bar.close()
@@ -423,6 +433,8 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
             for p in marker_dir.iterdir():
                 p.unlink(missing_ok=True)
             marker_dir.rmdir()
+        if stopped_by is not None and not any(parts.iterdir()):  # stopped before any row (an unreachable scheduler)
+            parts.rmdir()
 
     if consolidate_output and (tasks or invalid_rows or part_files(parts) or not output.exists()):
         counts = consolidate(output, meta, order)
