@@ -388,6 +388,8 @@ def read_from(path: str | Path) -> pd.DataFrame:
     if path.is_dir():
         files = sorted(path.glob("part-*.parquet"))
     elif path.exists():
+        if not path.is_file():  # a FIFO or a device would block or never end
+            raise OptimizeInputError(f"--from: {path}: expected a parquet file, got a special file")
         files = [path]
     else:
         files = sorted(parts_dir(path).glob("part-*.parquet"))

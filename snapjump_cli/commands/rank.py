@@ -75,6 +75,8 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
         raise BadInput(f"{results}: file not found")
     if results.is_dir():
         raise BadInput(f"{results}: expected a parquet file, got a directory")
+    if not results.is_file():  # a FIFO or a device would block or never end
+        raise BadInput(f"{results}: expected a parquet file, got a special file")
     try:
         df = res.read_results(results)
         meta = res.read_metadata(results)

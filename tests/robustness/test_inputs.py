@@ -112,3 +112,16 @@ def test_a_damaged_part_file_is_named_with_what_to_do(tmp_path, capsys, grid_fil
                                 solve_fn=fake.fast_solve)
     assert code == 0 and "6 resumed, 2 solved" in stdout, err
     assert len(res.read_results(out)) == len(GRID["eta_i"]) * len(GRID["eta_o"]) * len(GRID["theta_o"])
+
+
+def test_special_files_are_refused_as_inputs(tmp_path, capsys):
+    import os
+
+    fifo = tmp_path / "r.parquet"
+    os.mkfifo(fifo)  # reading it would block until someone writes
+    code, _, err = run_cli(capsys, "rank", str(fifo))
+    assert code == 2 and "got a special file" in err
+    spec = tmp_path / "s.yaml"
+    spec.write_text("bounds: {eta_i: [5, 8], theta_i: 80, eta_o: 12, theta_o: 82, mu_ratio: 5.8}\n")
+    code, _, err = run_cli(capsys, "optimize", str(spec), "--from", str(fifo), "-o", str(tmp_path / "o.parquet"))
+    assert code == 2 and "got a special file" in err
