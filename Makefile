@@ -6,21 +6,19 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: install run test bench bench-mesh stress clean
 
-AOT    := kernels/.aot-tried
-
-install: $(STAMP) $(AOT)
+# install also checks, each time (~0.1 s, no numba), that the kernels compiled ahead of time for
+# this CPU (fast start-up; docs/performance.md) were built from these kernel sources on this CPU:
+# kernels/_aot_build.json records what they were built for; they are rebuilt otherwise. If the
+# build fails the kernels run JIT-compiled, with the same answers (not retried until the sources
+# or the CPU change; delete kernels/_aot_build.json to retry).
+install: $(STAMP)
+	@SNAPJUMP_NO_AOT=1 $(BIN)/python -c "from snapjump_kernels.aot import main; raise SystemExit(main(['--if-stale']))"
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
-
-# the kernels compiled ahead of time for this CPU (fast start-up; docs/performance.md); if the build
-# fails the kernels run JIT-compiled as before, with the same answers
-$(AOT): $(STAMP) $(wildcard kernels/*.py)
-	SNAPJUMP_NO_AOT=1 $(BIN)/python -c "from snapjump_kernels.aot import main; raise SystemExit(main())"
-	touch $(AOT)
 
 run: install
 	$(BIN)/snapjump -v sweep configs/paper_grid.yaml -o results/paper_grid.parquet
@@ -44,4 +42,4 @@ clean:
 	rm -rf $(VENV) build *.egg-info results bench/out .pytest_cache
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +
 	find . -name '*.nbi' -delete -o -name '*.nbc' -delete
-	rm -f kernels/_aot*.so kernels/_aot.sha256 kernels/_aot_exports.json $(AOT)
+	rm -f kernels/_aot*.so kernels/_aot_build.json

@@ -62,13 +62,14 @@ def _git_commit() -> str:
         return "unknown"
 
 
-def _cpu_text() -> str:
-    """The CPU as the report names it: model name, family/model, clock, vector extension."""
+def cpu_text(cpuinfo: str = "/proc/cpuinfo") -> str:
+    """The CPU as the report names it: model name, family/model, clock, vector extension (read
+    from ``cpuinfo``)."""
     import platform
 
     from bench.runner import cpu_info
 
-    info = cpu_info()
+    info = cpu_info(cpuinfo)
     name = info.get("cpu_model", "?")
     if name == "?":
         name = platform.processor() or platform.machine()
@@ -276,7 +277,7 @@ def compare(args) -> int:
         base_rows = [base[r["id"]] for r in grid_rows]
         bw = doc.get("wall_grid_s")
         lines = [f"# Throughput on the seeded paper-grid sample", "",
-                 f"Machine: {os.cpu_count()} cores ({_cpu_text()}), load average "
+                 f"Machine: {os.cpu_count()} cores ({cpu_text()}), load average "
                  f"{os.getloadavg()[0]:.2f} after the run; commit {_git_commit()[:12]}; baseline {doc['commit'][:12]}.",
                  "", "## Now", ""] + throughput_table(grid_rows, wall, args.jobs, len(rows), t_compile)
         if all("wall_s" in r for r in base_rows):

@@ -126,15 +126,15 @@ def run_one(scene, mesh, solver, timeout: float, max_repeats: int = 5) -> dict:
     return rec
 
 
-def cpu_info() -> dict:
-    """CPU model and core count (``/proc/cpuinfo``: the model name, family/model numbers, clock and
+def cpu_info(cpuinfo: str = "/proc/cpuinfo") -> dict:
+    """CPU model and core count (``cpuinfo``: the model name, family/model numbers, clock and
     widest vector extension, since the name alone may not tell two machines apart), load average
     and Python/numba versions."""
     import platform
 
     from snapjump_kernels.aot import cpu_fields
 
-    fields = cpu_fields()
+    fields = cpu_fields(cpuinfo)
     model = fields.get("model name", "?")
     flags = set(fields.get("flags", "").split())
     vec = next((v for v in ("avx512f", "avx2", "avx", "sse4_2") if v in flags), "")

@@ -13,11 +13,15 @@ Each exported function is a thin wrapper that calls the ``@njit`` kernel, so the
 own options (``error_model``, ``fastmath``) and the machine code is that of the JIT: the answers
 are bit-identical (``tests/unit/test_aot.py``). A call whose argument types differ from the
 compiled signatures (checked exactly: dtype, dimensions, contiguity, writability) goes to the
-dispatcher, imported on first use. The extension is used only when it was built from the current
-kernel sources (a hash of them is stored beside it) on this CPU (model and feature flags) and
-``SNAPJUMP_NO_AOT`` is not set; otherwise
-everything runs through the JIT as before. The kernel modules themselves are never modified: a
-kernel calling another still calls its dispatcher.
+dispatcher, imported on first use.
+
+The build's stamp (``_aot_build.json`` beside the kernels) records what it was built for: the
+kernel sources' hash, this CPU (model and feature flags), the exported signatures, or why the
+build failed. The extension is used only when the stamp matches the current sources and this
+CPU and ``SNAPJUMP_NO_AOT`` is not set (:func:`build_status` says why not otherwise); everything
+then runs through the JIT as before. ``make install`` checks the stamp each time
+(:func:`stale_reason`, no numba) and rebuilds when the sources or the CPU differ. The kernel
+modules themselves are never modified: a kernel calling another still calls its dispatcher.
 """
 from __future__ import annotations
 
@@ -34,11 +38,12 @@ from snapjump_kernels import source_hash
 
 HERE = Path(__file__).resolve().parent
 MODULE = "_aot"
-STAMP = HERE / "_aot.sha256"  # the kernel sources' hash the extension was built from
-EXPORTS = HERE / "_aot_exports.json"  # kernel module -> names compiled (not a .py: it would change the hash)
+#: what the extension was built for (not a .py: it would change the sources' hash)
+STAMP_NAME = "_aot_build.json"
+CPUINFO = "/proc/cpuinfo"
 
 
-def _arg_spec(t: Any) -> list | None:
+def arg_spec(t: Any) -> list | None:
     """A JSON-able description of one numba argument type, or None if the check below cannot
     express it (the signature then stays JIT-only)."""
     from numba.core import types
@@ -54,7 +59,7 @@ def _arg_spec(t: Any) -> list | None:
     return None
 
 
-def _arg_check(spec: list) -> Callable[[Any], bool]:
+def arg_check(spec: list) -> Callable[[Any], bool]:
     """Whether a Python argument is exactly of the type ``spec`` describes (dtype, dimensions,
     contiguity, writability for arrays): only then is the compiled function called."""
     import numpy as np
@@ -76,7 +81,7 @@ def _arg_check(spec: list) -> Callable[[Any], bool]:
     return lambda a: isinstance(a, (float, np.floating))
 
 
-def _dispatch(variants: list[tuple[Callable, list[Callable[[Any], bool]]]], jit: Any) -> Callable:
+def dispatch(variants: list[tuple[Callable, list[Callable[[Any], bool]]]], jit: Any) -> Callable:
     """The kernel as callers see it: the first compiled variant whose argument types match
     exactly, else the JIT dispatcher."""
 
@@ -92,11 +97,11 @@ def _dispatch(variants: list[tuple[Callable, list[Callable[[Any], bool]]]], jit:
     return call
 
 
-def cpu_fields() -> dict[str, str]:
-    """The first processor's entries of ``/proc/cpuinfo`` (empty where there is none)."""
+def cpu_fields(cpuinfo: str | Path = CPUINFO) -> dict[str, str]:
+    """The first processor's entries of ``cpuinfo`` (``/proc/cpuinfo``; empty where there is none)."""
     fields: dict[str, str] = {}
     try:
-        with open("/proc/cpuinfo") as fh:
+        with open(cpuinfo) as fh:
             for line in fh:
                 if not line.strip():
                     break  # the first processor is enough
@@ -107,34 +112,79 @@ def cpu_fields() -> dict[str, str]:
     return fields
 
 
-def cpu_signature() -> str:
+def cpu_signature(cpuinfo: str | Path = CPUINFO) -> str:
     """What identifies this CPU for the compiled code (built for the host CPU, it may use
-    instructions another CPU lacks): the model name and feature flags of ``/proc/cpuinfo``, else
+    instructions another CPU lacks): the model name and feature flags of ``cpuinfo``, else
     ``platform.processor()``, with ``platform.machine()``."""
     import platform
 
-    fields = cpu_fields()
+    fields = cpu_fields(cpuinfo)
     text = "|".join([fields.get("model name", platform.processor()), fields.get("flags", ""), platform.machine()])
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-@functools.lru_cache(maxsize=1)
-def _table() -> tuple[dict[str, dict[str, list]], Any]:
-    """The export table and the extension, read once per process, if built from the current
-    sources on this CPU and ``SNAPJUMP_NO_AOT`` is unset; else ``({}, None)``. Imports no numba."""
+def read_stamp(folder: Path = HERE) -> dict | None:
+    """The build's stamp in ``folder`` (None when there is none or it cannot be read)."""
+    try:
+        stamp = json.loads((folder / STAMP_NAME).read_text())
+    except (OSError, ValueError):
+        return None
+    return stamp if isinstance(stamp, dict) else None
+
+
+def stale_reason(stamp: dict | None, cpuinfo: str | Path = CPUINFO) -> str:
+    """Why a build with this ``stamp`` does not fit these kernel sources on this CPU ('' if it
+    does, whether it was built or its build failed): what ``make install`` checks before
+    building again. Imports no numba."""
+    if stamp is None:
+        return "not built"
+    if stamp.get("sources") != source_hash():
+        return "built from other kernel sources"
+    if stamp.get("cpu") != cpu_signature(cpuinfo):
+        return f"built for another CPU ({stamp.get('cpu_model', '?')})"
+    return ""
+
+
+def build_status(folder: Path = HERE, cpuinfo: str | Path = CPUINFO) -> str:
+    """Why the build in ``folder`` is not used in this process ('' when it is): switched off by
+    ``SNAPJUMP_NO_AOT``, not built, built from other sources or for another CPU, or failed."""
     if os.environ.get("SNAPJUMP_NO_AOT", "") not in ("", "0"):
+        return "switched off (SNAPJUMP_NO_AOT is set)"
+    stamp = read_stamp(folder)
+    why = stale_reason(stamp, cpuinfo)
+    if why:
+        return why
+    if not stamp.get("built"):
+        return f"its build failed ({stamp.get('reason', '?')})"
+    return ""
+
+
+def _import_extension(folder: Path) -> Any:
+    """The compiled extension module of ``folder`` (this package's, imported as a submodule)."""
+    if folder.resolve() != HERE:
+        raise ImportError(f"no importable extension module in {folder}")
+    return importlib.import_module(f"{__package__}.{MODULE}")
+
+
+def load_build(folder: Path = HERE, cpuinfo: str | Path = CPUINFO,
+               load: Callable[[Path], Any] = _import_extension) -> tuple[dict[str, dict[str, list]], Any]:
+    """The export table and the extension of the build in ``folder``, if it is usable here
+    (:func:`build_status`), else ``({}, None)``; ``load`` imports the extension module. Imports
+    no numba."""
+    if build_status(folder, cpuinfo):
         return {}, None
     try:
-        if STAMP.read_text().strip() != source_hash():
-            return {}, None
-        table = json.loads(EXPORTS.read_text())
-        if table.get("cpu") != cpu_signature():  # built on another CPU (a shared install)
-            return {}, None
-        exports = table["kernels"]
-        ext = importlib.import_module(f"{__package__}.{MODULE}")
-    except (OSError, ImportError, ValueError, KeyError):
+        exports = read_stamp(folder)["kernels"]
+        ext = load(folder)
+    except (OSError, ImportError, KeyError, TypeError):
         return {}, None
     return exports, ext
+
+
+@functools.lru_cache(maxsize=1)
+def _table() -> tuple[dict[str, dict[str, list]], Any]:
+    """:func:`load_build` of this package's folder, read once per process."""
+    return load_build()
 
 
 class _LazyJit:
@@ -149,18 +199,19 @@ class _LazyJit:
         return self._f(*args)
 
 
-def kernel(module: str, name: str) -> Callable:
+def kernel(module: str, name: str, table: tuple[dict, Any] | None = None) -> Callable:
     """``snapjump_kernels.<module>.<name>`` as the solver calls it: the compiled variants first
     (exact argument match), the JIT dispatcher otherwise; the plain dispatcher when there is no
-    matching extension (:mod:`snapjump_kernels.calls` builds its names with this)."""
-    exports, ext = _table()
+    usable extension (:mod:`snapjump_kernels.calls` builds its names with this). ``table``: a
+    :func:`load_build` result (this package's build by default)."""
+    exports, ext = _table() if table is None else table
     if ext is None:
         return getattr(importlib.import_module(f"{__package__}.{module}"), name)
     variants = exports.get(module, {}).get(name)
     if not variants:  # not compiled ahead of time: the dispatcher, but only when first called
         return _LazyJit(module, name)
-    compiled = [(getattr(ext, v["export"]), [_arg_check(a) for a in v["args"]]) for v in variants]
-    return _dispatch(compiled, _LazyJit(module, name))
+    compiled = [(getattr(ext, v["export"]), [arg_check(a) for a in v["args"]]) for v in variants]
+    return dispatch(compiled, _LazyJit(module, name))
 
 
 def active() -> bool:
@@ -196,8 +247,21 @@ def _collect_signatures() -> dict[str, dict[str, Any]]:
     return found
 
 
+def _what_for(cpuinfo: str | Path = CPUINFO) -> dict[str, str]:
+    """The stamp's record of what a build is for: the kernel sources and this CPU."""
+    return {"sources": source_hash(), "cpu": cpu_signature(cpuinfo),
+            "cpu_model": cpu_fields(cpuinfo).get("model name", "?")}
+
+
+def _write_stamp(stamp: dict, folder: Path = HERE) -> None:
+    tmp = folder / (STAMP_NAME + ".tmp")
+    tmp.write_text(json.dumps(stamp, indent=1) + "\n")
+    os.replace(tmp, folder / STAMP_NAME)
+
+
 def build() -> Path:
-    """Compile the extension (see the module docstring) next to the kernels; returns its path.
+    """Compile the extension (see the module docstring) next to the kernels and write its stamp;
+    returns its path.
 
     The new file replaces the old one by a rename, so processes that have the old one loaded
     keep a valid mapping."""
@@ -215,7 +279,7 @@ def build() -> Path:
     for modname, funcs in found.items():
         for name, disp in funcs.items():
             for k, sig in enumerate(disp.nopython_signatures):
-                specs = [_arg_spec(t) for t in sig.args]
+                specs = [arg_spec(t) for t in sig.args]
                 if any(sp is None for sp in specs):
                     continue
                 params = ", ".join(f"a{i}" for i in range(len(sig.args)))
@@ -224,28 +288,40 @@ def build() -> Path:
                 export = f"{modname}__{name}__{k}"
                 cc.export(export, sig)(scope["wrapper"])
                 exports.setdefault(modname, {}).setdefault(name, []).append({"export": export, "args": specs})
-    STAMP.unlink(missing_ok=True)  # no stale pairing while the extension is rewritten
+    for old in (STAMP_NAME, "_aot.sha256", "_aot_exports.json"):  # (the last two: an older build's stamp)
+        (HERE / old).unlink(missing_ok=True)  # no stale pairing while the extension is rewritten
     with tempfile.TemporaryDirectory(dir=HERE) as tmp:
         cc.output_dir = tmp
         cc.compile()
         built = next(Path(tmp).glob(f"{MODULE}*"))
         target = HERE / built.name
         os.replace(built, target)
-    EXPORTS.write_text(json.dumps({"cpu": cpu_signature(), "kernels": exports}, indent=1) + "\n")
-    STAMP.write_text(source_hash() + "\n")
+    _write_stamp({**_what_for(), "built": True, "kernels": exports})
     return target
 
 
-def main(argv: list[str] | None = None) -> int:
-    """``python -m snapjump_kernels.aot``: build the extension; exit 0 also when it cannot be built
-    (the JIT remains), with the reason on stderr."""
+def main(argv: list[str] | None = None, cpuinfo: str | Path = CPUINFO) -> int:
+    """``python -m snapjump_kernels.aot [--if-stale]``: build the extension (with ``--if-stale``
+    only when its stamp does not match these sources on this CPU). Exit 0 also when it cannot be
+    built (the JIT remains), with the reason on stderr; the stamp then records the failure, so
+    that ``make install`` does not retry it until the sources or the CPU change."""
+    import argparse
     import time
 
+    ap = argparse.ArgumentParser(prog="python -m snapjump_kernels.aot", description=main.__doc__.split("\n\n")[0])
+    ap.add_argument("--if-stale", action="store_true", help="build only when the stamp does not match")
+    args = ap.parse_args(argv)
+    why = stale_reason(read_stamp(), cpuinfo)
+    if args.if_stale and not why:
+        return 0
+    sys.stderr.write(f"snapjump_kernels.aot: building ({why or 'asked to'})\n")
     t0 = time.perf_counter()
     try:
         so = build()
     except Exception as exc:  # noqa: BLE001 - any failure leaves the JIT in place
-        sys.stderr.write(f"snapjump_kernels.aot: not built ({type(exc).__name__}: {exc}); the kernels run JIT-compiled\n")
+        reason = f"{type(exc).__name__}: {exc}"
+        _write_stamp({**_what_for(), "built": False, "reason": reason[:500]})
+        sys.stderr.write(f"snapjump_kernels.aot: not built ({reason}); the kernels run JIT-compiled\n")
         return 0
     sys.stderr.write(f"snapjump_kernels.aot: built {so.name} in {time.perf_counter() - t0:.0f} s\n")
     return 0

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -161,15 +160,21 @@ def test_out_missing_folder(capsys, tmp_path):
     assert rc == 2 and "does not exist" in err
 
 
-def _console_script() -> str | None:
-    exe = Path(sys.executable).with_name("snapjump")
-    return str(exe) if exe.exists() else shutil.which("snapjump")
-
-
 def test_console_script(tmp_path):
-    exe = _console_script()
-    if exe is None:
-        pytest.skip("snapjump console script not installed")
+    """The ``snapjump`` script installed next to this interpreter (the venv's bin, not whatever
+    ``PATH`` finds), which runs this checkout."""
+    exe = Path(sys.executable).with_name("snapjump")
+    if not exe.exists():
+        pytest.skip(f"no snapjump console script next to {sys.executable}: snapjump is not installed in this environment")
+    lines = exe.read_text().splitlines()
+    assert lines[0].startswith("#!")
+    python = lines[0][2:].strip()
+    if python == "/bin/sh":  # pip's form for a long interpreter path: '''exec' /path/python "$0" "$@"
+        python = lines[1].split()[1]
+    r = subprocess.run([python, "-c", "import snapjump_cli; print(snapjump_cli.__file__)"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert Path(r.stdout.strip()).resolve() == Path(cli.__file__).resolve().with_name("__init__.py")  # this checkout
     r = subprocess.run([exe, "mesh", "--design", "A", "--order", "1", "--format", "json"],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr

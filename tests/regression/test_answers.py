@@ -37,23 +37,24 @@ def test_compare_rows_detects_a_changed_answer(baseline):
     assert compare_rows(b, {**b, "status": "failed"}, 0.005)
 
 
-def test_the_bench_report_names_the_machine(monkeypatch, tmp_path):
-    """The CPU line of the throughput report: the model name and, from /proc/cpuinfo, family and
-    model numbers, the clock and the widest vector extension (two machines of one name differ)."""
-    import builtins
-
+def test_the_bench_report_names_the_machine(tmp_path):
+    """The CPU line of the throughput report: the model name and, from /proc/cpuinfo (here a
+    fixture), family and model numbers, the clock and the widest vector extension (two machines
+    of one name differ)."""
     from bench import runner
-    from bench.regression import _cpu_text
+    from bench.regression import cpu_text
 
     text = ("processor\t: 0\nvendor_id\t: GenuineIntel\ncpu family\t: 6\nmodel\t\t: 167\n"
             "model name\t: Intel(R) Xeon(R) Processor\ncpu MHz\t\t: 2599.998\nflags\t\t: fpu sse4_2 avx avx2 avx512f\n\n"
             "processor\t: 1\nmodel name\t: another\n")
     fake = tmp_path / "cpuinfo"
     fake.write_text(text)
-    real_open = builtins.open
-    monkeypatch.setattr(runner, "open", lambda f, *a, **k: real_open(fake if f == "/proc/cpuinfo" else f, *a, **k),
-                        raising=False)
-    info = runner.cpu_info()
+    info = runner.cpu_info(str(fake))
     assert info["cpu_model"] == "Intel(R) Xeon(R) Processor"
     assert info["cpu_id"] == "family 6 model 167, 2600 MHz, avx512f"
-    assert _cpu_text() == "Intel(R) Xeon(R) Processor; family 6 model 167, 2600 MHz, avx512f"
+    assert cpu_text(str(fake)) == "Intel(R) Xeon(R) Processor; family 6 model 167, 2600 MHz, avx512f"
+    amd = tmp_path / "amd"
+    amd.write_text("processor\t: 0\nmodel name\t: AMD EPYC\ncpu family\t: 23\nmodel\t\t: 49\ncpu MHz\t\t: 2994.4\n"
+                   "flags\t\t: fpu avx avx2\n")
+    assert cpu_text(str(amd)) == "AMD EPYC; family 23 model 49, 2994 MHz, avx2"
+    assert "cpu_id" not in runner.cpu_info(str(tmp_path / "none"))  # no /proc/cpuinfo: no invented line
