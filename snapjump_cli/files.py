@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import errno as errno_mod
 import os
+import shutil
 import stat
 import tempfile
 from pathlib import Path
@@ -214,22 +215,26 @@ class AtomicFiles:
     (:func:`output_target`: links followed; mode from the umask) and flushes it to disk; leaving the
     block normally renames every one onto its target, leaving it with an exception removes them
     all, so a failed command (a plot that cannot be drawn, a full disk) replaces none of its
-    outputs. See :func:`write_atomic` for one file.
+    outputs. :meth:`file` and :meth:`folder` hand out a temporary file or folder for the caller to
+    fill (a folder of files replaces its target whole). See :func:`write_atomic` for one file.
     """
 
     def __init__(self, stat_fn: Callable[[Path], os.stat_result] = os.stat) -> None:
         self._stat_fn = stat_fn
-        self._pending: list[tuple[Path, Path, str]] = []  # (temporary file, target, shown name)
+        self._pending: list[tuple[Path, Path, str]] = []  # (temporary file or folder, target, shown name)
 
-    def add(self, path: str | os.PathLike, write: Callable[[Path], Any]) -> Path:
-        """Write ``path``'s new content with ``write(tmp)`` into a temporary file; it replaces
-        ``path`` when the block ends without an error. Returns ``path``.
+    def _fail(self, shown: str, e: OSError, note: str = "") -> OutputError:
+        why = os_error_reason(e)
+        return OutputError(f"{shown}: cannot write it ({why}){note}", e.errno, why)
+
+    def file(self, path: str | os.PathLike) -> Path:
+        """A new, empty temporary file (mode from the umask) that replaces ``path`` when the block
+        ends without an error; the caller writes it.
 
         Raises
         ------
         OutputError
-            The path may not be written (see the module docstring), or the write failed (full
-            disk, I/O error): one line naming the path, ``errno`` set.
+            ``path`` may not be written (see the module docstring), or its folder cannot take a file.
         """
         path = Path(path)
         target = output_target(path, self._stat_fn)
@@ -238,50 +243,105 @@ class AtomicFiles:
             target.parent.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=f".tmp{target.suffix}", dir=target.parent)
         except OSError as e:
-            why = os_error_reason(e)
-            raise OutputError(f"{shown}: cannot write it ({why})", e.errno, why) from None
+            raise self._fail(shown, e) from None
         self._pending.append((Path(tmp), target, shown))
         try:
-            try:
-                os.fchmod(fd, 0o666 & ~current_umask())
-            finally:
-                os.close(fd)
-            write(Path(tmp))
+            os.fchmod(fd, 0o666 & ~current_umask())
+        except OSError as e:
+            raise self._fail(shown, e) from None
+        finally:
+            os.close(fd)
+        return Path(tmp)
+
+    def folder(self, path: str | os.PathLike) -> Path:
+        """A new, empty temporary folder (mode from the umask) that replaces the folder ``path``
+        whole when the block ends without an error; the caller fills it (its files' modes are the
+        caller's).
+
+        Raises
+        ------
+        OutputError
+            ``path`` is something other than a folder (a file, a FIFO, ...) or lies under a system
+            folder, or its parent cannot take a folder.
+        """
+        path = Path(path)
+        target = Path(os.path.realpath(path))
+        shown = _shown(path, target)
+        for d in SYSTEM_FOLDERS:
+            if target == Path(d) or Path(d) in target.parents:
+                raise OutputError(f"{shown}: refusing to write under {d} (a system folder)")
+        if target.exists() and not target.is_dir():
+            raise OutputError(f"{shown}: is not a folder; refusing to replace it")
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            tmp = tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent)
+            os.chmod(tmp, 0o777 & ~current_umask())
+        except OSError as e:
+            raise self._fail(shown, e) from None
+        self._pending.insert(0, (Path(tmp), target, shown))  # folders first: a file naming one comes after
+        return Path(tmp)
+
+    def add(self, path: str | os.PathLike, write: Callable[[Path], Any]) -> Path:
+        """Write ``path``'s new content with ``write(tmp)`` into a temporary file (:meth:`file`),
+        flushed to disk; it replaces ``path`` when the block ends without an error. Returns ``path``.
+
+        Raises
+        ------
+        OutputError
+            The path may not be written (see the module docstring), or the write failed (full
+            disk, I/O error): one line naming the path, ``errno`` set.
+        """
+        path = Path(path)
+        tmp = self.file(path)
+        try:
+            write(tmp)
             _fsync_file(tmp)
         except OSError as e:
             if isinstance(e, OutputError) and e.reason is None:  # a refused path
                 raise
-            why = os_error_reason(e)  # (also of a write nested in ``write``, named here by its target)
-            raise OutputError(f"{shown}: cannot write it ({why}); the previous file, if any, is unchanged",
-                              e.errno, why) from None
+            # (also a write nested in ``write``: named here by its target)
+            raise self._fail(self._pending[-1][2], e, "; the previous file, if any, is unchanged") from None
         return path
 
     def discard(self) -> None:
-        """Remove every temporary file written so far (no target is touched)."""
+        """Remove every temporary file and folder made so far (no target is touched)."""
         for tmp, _, _ in self._pending:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
+            if tmp.is_dir() and not tmp.is_symlink():
+                shutil.rmtree(tmp, ignore_errors=True)
+            else:
+                try:
+                    os.unlink(tmp)
+                except OSError:
+                    pass
         self._pending = []
 
-    def commit(self) -> None:
-        """Rename every temporary file onto its target (done by leaving the block normally)."""
-        folders = []
+    def commit(self) -> list[Path]:
+        """Flush every temporary file to disk and rename it onto its target (done by leaving the
+        block normally). Returns the targets."""
+        done, folders = [], []
         try:
+            for tmp, _, shown in self._pending:  # everything on disk before the first rename
+                if not tmp.is_dir():
+                    try:
+                        _fsync_file(tmp)
+                    except OSError as e:
+                        raise self._fail(shown, e) from None
             while self._pending:
                 tmp, target, shown = self._pending[0]
                 try:
+                    if tmp.is_dir() and target.is_dir():
+                        shutil.rmtree(target)
                     os.replace(tmp, target)
                 except OSError as e:
-                    why = os_error_reason(e)
-                    raise OutputError(f"{shown}: cannot write it ({why})", e.errno, why) from None
+                    raise self._fail(shown, e) from None
                 self._pending.pop(0)
+                done.append(target)
                 folders.append(target.parent)
         finally:
             self.discard()
         for folder in dict.fromkeys(folders):
             _fsync_folder(folder)
+        return done
 
     def __enter__(self) -> "AtomicFiles":
         return self

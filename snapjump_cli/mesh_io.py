@@ -1,4 +1,4 @@
-"""Mesh files: a :class:`~snapjump_cli.meshdata.Mesh` written as ``.msh`` (gmsh 4.1) or ``.vtu`` (VTK XML).
+"""Mesh files: a :class:`~snapjump_cli.meshdata.Mesh` written as ``.msh`` (gmsh 4.1) or ``.vtu`` (VTK XML, written with meshio).
 
 Both keep the mesh's node numbering and element order; ``.msh`` has one physical group per region
 and per edge set, ``.vtu`` the cell data ``region`` and ``material``.
@@ -66,37 +66,13 @@ def _write_msh(mesh: Mesh, path: Path) -> None:
         gmsh.write(str(path))
 
 
-_VTK_TYPES = {1: 9, 2: 28}  # VTK_QUAD, VTK_BIQUADRATIC_QUAD (same node order as gmsh)
-
-
 def _write_vtu(mesh: Mesh, path: Path) -> None:
-    n, ne, nen = mesh.n_nodes, mesh.n_elements, mesh.elements.shape[1]
+    """VTK XML (binary, compressed) with meshio: ``quad`` / ``quad9`` cells (VTK_QUAD,
+    VTK_BIQUADRATIC_QUAD; the node order is gmsh's), cell data ``region`` and ``material``."""
+    import meshio  # a dependency; imported here, since most runs never write a mesh
 
-    def arr(a, fmt):
-        return " ".join(fmt % v for v in np.asarray(a).ravel())
-
-    pts = np.column_stack([mesh.nodes, np.zeros(n)])
-    lines = [
-        '<?xml version="1.0"?>',
-        '<VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian">',
-        "<UnstructuredGrid>",
-        f'<Piece NumberOfPoints="{n}" NumberOfCells="{ne}">',
-        '<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">',
-        arr(pts, "%.17g"),
-        "</DataArray></Points>",
-        "<Cells>",
-        '<DataArray type="Int64" Name="connectivity" format="ascii">', arr(mesh.elements, "%d"), "</DataArray>",
-        '<DataArray type="Int64" Name="offsets" format="ascii">', arr(np.arange(1, ne + 1) * nen, "%d"),
-        "</DataArray>",
-        '<DataArray type="UInt8" Name="types" format="ascii">', arr(np.full(ne, _VTK_TYPES[mesh.order]), "%d"),
-        "</DataArray>",
-        "</Cells>",
-        "<CellData>",
-        '<DataArray type="Int32" Name="region" format="ascii">', arr(mesh.region, "%d"), "</DataArray>",
-        '<DataArray type="Int32" Name="material" format="ascii">', arr(mesh.material, "%d"), "</DataArray>",
-        "</CellData>",
-        "</Piece>",
-        "</UnstructuredGrid>",
-        "</VTKFile>",
-    ]
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    cell = {1: "quad", 2: "quad9"}[mesh.order]
+    pts = np.column_stack([mesh.nodes, np.zeros(mesh.n_nodes)])
+    meshio.Mesh(pts, [(cell, np.asarray(mesh.elements, np.int64))],
+                cell_data={"region": [np.asarray(mesh.region, np.int32)],
+                           "material": [np.asarray(mesh.material, np.int32)]}).write(path, file_format="vtu")

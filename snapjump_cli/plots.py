@@ -73,22 +73,100 @@ def _empty_note(ax: Any, d: pd.DataFrame) -> None:
         ax.text(0.5, 0.5, "no snapping designs", ha="center", va="center", transform=ax.transAxes)
 
 
+# ---- the flags of a design, each with its own marker ------------------------------------------
+#: marker of a design whose axisymmetric snap holds (circle) and of one that goes asymmetric first
+_AXI, _ASYM = "o", "^"
+
+
+def _flags(d: pd.DataFrame) -> dict[str, np.ndarray]:
+    """Boolean masks of the flags of the rows of ``d``: ``asym`` (a non-axisymmetric mode loses
+    stability before V*), ``self_crossing``, ``mesh_sensitive``; ``checked``: whether any row had
+    the harmonic check."""
+    def col(name: str) -> np.ndarray:
+        if name not in d.columns:
+            return np.zeros(len(d), bool)
+        return d[name].astype("boolean").fillna(False).to_numpy(bool)
+
+    checked = "asym_first" in d.columns and bool(d["asym_first"].notna().any())
+    return {"asym": col("asym_first"), "self_crossing": col("self_crossing"),
+            "mesh_sensitive": col("mesh_sensitive"), "checked": np.array(checked)}
+
+
+def _mark_flags(ax: Any, x: np.ndarray, y: np.ndarray, flags: dict[str, np.ndarray]) -> list:
+    """Overlay the self-crossing (x) and mesh-sensitive (open orange square) designs; legend handles."""
+    handles = []
+    sc, ms = flags["self_crossing"], flags["mesh_sensitive"]
+    if sc.any():
+        handles.append(ax.scatter(x[sc], y[sc], marker="x", s=8, lw=0.5, color="0.25", zorder=4,
+                                  label=f"self-crossing path ({int(sc.sum())})"))
+    if ms.any():
+        handles.append(ax.scatter(x[ms], y[ms], marker="s", s=40, facecolors="none", edgecolors="#ff7f0e", lw=1.0,
+                                  zorder=5, label=f"mesh-sensitive snap ({int(ms.sum())})"))
+    return handles
+
+
+def _shape_handles(flags: dict[str, np.ndarray], colour: str = "0.45") -> list:
+    """Legend entries of the two marker shapes (whether the harmonic check ran)."""
+    from matplotlib.lines import Line2D
+
+    asym = flags["asym"]
+    if not bool(flags["checked"]):
+        return [Line2D([], [], ls="", marker=_AXI, color=colour, label="asymmetric modes not checked")]
+    return [Line2D([], [], ls="", marker=_AXI, color=colour, label=f"axisymmetric up to V* ({int((~asym).sum())})"),
+            Line2D([], [], ls="", marker=_ASYM, color=colour, label=f"asymmetric mode first ({int(asym.sum())})")]
+
+
+def _best(d: pd.DataFrame) -> pd.Series | None:
+    """The row of the highest jump (``None`` without jump heights)."""
+    if "y_jump_m" not in d.columns or d.empty:
+        return None
+    yj = d["y_jump_m"].astype("float64")
+    if not np.isfinite(yj).any():
+        return None
+    return d.loc[yj.idxmax()]
+
+
+def _mark_best(ax: Any, best: pd.Series | None, x: str, y: str) -> list:
+    """An open star on the best design (the points under it stay visible); its label goes to the
+    legend below the axes, so it covers no point."""
+    if best is None:
+        return []
+    return [ax.scatter([best[x]], [best[y]], marker="*", s=300, facecolors="none", edgecolors="#d62728", lw=1.4,
+                       zorder=6, label=_mark_best_label(best))]
+
+
+def _legend_below(fig: Any, handles: list, ncols: int = 2) -> None:
+    fig.legend(handles=handles, loc="outside lower center", ncols=ncols, fontsize=7.5, frameon=False)
+
+
 def plot_fig4a(df: pd.DataFrame, path: str | Path) -> Path:
     """Fig. 4A: ``dE / (mu_i R_i^3)`` against ``dy_pole / R_i`` of the ``ok`` rows, coloured by
-    ``mu_i / mu_o``. Writes a PNG to ``path`` and returns it."""
+    ``mu_i / mu_o``; triangles for the designs that go asymmetric before V* (the harmonic check),
+    crosses for self-crossing paths, open squares for mesh-sensitive snaps and a star for the
+    highest jump (when the table is ranked). Writes a PNG to ``path`` and returns it."""
     plt = _pyplot()
     d = _ok(df)
-    fig, ax = plt.subplots(figsize=(6, 4.5), constrained_layout=True)
+    fl = _flags(d)
+    fig, ax = plt.subplots(figsize=(6.4, 5.4), layout="constrained")
     try:
+        handles = []
         for i, (r, g) in enumerate(sorted(d.groupby("mu_ratio"), key=lambda t: t[0])):
-            ax.scatter(g["x"], g["y"], s=10, alpha=0.7, color=_ratio_colour(r, i), label=rf"$\mu_i/\mu_o$ = {r:g}")
+            colour = _ratio_colour(r, i)
+            sel = d["mu_ratio"].to_numpy() == r
+            for shape, mask in ((_AXI, ~fl["asym"][sel]), (_ASYM, fl["asym"][sel])):
+                if mask.any():
+                    ax.scatter(g["x"].to_numpy()[mask], g["y"].to_numpy()[mask], s=12 if shape == _AXI else 16,
+                               marker=shape, alpha=0.75, color=colour, lw=0)
+            handles.append(ax.scatter([], [], s=30, color=colour, label=rf"$\mu_i/\mu_o$ = {r:g} ({len(g)})"))
+        handles += _shape_handles(fl) + _mark_flags(ax, d["x"].to_numpy(), d["y"].to_numpy(), fl)
+        handles += _mark_best(ax, _best(d), "x", "y")
         _log_y_if_wide(ax, d["y"].to_numpy())
         _empty_note(ax, d)
-        ax.set_xlabel(r"$\Delta y_{pole} / R_i$")
-        ax.set_ylabel(r"$\Delta E / (\mu_i R_i^3)$")
-        ax.set_title(f"Energy release vs pole travel ({len(d)} snapping designs)")
+        ax.set_xlabel(r"pole travel $\Delta y_{pole} / R_i$")
+        ax.set_ylabel(r"energy released $\Delta E / (\mu_i R_i^3)$")
+        ax.set_title(f"Energy release vs pole travel ({len(d)} snapping designs)", fontsize=10)
         if not d.empty:
-            ax.legend(loc="best", fontsize=8)
+            _legend_below(fig, handles)
         path = _save(fig, path, 150)
     finally:
         plt.close(fig)
@@ -97,28 +175,34 @@ def plot_fig4a(df: pd.DataFrame, path: str | Path) -> Path:
 
 def plot_fig4c(ranked: pd.DataFrame, path: str | Path) -> Path:
     """Fig. 4C: ``y_jump / R_i`` over the ``(dy_pole / R_i, dE / (mu_i R_i^3))`` plane of the ``ok``
-    rows (needs the columns of :func:`snapjump_cli.rank.rank_results`). Writes a PNG."""
+    rows (needs the columns of :func:`snapjump_cli.rank.rank_results`), with the flags' markers of
+    :func:`plot_fig4a` and the best design starred. Writes a PNG."""
     plt = _pyplot()
     d = _ok(ranked)
     d = d[np.isfinite(d["y_jump_m"].astype("float64"))]
-    fig, ax = plt.subplots(figsize=(6.4, 4.5), constrained_layout=True)
+    fl = _flags(d)
+    fig, ax = plt.subplots(figsize=(6.6, 5.4), layout="constrained")
     try:
+        handles = []
         if not d.empty:
             z = (d["y_jump_m"].astype("float64") / d["R_i"]).to_numpy()
-            o = np.argsort(z)  # highest jumps drawn on top
-            sc = ax.scatter(d["x"].to_numpy()[o], d["y"].to_numpy()[o], c=z[o], s=12, cmap="viridis")
-            fig.colorbar(sc, ax=ax, label=r"$y_{jump} / R_i$")
-            best = d.iloc[int(np.argmax(z))]
-            note = ax.annotate(
-                f"best: ({best['eta_i']:.3g}, {best['theta_i_deg']:.3g}°, {best['eta_o']:.3g}, "
-                f"{best['theta_o_deg']:.3g}°, {best['mu_ratio']:.3g})",
-                (best["x"], best["y"]), fontsize=7, xytext=(-5, -12), textcoords="offset points", ha="right")
-            note.set_in_layout(False)
+            x, y = d["x"].to_numpy(), d["y"].to_numpy()
+            norm = plt.Normalize(float(z.min()), float(z.max()))
+            for shape, mask in ((_AXI, ~fl["asym"]), (_ASYM, fl["asym"])):
+                o = np.flatnonzero(mask)[np.argsort(z[mask])]  # highest jumps drawn on top
+                if o.size:
+                    ax.scatter(x[o], y[o], c=z[o], s=14 if shape == _AXI else 18, marker=shape, cmap="viridis",
+                                    norm=norm, lw=0)
+            fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap="viridis"), ax=ax,
+                         label=r"jump height $y_{jump} / R_i$")
+            handles += _shape_handles(fl) + _mark_flags(ax, x, y, fl) + _mark_best(ax, _best(d), "x", "y")
         _log_y_if_wide(ax, d["y"].to_numpy())
         _empty_note(ax, d)
-        ax.set_xlabel(r"$\Delta y_{pole} / R_i$")
-        ax.set_ylabel(r"$\Delta E / (\mu_i R_i^3)$")
-        ax.set_title("Jump height of the mass-spring model")
+        ax.set_xlabel(r"pole travel $\Delta y_{pole} / R_i$")
+        ax.set_ylabel(r"energy released $\Delta E / (\mu_i R_i^3)$")
+        ax.set_title("Jump height of the mass-spring model", fontsize=10)
+        if handles:
+            _legend_below(fig, handles)
         path = _save(fig, path, 150)
     finally:
         plt.close(fig)
@@ -126,32 +210,65 @@ def plot_fig4c(ranked: pd.DataFrame, path: str | Path) -> Path:
 
 
 def plot_jump_vs_parameters(ranked: pd.DataFrame, path: str | Path) -> Path:
-    """Jump height [mm] against each design parameter (one panel per parameter), coloured by
-    ``mu_i / mu_o``; ``ok`` and ``no_snap`` rows. Writes a PNG."""
+    """Jump height [mm] against each design parameter, ``ok`` and ``no_snap`` rows: one row of
+    panels per ``mu_i / mu_o`` (up to four values, so neither hides the other; more are coloured
+    in one row), triangles for the designs that go asymmetric first, a star for the best design.
+    Points are spread a little sideways within a grid value. Writes a PNG."""
     plt = _pyplot()
     d = ranked[ranked["status"].isin(["ok", "no_snap"])].copy()
     d["yj"] = d["y_jump_m"].astype("float64") * 1e3
     d = d[np.isfinite(d["yj"])]
-    fig, axes = plt.subplots(1, len(PARAMETERS), figsize=(3.2 * len(PARAMETERS), 3.4), sharey=True,
-                             constrained_layout=True)
+    ratios = sorted(d["mu_ratio"].astype("float64").unique()) if not d.empty else []
+    by_row = 1 <= len(ratios) <= 4
+    params = [p for p in PARAMETERS if not (by_row and p[0] == "mu_ratio")]
+    nrows = len(ratios) if by_row else 1
+    fig, axes = plt.subplots(nrows, len(params), figsize=(2.35 * len(params) + 0.4, 2.3 * nrows + 0.9),
+                             sharey=True, sharex="col", squeeze=False, layout="constrained")
+    best = _best(d)
+    fl_all = _flags(d)
     try:
-        groups = sorted(d.groupby("mu_ratio"), key=lambda t: t[0]) if not d.empty else []
-        for ax, (col, label) in zip(axes, PARAMETERS):
-            for i, (r, g) in enumerate(groups):
+        rng = np.random.default_rng(0)
+        rows = [(r, d["mu_ratio"].astype("float64").to_numpy() == r) for r in ratios] if by_row else [(None, None)]
+        handles = []
+        for i, (r, sel) in enumerate(rows):
+            g = d if sel is None else d[sel]
+            fl = _flags(g)
+            for ax, (col, label) in zip(axes[i], params):
                 x = g[col].astype("float64").to_numpy()
-                span = np.ptp(x) if x.size else 0.0
-                jitter = (np.random.default_rng(0).uniform(-0.015, 0.015, x.size) * span) if span > 0 else 0.0
-                ax.scatter(x + jitter, g["yj"], s=6, alpha=0.6, color=_ratio_colour(r, i),
-                           label=rf"$\mu_i/\mu_o$ = {r:g}")
-            ax.set_xlabel(label)
-            _empty_note(ax, d)
-        axes[0].set_ylabel(r"$y_{jump}$ [mm]")
-        if groups:
-            axes[-1].legend(loc="best", fontsize=7)
+                span = np.ptp(d[col].astype("float64").to_numpy()) if len(d) else 0.0
+                x = x + (rng.uniform(-0.015, 0.015, x.size) * span if span > 0 else 0.0)
+                colours = ([_ratio_colour(r, i)] * len(g)) if by_row else [
+                    _ratio_colour(v, ratios.index(v)) for v in g["mu_ratio"].astype("float64")]
+                colours = np.array(colours, dtype=object)
+                for shape, mask in ((_AXI, ~fl["asym"]), (_ASYM, fl["asym"])):
+                    if mask.any():
+                        ax.scatter(x[mask], g["yj"].to_numpy()[mask], s=5 if shape == _AXI else 7, marker=shape,
+                                   alpha=0.55, c=list(colours[mask]), lw=0)
+                if best is not None and (sel is None or abs(float(best["mu_ratio"]) - r) < 1e-12):
+                    h = ax.scatter([float(best[col])], [float(best["yj"])], marker="*", s=170, facecolors="none",
+                                   edgecolors="#d62728", lw=1.1, zorder=6)
+                    if not handles:
+                        handles.append(h)
+                ax.tick_params(labelsize=8)
+                if i == nrows - 1:
+                    ax.set_xlabel(label)
+                _empty_note(ax, g)
+            axes[i, 0].set_ylabel(r"$y_{jump}$ [mm]" + (f"\n$\\mu_i/\\mu_o$ = {r:g}" if by_row else ""))
+        if handles:
+            handles[0].set_label(_mark_best_label(best))
+        handles = handles + _shape_handles(fl_all)
+        if not d.empty:
+            _legend_below(fig, handles, ncols=3)
         path = _save(fig, path, 130)
     finally:
         plt.close(fig)
     return path
+
+
+def _mark_best_label(best: pd.Series) -> str:
+    return (f"best: $\\eta_i$ {best['eta_i']:.3g}, $\\theta_i$ {best['theta_i_deg']:.3g}°, "
+            f"$\\eta_o$ {best['eta_o']:.3g}, $\\theta_o$ {best['theta_o_deg']:.3g}°, "
+            f"$\\mu_i/\\mu_o$ {best['mu_ratio']:.3g}: {float(best['y_jump_m']) * 1e3:.0f} mm")
 
 
 #: The files :func:`make_plots` writes into its folder.

@@ -15,7 +15,6 @@ and the ranked table give one answer per design and mesh.
 """
 from __future__ import annotations
 
-import csv
 import json
 import logging
 import math
@@ -26,7 +25,6 @@ import click
 import numpy as np
 
 from snapjump_cli.cli import verbosity_options
-from snapjump_cli.errors import BadInput
 from snapjump_cli.settings import SolverSettings
 from snapjump_cli.scenes import (
     mesh_options,
@@ -57,17 +55,6 @@ def to_jsonable(metrics: dict) -> dict:
             v = bool(v)
         out[k] = v
     return out
-
-
-def _write_csv(curve: dict, path: Path) -> None:
-    """The traced path as CSV into ``path`` (a temporary file of :class:`AtomicFiles`)."""
-    cols = ["p_Pa", "V_m3", "y_pole_m", "energy_J", "s"]
-    names = ["p_Pa", "V_m3", "y_pole_m", "strain_energy_J", "arc_length"]
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(names)
-        for row in zip(*(curve[c] for c in cols)):
-            w.writerow([f"{float(x):.12g}" for x in row])
 
 
 def _text(scene, m: dict) -> str:
@@ -120,10 +107,23 @@ def _text(scene, m: dict) -> str:
 @click.option("--full", is_flag=True, help="Trace the whole curve (to 1.5 p_c or the volume bound) instead of stopping once the snap is characterised.")
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True, help="Output format.")
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Write the traced path (p_Pa, V_m3, y_pole_m, strain_energy_J, arc_length) to this CSV file.")
+              help="Write the traced path to this CSV file, one row per step: p_Pa, V_m3, y_pole_m, strain_energy_J, "
+                   "arc_length, step, state (start, p_max, upper, lower or empty), on_path.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Draw the p-V curve (paper Fig. 2A normalisation, dE shaded) to this PNG file.")
-@click.option("--overwrite", is_flag=True, help="Replace an existing --csv / --plot file (refused by default).")
+@click.option("--shapes", "shapes_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Draw the undeformed state, the pressure maximum, the upper and the lower state (sections "
+                   "mirrored about the axis, one scale, coloured by the largest principal stretch) to this PNG file.")
+@click.option("--animation", "animation_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write the section moving along the traced path, beside its point on the p-V curve, to this "
+                   "GIF file.")
+@click.option("--export", "export_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write the traced path as a ParaView time series (FILE.pvd with the folder FILE_steps/, or "
+                   "FILE.xdmf): displacement [m], stretch, element pressure; each step's p, V and state.")
+@click.option("--revolve", type=click.IntRange(min=0), default=0, show_default=True, metavar="N",
+              help="With --export: the solid of revolution in N sectors (N >= 3) instead of the section.")
+@click.option("--overwrite", is_flag=True,
+              help="Replace existing --csv / --plot / --shapes / --animation / --export files (refused by default).")
 @click.option("--time-limit", "time_limit_s", type=click.FloatRange(min=0, min_open=True, max=1e9),
               default=_SOLVER_DEFAULTS.time_limit_s, show_default=True, metavar="SECONDS",
               help="CPU seconds the solve may take (the mesh check's re-solve included); beyond them it stops "
@@ -136,6 +136,7 @@ def _text(scene, m: dict) -> str:
                    "asym_n, asym_V_m3, asym_p_Pa and asym_lower_stable.")
 @verbosity_options
 def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, overwrite: bool, harmonics: int,
+            shapes_path: Path | None, animation_path: Path | None, export_path: Path | None, revolve: int,
             time_limit_s: float, max_nodes: int, **kw) -> None:
     """Trace one scene's pressure-volume path through its limit points and report the snap.
 
@@ -144,38 +145,25 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
       snapjump curve --design D
       snapjump curve --cap --theta 60 --eta 30 --bc clamped --format json
       snapjump curve --design C --plot c.png --csv c.csv
+      snapjump curve --design D --shapes d.png --animation d.gif --export d.pvd
       snapjump curve --cap outer --theta 90 --eta 16.5
     """
-    from snapjump_cli.files import AtomicFiles, check_writable
     from snapjump_cli.solve import SolveFailed, solve_checked
 
     scene = scene_from_options(**pick_scene_options(kw))
     ms = mesh_settings_from_options(**pick_mesh_options(kw))
-    for p, suffix in ((csv_path, ".csv"), (plot_path, ".png")):
-        if p is not None:
-            if p.suffix.lower() != suffix:
-                raise BadInput(f"{p}: expected a {suffix} file")
-            if not p.parent.exists():
-                raise BadInput(f"{p}: directory {p.parent} does not exist")
-            check_writable(p, BadInput, overwrite=overwrite)
-    if plot_path is not None:
-        try:
-            import matplotlib  # noqa: F401
-        except ImportError as e:
-            raise click.ClickException(f"--plot needs matplotlib (pip install 'snapjump[plots]'): {e}") from None
+    from snapjump_cli.viz.outputs import check_outputs, write_outputs
+
+    outputs = {"--csv": csv_path, "--plot": plot_path, "--shapes": shapes_path, "--animation": animation_path,
+               "--export": export_path}
+    check_outputs(outputs, revolve, overwrite)
     try:
         res = solve_checked(scene, ms, SolverSettings(full=full, harmonics=harmonics, time_limit_s=time_limit_s,
                                                       max_nodes=max_nodes))
     except SolveFailed as exc:
         raise click.ClickException(f"solve failed: {exc}") from None
     m = to_jsonable(res.metrics)
-    with AtomicFiles() as out:  # both files or neither (a plot that fails leaves no CSV behind)
-        if csv_path is not None:
-            out.add(csv_path, lambda tmp: _write_csv(res.curve, tmp))
-        if plot_path is not None:
-            from snapjump_cli.plots import plot_pv_curve
-
-            out.add(plot_path, lambda tmp: plot_pv_curve(res.curve, m, tmp, title=getattr(scene, "name", None) or ""))
+    write_outputs(res, scene, m, outputs, revolve)
     if fmt == "json":
         click.echo(json.dumps(m, sort_keys=False))
     else:

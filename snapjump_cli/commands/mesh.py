@@ -1,5 +1,5 @@
 """``snapjump mesh``: build and mesh one scene, print its geometry (text or JSON), optionally write
-the mesh (.msh or .vtu).
+the mesh (.msh or .vtu) or the designed solids for CAD (.step/.stp, .brep, .stl; millimetres).
 
 JSON keys (stable): ``R_o_m``, ``Delta_m``, ``n_nodes``, ``n_elements``, ``V_inner_solid_m3``
 (inner cap + ring, meshed), ``V_outer_solid_m3`` (meshed), ``V_cavity_m3`` (meshed, exact
@@ -138,7 +138,9 @@ def _text(scene, s: dict) -> str:
 @scene_options
 @mesh_options
 @click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), default=None, metavar="FILE",
-              help="Write the mesh to FILE (.msh or .vtu).")
+              help="Write the mesh to FILE (.msh or .vtu), or the designed actuator as 3D solids for CAD and "
+                   "moulds (.step/.stp, .brep, .stl; separate solids inner_cap, ring, outer_cap; unit mm, axis z, "
+                   "ground at z = 0).")
 @click.option("--overwrite", is_flag=True, help="Replace an existing --out file (refused by default).")
 @click.option("--max-nodes", type=click.IntRange(10, 10_000_000), default=SolverSettings().max_nodes,
               show_default=True, metavar="N",
@@ -151,15 +153,23 @@ def command(out: Path | None, fmt: str, overwrite: bool, max_nodes: int, **kw) -
 
     Choose the scene with --design NAME, or --eta-i/--theta-i/--eta-o/--theta-o [--mu-ratio],
     or --cap [inner|outer] --theta DEG --eta ETA [--bc ...]. Angles in degrees.
+
+    \b
+    Examples:
+      snapjump mesh --design D --out d.vtu          # the FE mesh (ParaView)
+      snapjump mesh --design D --out d.step         # the solids for CAD, in millimetres
+      snapjump mesh --cap --theta 60 --eta 8.5 --bc ring-roller --out cap.stl
     """
     from snapjump_cli.files import check_writable
     from snapjump_cli.mesh import MESH_SUFFIXES, mesh_scene, write_mesh
+    from snapjump_cli.solids import SOLID_SUFFIXES, write_solids
 
     scene = scene_from_options(**pick_scene_options(kw))
     settings = mesh_settings_from_options(**pick_mesh_options(kw))
     if out is not None:
-        if out.suffix.lower() not in MESH_SUFFIXES:
-            raise BadInput(f"--out must end in .msh or .vtu, got {str(out)!r}")
+        if out.suffix.lower() not in MESH_SUFFIXES + SOLID_SUFFIXES:
+            raise BadInput(f"--out must end in .msh or .vtu (the mesh) or .step, .stp, .brep, .stl (the solids, mm), "
+                           f"got {str(out)!r}")
         if not out.parent.is_dir():
             raise BadInput(f"--out folder does not exist: {str(out.parent)!r}")
         check_writable(out, BadInput, overwrite=overwrite)
@@ -170,7 +180,10 @@ def command(out: Path | None, fmt: str, overwrite: bool, max_nodes: int, **kw) -
     s = summary(scene, mesh)
     if out is not None:
         try:
-            write_mesh(mesh, out)
+            if out.suffix.lower() in SOLID_SUFFIXES:
+                write_solids(scene, out)
+            else:
+                write_mesh(mesh, out)
         except OSError as e:  # a full disk, an I/O error: one line naming the file, exit 2, nothing written
             from snapjump_cli.files import describe_os_error
 

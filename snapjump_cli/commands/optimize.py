@@ -136,7 +136,7 @@ def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | N
     from snapjump_cli.files import check_writable, follow_links
     from snapjump_cli.optimize import OptimizeInputError, cache_paths, check_output, load_spec, read_from
     from snapjump_cli.storage import OutputLock
-    from snapjump_cli.sweep import SweepError, SweepInputError
+    from snapjump_cli.sweep import SweepInputError
 
     try:
         sp = load_spec(spec)

@@ -151,7 +151,7 @@ def test_bad_input(capsys, tmp_path, args, needle):
 def test_bad_out_suffix(capsys, tmp_path, name):
     rc, out, err = run(capsys, "--design", "C", "--out", str(tmp_path / name))
     assert rc == 2 and out == ""
-    assert len(err.strip().splitlines()) == 1 and name in err and ".msh or .vtu" in err
+    assert len(err.strip().splitlines()) == 1 and name in err and ".msh or .vtu" in err and ".step" in err
     assert list(tmp_path.iterdir()) == []
 
 

@@ -32,7 +32,7 @@ def test_curve_plot_without_matplotlib_is_one_line_before_solving(tmp_path, caps
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib -> ImportError
     monkeypatch.setattr(solve, "solve_checked", lambda *a, **k: pytest.fail("solved before checking matplotlib"))
     code, _, err = run_cli(capsys, "curve", *CHEAP_SCENE, "--plot", str(tmp_path / "c.png"))
-    assert code == 1 and "--plot needs matplotlib" in err and len(err.strip().splitlines()) == 1
+    assert code == 2 and "--plot needs matplotlib" in err and len(err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
 
 
