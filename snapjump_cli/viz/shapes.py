@@ -267,7 +267,7 @@ def plot_shapes(mesh, states: Sequence[ShapeState], path: str | Path, *, title: 
             caption = state_caption(s.p_Pa, s.V_m3, volume_symbol)
             note = s.note
             if draw.ground_kind == "ground" and polys[..., 1].min() < -0.02 * r:
-                note = (note + " " if note else "") + "(below the ground line: no ground in the model)"
+                note = (note + "\n" if note else "") + "(below ground: no contact in the model)"
             ax.set_title(f"{s.label}\n{caption}" + (f"\n{note}" if note else ""), fontsize=9)
             if s.x_pi is not None:
                 for xpos, txt in ((-0.5 * r, r"$\varphi = \pi$"), (0.5 * r, r"$\varphi = 0$")):
@@ -316,11 +316,14 @@ def key_shape_states(steps, X: np.ndarray) -> list[ShapeState]:
         if k is None:
             continue
         if name == "lower" and not steps.on_path[k]:
-            note = "(found at fixed volume, off the traced path)"
+            note = "(at fixed volume, off the path)"
         out.append(ShapeState(STATE_TITLES[name], float(steps.p_Pa[k]), float(steps.V_m3[k]), X + steps.U[k],
                               note=note))
     if steps.index("upper") is None:
         k = len(steps) - 1
-        out.append(ShapeState("last traced state (no snap)", float(steps.p_Pa[k]), float(steps.V_m3[k]),
-                              X + steps.U[k]))
+        if steps.index("p_max") == k:  # the pressure rises to the end of the trace: one panel for both
+            out[-1].note = "(the last traced state: no snap)"
+        else:
+            out.append(ShapeState("last traced state (no snap)", float(steps.p_Pa[k]), float(steps.V_m3[k]),
+                                  X + steps.U[k]))
     return out

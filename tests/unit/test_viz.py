@@ -81,3 +81,20 @@ def test_steps_name_the_states_of_design_c():
     assert st.p_Pa[pk] >= st.p_Pa[: up + 1].max() - 1e-9 * st.p_Pa[pk]
     assert st.p_Pa[pk] == pytest.approx(m["p_max_Pa"], rel=1e-4)
     assert np.all(st.U[0] == 0.0)
+
+
+def test_a_path_without_snap_gets_one_panel_for_its_last_state():
+    from snapjump_cli.viz.shapes import key_shape_states
+    from snapjump_cli.viz.states import Steps
+
+    n, nn = 5, 3
+    p = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+    steps = Steps(U=np.zeros((n, nn, 2)), p_Pa=p, V_m3=p * 1e-6, y_pole_m=np.zeros(n), energy_J=np.zeros(n),
+                  arc_length=np.arange(n, dtype=float), state=["start", "", "", "", "p_max"],
+                  on_path=np.ones(n, bool))
+    panels = key_shape_states(steps, np.zeros((nn, 2)))
+    assert [s.label for s in panels] == ["undeformed", "pressure maximum"] and "no snap" in panels[1].note
+    steps.state = ["start", "", "p_max", "", ""]
+    panels = key_shape_states(steps, np.zeros((nn, 2)))
+    assert [s.label for s in panels] == ["undeformed", "pressure maximum", "last traced state (no snap)"]
+    assert panels[-1].p_Pa == 4.0
