@@ -21,6 +21,7 @@ Schema (defaults in brackets)::
     ring: {t_ring_frac: 1/30, w_ring_frac: 1/10} # ring size as fractions of R_i
     mesh: {order: 2, nt: 4, aspect: 2.0}         # fields of MeshSettings
     solver: {tol: 1e-9, ...}                     # fields of SolverSettings
+    fluid: water               # or {kind: air, V0_ml: 45, gamma: 1, p0: 101325} (FluidSettings)
     output: results/<config stem>.parquet        # relative paths are relative to the working dir
     n_jobs: -1                 # joblib n_jobs (-1: all cores)
     chunk_size: 16             # results per part file (see snapjump_cli.sweep)
@@ -50,6 +51,7 @@ from typing import Any, Callable, Iterator, Mapping
 
 import numpy as np
 
+from snapjump_cli.fluid import FLUID_KEYS, WATER, FluidSettings, fluid_from_mapping
 from snapjump_cli.geometry import J_M_DEFAULT, MU_ELITE_DOUBLE_32, R_I_DEFAULT, RADIUS_RANGE_M
 from snapjump_cli.settings import MeshSettings, SettingsError, SolverSettings
 from snapjump_cli.yaml_checks import ConfigError, _Ctx, read_yaml
@@ -142,6 +144,7 @@ class SweepConfig:
     source: str = "<dict>"
     raw: dict = field(default_factory=dict, compare=False)
     points: tuple[tuple[float, float, float, float, float], ...] | None = None
+    fluid: FluidSettings = WATER
 
     @property
     def n_designs(self) -> int:
@@ -186,6 +189,8 @@ class SweepConfig:
         if self.points is not None:
             del out["grid"]
             out["points"] = [dict(zip(GRID_AXES, p)) for p in self.points]
+        if self.fluid.is_air:  # (a water config's dict is as it was before the setting existed)
+            out["fluid"] = self.fluid.as_dict()
         return out
 
 
@@ -205,6 +210,7 @@ _TOP_KEYS: dict[str, str] = {
     "grid": "a mapping with keys " + ", ".join(GRID_AXES),
     "points": "a list of designs {" + ", ".join(GRID_AXES) + "} or a CSV/parquet file of them",
     **_COMMON_KEYS,
+    "fluid": "water or a mapping {kind: air, V0_ml, gamma, p0}",
 }
 _GRID_KEYS: dict[str, str] = {a: _AXIS_EXPECTED for a in GRID_AXES}
 _RANGE_KEYS: dict[str, str] = {"start": "a number", "stop": "a number", "num": "an integer >= 1"}
@@ -370,6 +376,18 @@ _MESH_CHECKS: dict[str, tuple[Callable[[Any], bool], str]] = {}
 _SOLVER_CHECKS: dict[str, tuple[Callable[[Any], bool], str]] = {}
 
 
+def _parse_fluid(ctx: _Ctx, value: Any) -> FluidSettings:
+    """The ``fluid:`` setting (the checks are :class:`snapjump_cli.fluid.FluidSettings`'s, as on the
+    command line)."""
+    if isinstance(value, Mapping):
+        ctx.mapping("fluid", value, FLUID_KEYS)
+    try:
+        return fluid_from_mapping(value, number=lambda k, v: ctx.number(f"fluid.{k}", v, FLUID_KEYS[k]))
+    except SettingsError as e:
+        where = f"fluid.{e.field}" if isinstance(value, Mapping) else "fluid"
+        raise ctx.fail(where, e.expected, value.get(e.field, e.value) if isinstance(value, Mapping) else value) from None
+
+
 def parse_config(doc: Any, source: str = "<dict>", max_designs: int = MAX_DESIGNS) -> SweepConfig:
     """Validate a loaded YAML document and apply the defaults.
 
@@ -425,6 +443,11 @@ def parse_config(doc: Any, source: str = "<dict>", max_designs: int = MAX_DESIGN
             kw[k] = ctx.positive(f"ring.{k}", r[k])
     kw["mesh"] = _settings_from(ctx, "mesh", top.get("mesh"), MeshSettings, _MESH_CHECKS)
     kw["solver"] = _settings_from(ctx, "solver", top.get("solver"), SolverSettings, _SOLVER_CHECKS)
+    if top.get("fluid") is not None:
+        kw["fluid"] = _parse_fluid(ctx, top["fluid"])
+        if kw["fluid"].is_air and kw["solver"].harmonics > 0:
+            raise ConfigError(source, "solver.harmonics", "the harmonic check is not available with fluid: air; "
+                              f"expected 0, got {kw['solver'].harmonics}")
     stem = Path(source).stem if source and not source.startswith("<") else "sweep"
     kw["output"] = Path("results") / f"{stem}.parquet"
     if top.get("output") is not None:

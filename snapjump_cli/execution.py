@@ -33,7 +33,8 @@ log = logging.getLogger(__name__)
 
 _CONNECT_TIMEOUT_S = 15.0
 
-#: What a sweep calls per design: ``solve_fn(design, mesh, solver) -> metrics dict``.
+#: What a sweep calls per design: ``solve_fn(design, mesh, solver) -> metrics dict`` (with
+#: ``fluid=FluidSettings`` as a keyword when the sweep's fluid is air).
 SolveFn = Callable[[Design, MeshSettings, SolverSettings], Mapping[str, Any]]
 
 
@@ -97,7 +98,10 @@ def solve_task(task: dict[str, Any], solve_fn: SolveFn, marker_dir: str | None) 
     try:
         if task.get("limit_threads"):
             limit_threads_in_worker()
-        result = solve_fn(task["design"], task["mesh"], task["solver"])
+        if task.get("fluid") is not None:  # air (water: the solver's default)
+            result = solve_fn(task["design"], task["mesh"], task["solver"], fluid=task["fluid"])
+        else:
+            result = solve_fn(task["design"], task["mesh"], task["solver"])
         fill_row(row, result)
     except Exception as e:  # noqa: BLE001 - any failure of one design is recorded, never raised
         msg = str(e).strip().replace("\n", " | ")

@@ -92,7 +92,8 @@ class LowerState:
     message: str = ""
 
 
-def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint], why: str = "") -> LowerState:
+def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint], why: str = "",
+                     control: Tracer | None = None) -> LowerState:
     """The lower state of a snap: on the path if the tracker found a stable one, else at fixed volume.
 
     Parameters
@@ -102,6 +103,9 @@ def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint]
     points : the traced path's points (post-snap points are start states of the descent)
     why : why the path gave no lower state (the continuation's failure or stop reason), for the
         messages
+    control : another control than the cavity volume (a gas in series,
+        :class:`snapjump_cli.air_snap.GasControlled`): a tracer whose problem's first measure is
+        the controlled volume; the lower state is then found at that volume
 
     Returns
     -------
@@ -114,19 +118,19 @@ def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint]
     note = ""
     if states.lower is not None:
         lin = tracer.pb.linearize(states.lower.u, states.lower.p)
-        n_unstable = constrained_instability(tracer, lin) if lin is not None else 1
+        n_unstable = constrained_instability(control or tracer, lin) if lin is not None else 1
         if n_unstable <= 0:
             return LowerState(states.lower, states.lower_method)
         note = f"the path returned to V* on an unstable branch ({n_unstable} unstable modes)"
     reason = note or why
-    low, msg = snap_at_fixed_volume(tracer, states.upper)
+    low, msg = snap_at_fixed_volume(tracer, states.upper, control=control)
     solver = "volume-path"
     if low is None:
         log.debug("%s; falling back on the energy descent", msg)
         solver = "energy-descent"
         # from the upper state along its unstable mode first; post-snap path points as fallbacks
-        for start in [None] + descent_starts(points, states.upper, states.k_before):
-            low, msg = descend_at_volume(tracer, states.upper, start=start)
+        for start in [None] + descent_starts(points, states.upper, states.k_before, control=control):
+            low, msg = descend_at_volume(tracer, states.upper, start=start, control=control)
             if low is not None:
                 break
     if low is not None:
@@ -190,6 +194,8 @@ class _FixedVolumeLinearization:
         B = np.stack([-lin.g, -e], axis=1)
         C = np.stack([pb.c_V * lin.g, c_x[:n]], axis=1)
         D = np.array([[0.0, 0.0], [float(c_x[n]), float(c_F)]])
+        if pb.control is not None:  # the volume equation's dependence on the pressure (the gas)
+            D[0, 0] = pb.c_V * float(pb.control.compliance(float(self.u[-1])))
         s = _MultiBorderedSolver(base, B, C, D)
         if not np.all(np.isfinite(s.S)) or abs(np.linalg.det(s.S)) == 0.0:
             return None
@@ -208,10 +214,14 @@ class FixedVolumeProblem:
     e : the controlled direction (length ``model.n``; a unit vector on one dof is a point force)
     c_V : weight of the volume equation (force / volume)
     p_floor : floor of the pressure in the residual reference (as in the pressure-volume trace)
+    control : the controlled problem of another control than the cavity volume (its
+        ``extra_volume(p)`` and ``compliance(p)``: the constraint is ``V(u) + extra_volume(p) =
+        V_star``), or ``None``
     """
 
-    def __init__(self, model, V_star: float, e: np.ndarray, c_V: float, p_floor: float) -> None:
+    def __init__(self, model, V_star: float, e: np.ndarray, c_V: float, p_floor: float, control=None) -> None:
         self.model, self.V_star, self.c_V, self.p_floor = model, V_star, c_V, p_floor
+        self.control = control
         self.e = np.ascontiguousarray(e, dtype=float)
         self.n = model.n + 1
 
@@ -222,6 +232,8 @@ class FixedVolumeProblem:
         R = np.empty(self.n)
         R[:-1] = lin.R - F * self.e
         R[-1] = self.c_V * (lin.V - self.V_star)
+        if self.control is not None:
+            R[-1] = self.c_V * (lin.V + float(self.control.extra_volume(x[-1])) - self.V_star)
         return _FixedVolumeLinearization(self, x, F, R, lin)
 
     def measures(self, x: np.ndarray, F: float, lin=None):
@@ -235,8 +247,8 @@ class FixedVolumeProblem:
         return float(np.linalg.norm(lin.lin.g)) * max(abs(float(lin.u[-1])), self.p_floor)
 
 
-def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400, max_zeros: int = 6
-                         ) -> tuple[PathPoint | None, str]:
+def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400, max_zeros: int = 6,
+                         control: Tracer | None = None) -> tuple[PathPoint | None, str]:
     """The stable state at ``V*`` reached from the upper state (see the module docstring).
 
     Parameters
@@ -245,6 +257,8 @@ def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400,
     upper : the upper state (the first volume limit point)
     max_steps : continuation steps of one fixed-volume path
     max_zeros : zeros of ``F`` examined on one path before giving up
+    control : another control than the cavity volume (see :func:`find_lower_state`): the
+        constraint, the polish, the stability and the energy (``potential``) are its problem's
 
     Returns
     -------
@@ -260,6 +274,9 @@ def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400,
         return None, "upper state outside the material domain"
     V_star = lin_up.V
     W_up = lin_up.E
+    if control is not None:
+        V_star = lin_up.V + float(control.pb.extra_volume(upper.p))
+        W_up = control.pb.potential(lin_up.E, upper.p)
     p_floor = 1e-3 * sp
     ref_up = float(np.linalg.norm(lin_up.g)) * max(abs(upper.p), p_floor)
     x0 = np.concatenate([upper.u, [upper.p]])
@@ -276,10 +293,11 @@ def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400,
         attempts += [("mode", upper.du_ds / nrm, d, math.sqrt(model.n) * sw) for d in (1.0, -1.0)]
     msgs = []
     for name, e, direction, s_w in attempts:
-        pb = FixedVolumeProblem(model, V_star, e, c_V=ref_up / sV, p_floor=p_floor)
+        pb = FixedVolumeProblem(model, V_star, e, c_V=ref_up / sV, p_floor=p_floor,
+                                control=control.pb if control is not None else None)
         fcfg = replace(cfg, scales=(s_w, sp * sV / s_w), max_steps=max_steps)  # force = p V / length
         found, msg, n_steps, n_newton = _follow(tracer, pb, fcfg, x0, direction, W_up, V_star / sV,
-                                                1e-3 * cfg.tol * ref_up, max_zeros)
+                                                1e-3 * cfg.tol * ref_up, max_zeros, control)
         if found is not None:
             lin, it = found
             t, v, q, z = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
@@ -290,29 +308,36 @@ def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400,
 
 
 def _follow(tracer: Tracer, pb: FixedVolumeProblem, fcfg, x0: np.ndarray, direction: float, W_up: float,
-            V_target: float, F_tol: float, max_zeros: int):
+            V_target: float, F_tol: float, max_zeros: int, control: Tracer | None = None):
     """Follow the fixed-volume path from ``x0`` along ``direction * e``; returns
-    ``((linearisation, iterations) or None, message, steps, Newton iterations)``."""
+    ``((linearisation, iterations) or None, message, steps, Newton iterations)``. With ``control``
+    the energies compared are its problem's ``potential`` and the zeros are polished and judged
+    under that control."""
     model = tracer.pb
+    ctl = control or tracer
+
+    def energy(E: float, p: float) -> float:
+        return E if control is None else control.pb.potential(E, p)
     ftr = Tracer(pb, fcfg)
     state = {"zeros": 0, "found": None}
 
     def stop(path) -> str | None:
         pts = path.points
         a, b = pts[-2], pts[-1]
-        if not model.energy(b.u[:-1]) <= W_up + 1e-9 * max(1.0, abs(W_up)):
+        if not energy(model.energy(b.u[:-1]), float(b.u[-1])) <= W_up + 1e-9 * max(1.0, abs(W_up)):
             return "climbed above the upper state's energy"
         if not (a.p * b.p < 0.0 or (b.p == 0.0 and a.p != 0.0)):
             return None
         state["zeros"] += 1
         root = root_on_step(ftr, a, b, pts[-3] if len(pts) > 2 else None, lambda pt: pt.p, F_tol, 40)
-        res = tracer.correct(root.u[:-1].copy(), float(root.u[-1]), None, None, 0.0, target=(0, V_target))
+        res = ctl.correct(root.u[:-1].copy(), float(root.u[-1]), None, None, 0.0, target=(0, V_target))
         if res is not None:
             lin, it = res
-            n_unstable = constrained_instability(tracer, lin)
-            below = lin.E < W_up - 1e-12 * max(1.0, abs(W_up))
+            n_unstable = constrained_instability(ctl, lin)
+            W = energy(lin.E, lin.p)
+            below = W < W_up - 1e-12 * max(1.0, abs(W_up))
             log.debug("fixed-volume path: F = 0 at w = %.6g (%d unstable, W %.6g vs upper %.6g)",
-                      float(pb.e @ lin.u), n_unstable, lin.E, W_up)
+                      float(pb.e @ lin.u), n_unstable, W, W_up)
             if n_unstable == 0 and below:
                 state["found"] = (lin, it)
                 return "stable state at V*"
@@ -329,28 +354,34 @@ def _follow(tracer: Tracer, pb: FixedVolumeProblem, fcfg, x0: np.ndarray, direct
 
 
 def constrained_instability(tracer: Tracer, lin) -> int:
-    """Number of unstable modes of the equilibrium ``lin`` under volume control.
+    """Number of unstable modes of the equilibrium ``lin`` under the control of ``tracer``'s
+    problem: its first path measure (the cavity volume; or the volume a syringe dispenses through
+    a gas of compliance ``c = dV_d/dp``, the measure's pressure derivative).
 
     With ``K`` the tangent and ``g = dV/du``, the inertia of the bordered matrix gives
-    ``neg(Z^T K Z) = neg(K) - [g^T K^-1 g < 0]`` (Haynsworth), ``Z`` spanning ``g``'s complement.
+    ``neg(Z^T K Z) = neg(K) - [g^T K^-1 g < 0]`` (Haynsworth), ``Z`` spanning ``g``'s complement;
+    under the gas the stiffness is ``K + g g^T / c`` and ``neg = neg(K) - [c + g^T K^-1 g < 0]``.
     Returns -1 if the inertia is not available (SuperLU solver).
     """
     z, dz_du, dz_dp = tracer.zeta(lin.u, lin.p)
-    return _constrained_negatives(lin.factor(dz_du[0], 0.0), lin.g)
+    if dz_dp[0] == 0.0:  # volume control
+        return _constrained_negatives(lin.factor(dz_du[0], 0.0), lin.g)
+    return _constrained_negatives(lin.factor(dz_du[0], float(dz_dp[0])), lin.g, float(dz_dp[0]) * float(tracer.sc[0]))
 
 
-def _constrained_negatives(solver, g: np.ndarray) -> int:
-    """Negative eigenvalues of ``K`` restricted to ``g^T du = 0`` from a bordered solver's
-    ``LDL^T`` (Haynsworth); -1 if the inertia is not available."""
+def _constrained_negatives(solver, g: np.ndarray, c: float = 0.0) -> int:
+    """Negative eigenvalues of ``K`` restricted to ``g^T du = 0`` (with a compliance ``c > 0``:
+    of ``K + g g^T / c``) from a bordered solver's ``LDL^T`` (Haynsworth); -1 if the inertia is
+    not available."""
     if solver is None or getattr(solver, "n_negative", -1) < 0:
         return -1
     gKg = -float(g @ solver.Kib)  # Kib = K^-1 (-g)
-    return int(solver.n_negative - (1 if gKg < 0 else 0))
+    return int(solver.n_negative - (1 if c + gKg < 0 else 0))
 
 
 def descend_at_volume(
     tracer: Tracer, upper: PathPoint, kick: float = 0.2, max_iter: int = 2000, tol: float | None = None,
-    start: PathPoint | None = None,
+    start: PathPoint | None = None, control: Tracer | None = None,
 ) -> tuple[PathPoint | None, str]:
     """The stable state reached from the upper state at fixed volume by energy descent.
 
@@ -368,6 +399,9 @@ def descend_at_volume(
     Started at ``kick`` (scaled arc length) along the path tangent at the volume limit, the
     unstable direction of the fold, or at ``start`` (a post-snap path point; its volume is
     brought back to ``V*`` by at most ``max(0.05, 0.01 V*)`` per iteration).
+    With ``control`` (a gas in series, :func:`find_lower_state`) the constraint is its first
+    measure ``V + e(p) = V_d*`` (the bordered row gains the compliance ``c = e'(p)``) and the merit
+    is ``W + G(p) - p (V + e(p) - V_d*)``, whose stationary points are the equilibria at ``V_d*``.
 
     Returns
     -------
@@ -376,6 +410,9 @@ def descend_at_volume(
     cfg = tracer.cfg
     tol = cfg.tol if tol is None else tol
     V_star = upper.zeta[0]
+    ctl = control or tracer
+    if control is not None:
+        V_star = float(control.zeta(upper.u, upper.p)[0][0])
     pb = tracer.pb
     if start is not None:
         u, p = start.u.copy(), start.p
@@ -397,12 +434,12 @@ def descend_at_volume(
                 p = upper.p + kick * upper.dp_ds
                 continue
             E_new = lin.E
-            z, dz_du, dz_dp = tracer.zeta(u, p, lin)
+            z, dz_du, dz_dp = ctl.zeta(u, p, lin)
             h = float(z[0] - V_star)
             base = None
         else:
             # a trial step: energy and volume decide; the stiffness is assembled only if it is taken
-            lin, E_trial, h_trial, outside = _trial_step(tracer, u, p, accepted, V_star)
+            lin, E_trial, h_trial, outside = _trial_step(tracer, u, p, accepted, V_star, control)
             if outside:
                 dh_max *= 0.5
             if lin is None:
@@ -412,10 +449,11 @@ def descend_at_volume(
                 E_new, h = E_trial, h_trial
                 sigma_rel *= 0.25
                 base = None
-            z, dz_du, dz_dp = tracer.zeta(u, p, lin)
+            z, dz_du, dz_dp = ctl.zeta(u, p, lin)
+        c = float(dz_dp[0])  # the control's compliance (0 at fixed volume)
         if base is None:
-            base = lin.factor(dz_du[0], 0.0)  # unshifted: the inertia, and Newton's step once sigma -> 0
-            n_unstable = _constrained_negatives(base, lin.g)
+            base = lin.factor(dz_du[0], c)  # unshifted: the inertia, and Newton's step once sigma -> 0
+            n_unstable = _constrained_negatives(base, lin.g, c * float(ctl.sc[0]))
         accepted = (u, p, lin, E_new, h, base, n_unstable)
         ref = tracer.residual_scale(lin, dz_du, p)
         rn = float(np.linalg.norm(lin.R)) / ref
@@ -431,7 +469,7 @@ def descend_at_volume(
             return PathPoint(lin.u, lin.p, zz, t, v, q, float("nan"), it), f"descent converged {how}in {it} iterations"
         # the smallest shift (from the current sigma_rel up) that makes the shifted system
         # positive definite on the constraint: the step then goes downhill in every mode
-        solver, sigma_rel = _descent_solver(lin, dz_du, base, n_unstable, sigma_rel)
+        solver, sigma_rel = _descent_solver(lin, dz_du, base, n_unstable, sigma_rel, c, c * float(ctl.sc[0]))
         if solver is None:
             return None, f"descent: no positive definite shift at iteration {it}"
         # restore the volume gradually when starting far from V* (a homotopy in the constraint)
@@ -443,9 +481,10 @@ def descend_at_volume(
     return None, f"descent did not converge in {max_iter} iterations"
 
 
-def _trial_step(tracer: Tracer, u: np.ndarray, p: float, accepted: tuple, V_star: float) -> tuple:
+def _trial_step(tracer: Tracer, u: np.ndarray, p: float, accepted: tuple, V_star: float, control=None) -> tuple:
     """Judge a trial step of :func:`descend_at_volume` from ``accepted`` (the last accepted
-    iterate ``(u, p, lin, E, h, ...)``) to ``(u, p)``.
+    iterate ``(u, p, lin, E, h, ...)``) to ``(u, p)`` (with ``control``: under its constraint,
+    ``h`` of both iterates taken at the new multiplier ``p``).
 
     Returns ``(lin, E, h, outside)``: the linearisation at ``(u, p)`` if the step is taken, else
     ``None``; its energy and volume error (meaningful if taken); ``outside`` when the step left
@@ -453,13 +492,17 @@ def _trial_step(tracer: Tracer, u: np.ndarray, p: float, accepted: tuple, V_star
     largest volume change per iteration).
     """
     pb = tracer.pb
-    _, _, _, E0, h0, _, _ = accepted
+    _, p0, _, E0, h0, _, _ = accepted
     ev = pb.energy_volume(u)
     ok = ev is not None
     E_new = h = math.nan
     if ok:
         E_new = ev[0]
         h = float(ev[1] / tracer.sc[0] - V_star)
+        if control is not None:  # V + e(p) - V_d*, both at the new p (the gas energy G(p) then cancels)
+            h += float(control.pb.extra_volume(p)) / tracer.sc[0]
+    if control is not None:
+        h0 += (float(control.pb.extra_volume(p)) - float(control.pb.extra_volume(p0))) / tracer.sc[0]
     # compare with the new multiplier: merit W - p (V - V*); while the volume is still
     # being restored from a start far from V* any step inside the material domain is
     # taken. (With a tight threshold here, steps that overshot to |V - V*| ~ 1e-5 were
@@ -471,32 +514,41 @@ def _trial_step(tracer: Tracer, u: np.ndarray, p: float, accepted: tuple, V_star
     return lin, E_new, h, not ok and not feasible
 
 
-def _descent_solver(lin, dz_du: np.ndarray, base, n_unstable: int, sigma_rel: float) -> tuple:
+def _descent_solver(lin, dz_du: np.ndarray, base, n_unstable: int, sigma_rel: float, c: float = 0.0,
+                    c_model: float = 0.0) -> tuple:
     """The smallest shift, from ``sigma_rel`` up (by factors of 8), that makes the shifted system
     of :func:`descend_at_volume` positive definite on the constraint: ``(solver, sigma_rel)``, or
     ``(None, sigma_rel)`` if none up to ``1e6`` does. Without unstable modes and with
-    ``sigma_rel <= 1e-10`` the unshifted factorisation ``base`` is used (Newton's step)."""
+    ``sigma_rel <= 1e-10`` the unshifted factorisation ``base`` is used (Newton's step). ``c``: the
+    bordered row's compliance (``c_model`` in the model's units; 0 at fixed volume)."""
     solver = None
     while sigma_rel <= 1e6:
         if n_unstable != 0 or sigma_rel > 1e-10:
-            solver = lin.factor(dz_du[0], 0.0, shift=sigma_rel * lin.diag_abs())
+            solver = lin.factor(dz_du[0], c, shift=sigma_rel * lin.diag_abs())
         else:
             solver = base
-        if solver is not None and (n_unstable == 0 or _constrained_negatives(solver, lin.g) == 0):
+        if solver is not None and (n_unstable == 0 or _constrained_negatives(solver, lin.g, c_model) == 0):
             break
         sigma_rel = max(sigma_rel * 8.0, 1e-10)
         solver = None
     return solver, sigma_rel
 
 
-def descent_starts(path_points: list[PathPoint], upper: PathPoint, k_before: int, n: int = 3) -> list[PathPoint]:
-    """Start states for :func:`descend_at_volume`: post-snap path points whose volume is closest
-    to ``V*``, skipping the first fifth of the post-snap arc (the flat neighbourhood of the
-    degenerate saddle, where a descent would crawl)."""
+def descent_starts(path_points: list[PathPoint], upper: PathPoint, k_before: int, n: int = 3,
+                   control: Tracer | None = None) -> list[PathPoint]:
+    """Start states for :func:`descend_at_volume`: post-snap path points whose volume (with
+    ``control``: its controlled volume) is closest to ``V*``, skipping the first fifth of the
+    post-snap arc (the flat neighbourhood of the degenerate saddle, where a descent would crawl)."""
     after = path_points[k_before + 1 :]
     if not after:
         return []
     s0, s1 = upper.s, after[-1].s
     far = [pt for pt in after if pt.s >= s0 + 0.2 * (s1 - s0)]
+    if control is not None:
+        def vd(pt: PathPoint) -> float:
+            return float(control.zeta(pt.u, pt.p)[0][0])
+
+        far.sort(key=lambda pt: abs(vd(pt) - vd(upper)))
+        return far[:n]
     far.sort(key=lambda pt: abs(pt.zeta[0] - upper.zeta[0]))
     return far[:n]

@@ -42,6 +42,8 @@ def _scale(objective: str) -> tuple[float, str]:
 def plot_progress(result: OptimizeResult, path: str | Path) -> Path:
     """The objective of every evaluation against its number (infeasible ones at the bottom), the
     running best, the baseline and the confirmed value. Writes a PNG atomically."""
+    from matplotlib.ticker import MaxNLocator
+
     plt = _pyplot()
     objective = result.spec.objective
     sc, label = _scale(objective)
@@ -78,6 +80,7 @@ def plot_progress(result: OptimizeResult, path: str | Path) -> Path:
             top = np.nanmax(fin)
             ax.set_ylim(max(floor, top - 0.5 * abs(top)) - 0.02 * abs(top), top + 0.05 * abs(top))
         ax.set_xlabel("evaluation number (every design asked, invalid geometries included)")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))  # evaluations are counted: no 1.975
         ax.set_ylabel(label)
         ax.set_title(f"snapjump optimize ({result.spec.method}, seed {result.spec.seed}): "
                      f"{result.n_evaluations} solves")
@@ -90,6 +93,8 @@ def plot_progress(result: OptimizeResult, path: str | Path) -> Path:
 def plot_path(result: OptimizeResult, path: str | Path) -> Path:
     """The chosen design's path through parameter space: each free parameter of its successive
     incumbents against the evaluation number, within the box. Writes a PNG atomically."""
+    from matplotlib.ticker import MaxNLocator
+
     plt = _pyplot()
     free = [p for p in PARAMETERS if result.spec.bounds[p][0] < result.spec.bounds[p][1]]
     steps = result.path
@@ -116,6 +121,7 @@ def plot_path(result: OptimizeResult, path: str | Path) -> Path:
         axes[-1].plot(x, [s["objective"] * sc for s in steps], "o-", ms=3, color="k")
         axes[-1].set_ylabel(label, fontsize=8)
         axes[-1].set_xlabel("evaluation number")
+        axes[-1].xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
         fixed = ", ".join(f"{p} = {result.spec.bounds[p][0]:g}" for p in PARAMETERS if p not in free)
         axes[0].set_title("path of the chosen design (box: dashed, baseline: dotted)" + (f"\nfixed: {fixed}" if fixed else ""),
                           fontsize=9)

@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-__all__ = ["plot_fig4a", "plot_fig4c", "plot_jump_vs_parameters", "make_plots", "PARAMETERS", "PLOT_FILES"]
+__all__ = ["plot_fig4a", "plot_fig4c", "plot_jump_vs_parameters", "make_plots", "plot_pv_curve", "plot_air_curves",
+           "PARAMETERS", "PLOT_FILES"]
 
 log = logging.getLogger(__name__)
 
@@ -321,6 +322,60 @@ def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "")
     ax.set_title(title)
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    try:
+        return _save(fig, path, 120)
+    finally:
+        plt.close(fig)
+
+
+def plot_air_curves(curve: dict, metrics: dict, path: str | Path, title: str = "") -> Path:
+    """The snap under air beside the snap under water (paper Fig. S9), pressure [kPa] in both panels.
+
+    Left, against the volume the syringe has dispensed (for water, the cavity's volume change): the
+    air path (the equilibrium path with the gas's volume change added) and the water path, each
+    with its snap (a drop at constant dispensed volume) and its energy shaded. Right, against the
+    actuator's volume change: the one equilibrium path of both fluids, the water snap (at constant
+    volume) and the air snap (at constant dispensed volume: the actuator grows as the gas expands,
+    eq 9).
+    """
+    from snapjump_cli.fluid import GasLaw
+
+    plt = _pyplot()
+    V0 = curve["V0_m3"]
+    ml = 1e6
+    p = np.asarray(curve["p_Pa"]) / 1e3
+    dV = (np.asarray(curve["V_m3"]) - V0) * ml
+    Vd = np.asarray(curve["V_disp_m3"]) * ml
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11.0, 4.4))
+    air_label = (f"air, V0_sys = {metrics['air_V0_m3'] * ml:.4g} ml, gamma = {metrics['air_gamma']:g}")
+    a1.plot(dV, p, "-", color="tab:blue", lw=1.3, label="water")
+    a1.plot(Vd, p, "-", color="tab:red", lw=1.3, label=air_label)
+    a2.plot(dV, p, "-", color="k", lw=1.3, label="equilibrium path (both fluids)")
+    if "snap_V_m3" in curve and metrics.get("water_dE_J"):
+        sx, sy = (np.asarray(curve["snap_V_m3"]) - V0) * ml, np.asarray(curve["snap_p_Pa"]) / 1e3
+        a1.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:blue", alpha=0.2,
+                label=f"water dE = {metrics['water_dE_J'] * 1e3:.4g} mJ")
+        for ax in (a1, a2):
+            ax.plot([sx[0], sx[-1]], [sy[0], sy[-1]], ":", color="tab:blue", lw=1.5)
+        a2.plot([], [], ":", color="tab:blue", label="water snap (constant volume)")
+    if "air_snap_Vd_m3" in curve and metrics.get("snaps"):
+        sx, sy = np.asarray(curve["air_snap_Vd_m3"]) * ml, np.asarray(curve["air_snap_p_Pa"]) / 1e3
+        a1.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:red", alpha=0.2,
+                label=f"air dE = {metrics['dE_J'] * 1e3:.4g} mJ")
+        a1.plot([sx[0], sx[-1]], [sy[0], sy[-1]], "--", color="tab:red", lw=1.5)
+        gas = GasLaw(metrics["air_V0_m3"], metrics["air_p0_Pa"], metrics["air_gamma"])
+        pp = np.linspace(metrics["p_before_Pa"], metrics["p_after_Pa"], 50)
+        V_up = np.asarray(curve["air_snap_V_m3"])[0] - V0
+        a2.plot((V_up + gas.expelled(pp[0]) - gas.expelled(pp)) * ml, pp / 1e3, "--", color="tab:red", lw=1.5,
+                label=f"air snap (constant dispensed volume): +{metrics['dV_snap_m3'] * ml:.3g} ml")
+    a1.set_xlabel("dispensed volume [ml] (water: cavity volume change)")
+    a2.set_xlabel("actuator volume change [ml]")
+    for ax in (a1, a2):
+        ax.set_ylabel("pressure (gauge) [kPa]")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="best", fontsize=7)
+    fig.suptitle(title)
     fig.tight_layout()
     try:
         return _save(fig, path, 120)

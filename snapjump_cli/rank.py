@@ -312,6 +312,7 @@ TOP_COLUMNS: dict[str, tuple[str, float]] = {
     "asym_n": ("asym_n", 1.0),
     "lower_state": ("lower_state_method", 1.0),
     "status": ("status", 1.0),
+    "fluid": ("fluid", 1.0),
 }
 
 
@@ -320,9 +321,12 @@ def top_frame(ranked: pd.DataFrame, n: int = 10) -> pd.DataFrame:
     in mJ; a column missing from ``ranked`` is left out)."""
     head = ranked.head(max(0, int(n)))
     checked = "asym_first" in ranked.columns and bool(ranked["asym_first"].notna().any())
+    air = "fluid" in ranked.columns and bool((ranked["fluid"] == "air").any())
     cols = {}
     for name, (src, scale) in TOP_COLUMNS.items():
         if src not in head.columns or (name == "asym_n" and not checked):  # asym_n: only after the check
+            continue
+        if name == "fluid" and not air:  # fluid: only when a row was inflated with air
             continue
         cols[name] = head[src] * scale if scale != 1.0 else head[src]
     return pd.DataFrame(cols).reset_index(drop=True)

@@ -37,6 +37,7 @@ __all__ = [
     "INT_RESULT_KEYS",
     "OPTIONAL_FLOAT_KEYS",
     "ASYM_KEYS",
+    "AIR_KEYS",
     "FLOAT_RESULT_KEYS",
     "PROVENANCE_COLUMNS",
     "SETTINGS_COLUMNS",
@@ -77,6 +78,16 @@ INT_RESULT_KEYS: frozenset[str] = frozenset({"n_steps", "n_newton", "n_nodes", "
 OPTIONAL_FLOAT_KEYS: frozenset[str] = frozenset({"dE_J_coarse", "dy_pole_m_coarse", "asym_V_m3", "asym_p_Pa"})
 #: The keys of the harmonic check (all null when it is off).
 ASYM_KEYS: tuple[str, ...] = ("asym_first", "asym_n", "asym_V_m3", "asym_p_Pa", "asym_lower_stable")
+#: The keys of a snap under air (``fluid: air``, :mod:`snapjump_cli.air_snap`): the fluid, the gas and
+#: the pressures, volumes and energies of the air snap, and the water snap's answers; ``fluid`` is
+#: ``"water"`` and the others null in a water row.
+AIR_KEYS: tuple[str, ...] = (
+    "fluid", "air_V0_m3", "air_gamma", "air_p0_Pa", "V_disp_m3", "p_before_Pa", "p_after_Pa",
+    "dV_snap_m3", "dV_snap_eq9_m3", "dE_rubber_J", "dE_gas_J", "water_dE_J", "water_dy_pole_m", "water_h_imp_m",
+)
+RESULT_KEYS = RESULT_KEYS + AIR_KEYS
+STR_RESULT_KEYS = STR_RESULT_KEYS | {"fluid"}
+OPTIONAL_FLOAT_KEYS = OPTIONAL_FLOAT_KEYS | frozenset(AIR_KEYS[1:])
 #: Every other result key is a float metric.
 FLOAT_RESULT_KEYS: tuple[str, ...] = tuple(
     k for k in RESULT_KEYS if k not in BOOL_RESULT_KEYS | STR_RESULT_KEYS | INT_RESULT_KEYS

@@ -17,7 +17,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from snapjump_cli.air_snap import AirSnap, fluid_keys
 from snapjump_cli.continuation import ContinuationFailed, ContinuationSettings, Path, Tracer, trace
+from snapjump_cli.fluid import FluidSettings
 from snapjump_cli.geometry import CapScene, Design
 from snapjump_cli.limits import TimeLimitExceeded, time_limit
 from snapjump_cli.lower_state import find_lower_state
@@ -48,6 +50,7 @@ class SceneResult:
     states: SnapStates | None = None
     tracer: Tracer | None = None
     curve_args: tuple | None = field(default=None, repr=False)  # (scales, V0) for :func:`scene_curve`
+    air: object | None = field(default=None, repr=False)  # the air snap (:class:`snapjump_cli.air_snap.AirSnap`)
     _curve: dict | None = field(default=None, init=False, repr=False)
 
     @property
@@ -59,6 +62,8 @@ class SceneResult:
                 self._curve = {}
             else:
                 self._curve = scene_curve(self.model, self.path, self.states, *self.curve_args)
+                if self.air is not None:
+                    self._curve.update(self.air.curve(self.model, self.path, *self.curve_args))
         return self._curve
 
 
@@ -100,6 +105,7 @@ def solve_scene(
     mesh_settings: MeshSettings = MeshSettings(),
     solver: SolverSettings = SolverSettings(),
     mesh: Mesh | None = None,
+    fluid: FluidSettings | None = None,
 ) -> SceneResult:
     """Trace a scene's pressure-volume path and compute its snap metrics.
 
@@ -108,6 +114,8 @@ def solve_scene(
     scene : a full actuator (:class:`Design`) or a single cap (:class:`CapScene`)
     mesh_settings, solver : mesh density and continuation settings
     mesh : a pre-built mesh (skips meshing)
+    fluid : water (``None``, the default) or air (:mod:`snapjump_cli.air_snap`: the snap metrics
+        are the air snap's, the water snap's are kept as ``water_dE_J``, ...)
 
     Returns
     -------
@@ -135,7 +143,10 @@ def solve_scene(
     scales = (sc["sV"], sc["sp"], sc["sw"])
     model = build_model(scene, mesh, solver)
     V0 = model.volume(np.zeros(model.n))
-    tracer, st, path, failure = _trace(scene, model, solver, V0)
+    air = None
+    if fluid is not None and fluid.is_air:
+        air = AirSnap(fluid, Tracer(model, _settings(scene, solver)), post_snap_budget(solver))
+    tracer, st, path, failure = _trace(scene, model, solver, V0, air)
     lower = find_lower_state(tracer, st, path.points, failure or path.stop_reason)
     if st.upper is not None and lower.state is None:
         raise SolveFailed(f"volume limit found (V*={st.upper.zeta[0] * sc['sV'] * sc['L']**3:.4g} m^3) but no lower "
@@ -151,12 +162,20 @@ def solve_scene(
         lower_note=lower.note, outer_alone=outer_alone,
         outer_u=state_at_pressure(tracer, path, 0.5) if outer_alone else None,  # E_o at p / mu_o = 0.5 (Fig. 3C)
     )
+    metrics.update(fluid_keys(fluid))
+    if air is not None:
+        air_lower = air.lower_state(path.points, failure or path.stop_reason)
+        if air.states.upper is not None and air_lower.state is None:
+            raise SolveFailed(f"limit of the dispensed volume found (p={air.states.upper.p * sc['S']:.5g} Pa) but no "
+                              f"lower state under air ({air_lower.reason}; {air_lower.message})")
+        metrics = air.metrics(model, path, metrics, air_lower, scales)
     metrics.update(
         mesh_s=t_mesh, t_assembly_s=model.t_assembly, t_residual_s=model.t_residual, t_factor_s=model.t_factor,
         t_newton_s=model.t_newton, n_factorizations=model.n_factorizations, n_assemblies=model.n_assemblies,
         wall_s=time.perf_counter() - t0,
     )
-    return SceneResult(metrics=metrics, model=model, path=path, states=st, tracer=tracer, curve_args=(scales, V0))
+    return SceneResult(metrics=metrics, model=model, path=path, states=st, tracer=tracer, curve_args=(scales, V0),
+                       air=air)
 
 
 def post_snap_budget(solver: SolverSettings) -> int:
@@ -167,17 +186,24 @@ def post_snap_budget(solver: SolverSettings) -> int:
     return max(1, (3 * solver.max_steps) // 4)
 
 
-def _trace(scene: Design | CapScene, model: Model, solver: SolverSettings, V0: float
-           ) -> tuple[Tracer, SnapStates, Path, str]:
-    """Trace the scene's pressure-volume path from the stress-free state until the snap tracker
-    stops it; returns the tracer, the snap states, the path and the continuation's failure ('' if
-    none: a failed continuation keeps the path traced so far)."""
+def _settings(scene: Design | CapScene, solver: SolverSettings) -> ContinuationSettings:
+    """The continuation settings of a scene's trace."""
     sc = _scales(scene)
-    cfg = ContinuationSettings.from_solver(
+    return ContinuationSettings.from_solver(
         solver, scales=(sc["sV"], sc["sp"], sc["sw"]), u_unit=sc["sw"],
         fused=os.environ.get("SNAPJUMP_PROFILE_PHASES", "") != "1",
     )
-    tracer = Tracer(model, cfg)
+
+
+def _trace(scene: Design | CapScene, model: Model, solver: SolverSettings, V0: float, air=None
+           ) -> tuple[Tracer, SnapStates, Path, str]:
+    """Trace the scene's pressure-volume path from the stress-free state until the snap tracker
+    (with ``air``, an :class:`~snapjump_cli.air_snap.AirSnap`: until both snaps are characterised)
+    stops it; returns the tracer, the snap states, the path and the continuation's failure ('' if
+    none: a failed continuation keeps the path traced so far)."""
+    sc = _scales(scene)
+    cfg = _settings(scene, solver)
+    tracer = air.tracer if air is not None else Tracer(model, cfg)
     if isinstance(scene, CapScene) and scene.kind == "outer":
         p_stop = 0.5  # E_o at p / mu_o = 0.5 (Fig. 3C)
     else:
@@ -187,7 +213,7 @@ def _trace(scene: Design | CapScene, model: Model, solver: SolverSettings, V0: f
     failure = ""
     path: Path | None = None
     try:
-        path = trace(model, cfg, tracker, u0=np.zeros(model.n), tracer=tracer)
+        path = trace(model, cfg, tracker if air is None else air.watch(tracker), u0=np.zeros(model.n), tracer=tracer)
     except ContinuationFailed as exc:
         failure = str(exc)
         path = getattr(exc, "path", None)
@@ -224,26 +250,29 @@ def suspicious_snap(m: dict) -> str:
 
 def solve_checked(
     scene: Design | CapScene, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings(),
-    check_mesh: bool = True,
+    check_mesh: bool = True, fluid: FluidSettings | None = None,
 ) -> SceneResult:
     """Solve a scene the way every command reports it: :func:`solve_scene`, the mesh check, and
     (``solver.harmonics > 0``) the Fourier-harmonic stability check of the reported solve
     (:func:`snapjump_cli.harmonics.check_harmonics`: ``asym_first``, ``asym_n``, ``asym_V_m3``,
-    ``asym_p_Pa``, ``asym_lower_stable``; all None when it is off).
+    ``asym_p_Pa``, ``asym_lower_stable``; all None when it is off). ``fluid``: water (``None``) or
+    air (:func:`solve_scene`; not with the harmonic check).
 
     All of it runs within ``solver.time_limit_s`` CPU seconds (:mod:`snapjump_cli.limits`);
     beyond them :class:`SolveFailed` says so.
     """
+    if fluid is not None and fluid.is_air and solver.harmonics > 0:
+        raise ValueError("the harmonic check is not available under air (fluid: air with solver.harmonics > 0)")
     try:
         with time_limit(solver.time_limit_s):
-            return _solve_and_check(scene, mesh, solver, check_mesh)
+            return _solve_and_check(scene, mesh, solver, check_mesh, fluid)
     except TimeLimitExceeded as exc:
         raise SolveFailed(f"stopped: {exc}") from None
 
 
-def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool
-                     ) -> SceneResult:
-    res = _solve_mesh_checked(scene, mesh, solver, check_mesh)
+def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool,
+                     fluid: FluidSettings | None) -> SceneResult:
+    res = _solve_mesh_checked(scene, mesh, solver, check_mesh, fluid)
     m = res.metrics
     m.update({k: None for k in ASYM_KEYS})
     if solver.harmonics > 0 and res.model is not None and res.path is not None:
@@ -259,6 +288,7 @@ def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: Solve
 
 def _solve_mesh_checked(
     scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool,
+    fluid: FluidSettings | None = None,
 ) -> SceneResult:
     """:func:`solve_scene`, then the mesh check.
 
@@ -278,7 +308,8 @@ def _solve_mesh_checked(
         ``mesh_sensitive``, ``mesh_check``, ``dE_J_coarse`` and ``dy_pole_m_coarse``.
     """
     t0 = time.perf_counter()
-    res = solve_scene(scene, mesh, solver)
+    air = {"fluid": fluid} if fluid is not None and fluid.is_air else {}
+    res = solve_scene(scene, mesh, solver, **air)
     m = res.metrics
     m.update(mesh_sensitive=False, dE_J_coarse=None, dy_pole_m_coarse=None, mesh_check="")
     why = suspicious_snap(m) if check_mesh else ""
@@ -290,7 +321,7 @@ def _solve_mesh_checked(
     finer = MeshSettings(order=mesh.order, nt=nt, aspect=aspect)
     coarse = m
     try:
-        res = solve_scene(scene, finer, solver)
+        res = solve_scene(scene, finer, solver, **air)
         m = res.metrics
         m.update(mesh_sensitive=False, mesh_check=f"{why}; re-solved at nt={finer.nt}"
                  + (f", aspect={finer.aspect:.3g}" if finer.aspect != mesh.aspect else ""))
@@ -316,10 +347,10 @@ def _solve_mesh_checked(
 
 def solve_design(
     design: Design, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings(),
-    check_mesh: bool = True,
+    check_mesh: bool = True, fluid: FluidSettings | None = None,
 ) -> dict:
     """Sweep entry point: the metrics dict of one design as :func:`solve_checked` reports it."""
-    return solve_checked(design, mesh, solver, check_mesh).metrics
+    return solve_checked(design, mesh, solver, check_mesh, fluid=fluid).metrics
 
 
 def warm_up() -> float:

@@ -30,6 +30,7 @@ from snapjump_cli.config import DesignPoint
 from snapjump_cli.errors import SweepInputError
 from snapjump_cli.files import os_error_reason
 from snapjump_cli.geometry import Design
+from snapjump_cli.fluid import FluidSettings
 from snapjump_cli.settings import MeshSettings, SolverSettings, without_limits
 
 __all__ = [
@@ -56,7 +57,8 @@ def now_utc() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
-def design_key(point: DesignPoint | Design | Mapping[str, Any], mesh: MeshSettings, solver: SolverSettings) -> str:
+def design_key(point: DesignPoint | Design | Mapping[str, Any], mesh: MeshSettings, solver: SolverSettings,
+               fluid: "FluidSettings | None" = None) -> str:
     """A stable hash of a design's parameters and the mesh + solver settings.
 
     The key does not depend on the grid the design came from, on the order of the grid, on the
@@ -69,6 +71,9 @@ def design_key(point: DesignPoint | Design | Mapping[str, Any], mesh: MeshSettin
         A grid point, a :class:`Design` or a mapping with the fields of :data:`results.INPUT_COLUMNS`.
     mesh, solver
         The numerical settings.
+    fluid
+        The fluid (:class:`snapjump_cli.fluid.FluidSettings`); water (the default) leaves the key
+        as it was before the setting existed.
 
     Returns
     -------
@@ -82,6 +87,8 @@ def design_key(point: DesignPoint | Design | Mapping[str, Any], mesh: MeshSettin
         "mesh": _typed(mesh.as_dict()),
         "solver": _typed(_key_settings(solver)),
     }
+    if fluid is not None and fluid.is_air:
+        payload["fluid"] = _typed(fluid.as_dict())
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
@@ -257,7 +264,7 @@ def check_compatible(output: str | Path, keys: set[str], config: Mapping[str, An
         if old:
             break
     diffs = []
-    for k in ("mesh", "solver", "materials", "ring", "R_i"):
+    for k in ("mesh", "solver", "materials", "ring", "R_i", "fluid"):
         a, b = (without_limits(old.get(k)), without_limits(config.get(k))) if k == "solver" else (old.get(k), config.get(k))
         if k in old and a != b:
             diffs.append(f"{k} {a} -> {b}")

@@ -302,8 +302,11 @@ def _plan(config: SweepConfig, points: list[DesignPoint], keys: list[str], done:
             row.update(status="invalid_geometry", error=str(e), finished_utc=now_utc(), t_total_s=0.0)
             plan.invalid_rows.append(row)
             continue
-        plan.tasks.append({"row": row, "design": design, "mesh": config.mesh, "solver": config.solver,
-                           "limit_threads": limit_threads})
+        task = {"row": row, "design": design, "mesh": config.mesh, "solver": config.solver,
+                "limit_threads": limit_threads}
+        if config.fluid.is_air:
+            task["fluid"] = config.fluid
+        plan.tasks.append(task)
     return plan
 
 
@@ -314,7 +317,17 @@ def _stamp(config: SweepConfig) -> dict[str, Any]:
     git = res.git_commit()
     return {"snapjump_version": __version__,
             "git_commit": (git["commit"] + ("+dirty" if git.get("dirty") else "")) if git else None,
-            "solver_settings": settings_json(config.solver.numerics())}
+            "solver_settings": settings_json(_row_settings(config))}
+
+
+def _row_settings(config: SweepConfig) -> dict[str, Any]:
+    """The settings a row records: the solver's (without its resource limits), and the fluid when
+    it is air (a water row's are as they were before the setting existed, so that ``rank`` sees
+    water and air rows as mixed)."""
+    out = config.solver.numerics()
+    if config.fluid.is_air:
+        out["fluid"] = config.fluid.as_dict()
+    return out
 
 
 def _solve_all(tasks: list[dict[str, Any]], solve_fn: SolveFn, warm_up_fn: Callable[[], Any] | None, n_jobs: int,
@@ -357,7 +370,7 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
                 announce: Callable[[str], None] | None, t_start: float) -> SweepSummary:
     done = done_keys(output)
     points = list(config.designs())
-    keys = [design_key(p, config.mesh, config.solver) for p in points]
+    keys = [design_key(p, config.mesh, config.solver, config.fluid) for p in points]
     cfg_dict = config.to_dict()
     if not append:
         check_compatible(output, set(keys), cfg_dict)

@@ -9,6 +9,14 @@ harmonic check's ``asym_first``, ``asym_n``, ``asym_V_m3``, ``asym_p_Pa``, ``asy
 diagnostics (``dE_rel_diff``, ``dy_pole_upper_m``, ``p_lower_Pa``, mesh size, ``max_dilatation``,
 timings, ``stop_reason``; ``E_o_J`` for an outer cap alone).
 
+With air (``--air-ml V0 [--gamma G] [--p0 P]``, docs/air.md) the snap metrics (``dE_J``,
+``dy_pole_m``, ``h_imp_m``, ...) are the air snap's, and ``fluid``, ``air_V0_m3``, ``air_gamma``,
+``air_p0_Pa``, ``V_disp_m3`` (the dispensed volume at the snap), ``p_before_Pa``, ``p_after_Pa``
+(gauge), ``dV_snap_m3`` (the actuator's volume change; ``dV_snap_eq9_m3`` from eq 9),
+``dE_rubber_J``, ``dE_gas_J``, ``water_dE_J``, ``water_dy_pole_m``, ``water_h_imp_m`` and the jump
+heights ``y_jump_m``, ``water_y_jump_m`` (the jump model of ``rank``) are added; ``fluid`` is
+``"water"`` and the other air keys null without it.
+
 A scene is solved exactly as a sweep solves a design (:func:`snapjump_cli.solve.solve_checked`):
 a suspicious snap is re-solved on a finer mesh and the refined answer is reported, so ``curve``
 and the ranked table give one answer per design and mesh.
@@ -25,8 +33,10 @@ import click
 import numpy as np
 
 from snapjump_cli.cli import verbosity_options
+from snapjump_cli.errors import BadInput
 from snapjump_cli.settings import SolverSettings
 from snapjump_cli.scenes import (
+    FiniteFloat,
     mesh_options,
     mesh_settings_from_options,
     pick_mesh_options,
@@ -57,6 +67,66 @@ def to_jsonable(metrics: dict) -> dict:
     return out
 
 
+def _air_text(m: dict) -> list[str]:
+    """The air snap's lines of the text report."""
+    lines = [f"fluid            air: V0_sys {m['air_V0_m3'] * 1e6:.5g} ml at {m['air_p0_Pa']:.6g} Pa, gamma {m['air_gamma']:g}"]
+    if m["snaps"]:
+        lines += [
+            f"air snap         p {m['p_before_Pa'] / 1e3:.5g} -> {m['p_after_Pa'] / 1e3:.5g} kPa (gauge) at the dispensed "
+            f"volume {m['V_disp_m3'] * 1e6:.5g} ml",
+            f"  actuator       {m['dV_snap_m3'] * 1e6:+.5g} ml   (eq 9: {m['dV_snap_eq9_m3'] * 1e6:+.5g} ml)",
+            f"  dE = rubber + gas  {m['dE_rubber_J'] * 1e3:.6g} + {m['dE_gas_J'] * 1e3:.6g} mJ",
+        ]
+    if m.get("y_jump_m") is not None:
+        lines.append(f"jump             {m['y_jump_m'] * 1e3:.5g} mm")
+    if m.get("water_dE_J") is not None:
+        w = f"water snap       dE {m['water_dE_J'] * 1e3:.6g} mJ"
+        if m.get("water_dy_pole_m") is not None:
+            w += f", dy_pole {m['water_dy_pole_m'] * 1e3:.5g} mm, h_imp {m['water_h_imp_m'] * 1e3:.5g} mm"
+        if m.get("water_y_jump_m") is not None:
+            w += f", jump {m['water_y_jump_m'] * 1e3:.5g} mm"
+        lines.append(w)
+    return lines
+
+
+def _jumps(m: dict) -> dict:
+    """``y_jump_m`` and ``water_y_jump_m`` (the jump model of ``rank``; ``None`` without a snap or
+    solid volumes)."""
+    from snapjump_cli import jump
+
+    out = {"y_jump_m": None, "water_y_jump_m": None}
+    vi, vo = m.get("V_inner_solid_m3"), m.get("V_outer_solid_m3")
+    if not (vi and vo):
+        return out
+    mi, mo = jump.masses(vi, vo)
+    for key, (dE, dy, h) in (("y_jump_m", (m["dE_J"], m["dy_pole_m"], m["h_imp_m"])),
+                             ("water_y_jump_m", (m["water_dE_J"], m["water_dy_pole_m"], m["water_h_imp_m"]))):
+        if dE and dy is not None and h is not None and dE > 0:
+            out[key] = jump.jump_height(dE, dy, h, mi, mo).y_jump_m
+    return out
+
+
+def _fluid(air_ml: float | None, gamma: float | None, p0: float | None, harmonics: int):
+    """The fluid of ``--air-ml / --gamma / --p0`` (``None``: water), checked by the settings class
+    the YAML uses too."""
+    from snapjump_cli.fluid import FluidSettings, P0_DEFAULT
+    from snapjump_cli.settings import SettingsError
+
+    if air_ml is None:
+        for name, v in (("--gamma", gamma), ("--p0", p0)):
+            if v is not None:
+                raise BadInput(f"{name} needs --air-ml (the gas's initial volume)")
+        return None
+    if harmonics:
+        raise BadInput("--harmonics is not available with --air-ml")
+    opts = {"V0_ml": "--air-ml", "gamma": "--gamma", "p0": "--p0", "kind": "--air-ml"}
+    try:
+        return FluidSettings(kind="air", V0_ml=air_ml, gamma=1.0 if gamma is None else gamma,
+                             p0=P0_DEFAULT if p0 is None else p0)
+    except SettingsError as e:
+        raise BadInput(f"{opts[e.field]}: expected {e.expected}, got {e.value!r}") from None
+
+
 def _text(scene, m: dict) -> str:
     name = getattr(scene, "name", None) or type(scene).__name__
     lines = [f"scene            {name}"]
@@ -82,6 +152,8 @@ def _text(scene, m: dict) -> str:
     if m.get("mesh_sensitive"):
         lines.append("warning          mesh_sensitive: this snap changes with the mesh (see the mesh check); "
                      "compare finer meshes (--nt, --aspect)")
+    if m.get("fluid") == "air":
+        lines += _air_text(m)
     if m.get("E_o_J") is not None:
         lines.append(f"E_o (p/mu_o=0.5) {m['E_o_J'] * 1e3:.6g} mJ")
     if m.get("asym_first") is not None:
@@ -134,10 +206,19 @@ def _text(scene, m: dict) -> str:
               help="Check every path state up to the snap and the lower state against non-axisymmetric "
                    "modes cos(n phi), n = 1..N (Fourier-harmonic tangents; 0 = off). Reports asym_first, "
                    "asym_n, asym_V_m3, asym_p_Pa and asym_lower_stable.")
+@click.option("--air-ml", "air_ml", type=FiniteFloat(), default=None, metavar="V0",
+              help="Inflate with air from a syringe: the gas volume of syringe, tube and cavity before inflation "
+                   "[mL] (paper S3's V0_sys). The snap is then at the limit of the dispensed volume; the water "
+                   "answers are reported beside it.")
+@click.option("--gamma", "gamma", type=FiniteFloat(), default=None,
+              help="With --air-ml: the gas's polytropic exponent, 1 (isothermal, default) to 5/3; 1.4: adiabatic air.")
+@click.option("--p0", "p0", type=FiniteFloat(), default=None, metavar="PA",
+              help="With --air-ml: the gas's initial absolute pressure [Pa] (default 101325).")
 @verbosity_options
 def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, overwrite: bool, harmonics: int,
             shapes_path: Path | None, animation_path: Path | None, export_path: Path | None, revolve: int,
-            time_limit_s: float, max_nodes: int, **kw) -> None:
+            air_ml: float | None, gamma: float | None, p0: float | None, time_limit_s: float, max_nodes: int,
+            **kw) -> None:
     """Trace one scene's pressure-volume path through its limit points and report the snap.
 
     \b
@@ -147,11 +228,13 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
       snapjump curve --design C --plot c.png --csv c.csv
       snapjump curve --design D --shapes d.png --animation d.gif --export d.pvd
       snapjump curve --cap outer --theta 90 --eta 16.5
+      snapjump curve --design C --air-ml 45 --plot c_air.png
     """
     from snapjump_cli.solve import SolveFailed, solve_checked
 
     scene = scene_from_options(**pick_scene_options(kw))
     ms = mesh_settings_from_options(**pick_mesh_options(kw))
+    fluid = _fluid(air_ml, gamma, p0, harmonics)
     from snapjump_cli.viz.outputs import check_outputs, write_outputs
 
     outputs = {"--csv": csv_path, "--plot": plot_path, "--shapes": shapes_path, "--animation": animation_path,
@@ -159,10 +242,12 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
     check_outputs(outputs, revolve, overwrite)
     try:
         res = solve_checked(scene, ms, SolverSettings(full=full, harmonics=harmonics, time_limit_s=time_limit_s,
-                                                      max_nodes=max_nodes))
+                                                      max_nodes=max_nodes), fluid=fluid)
     except SolveFailed as exc:
         raise click.ClickException(f"solve failed: {exc}") from None
     m = to_jsonable(res.metrics)
+    if fluid is not None:
+        m.update(_jumps(m))
     write_outputs(res, scene, m, outputs, revolve)
     if fmt == "json":
         click.echo(json.dumps(m, sort_keys=False))

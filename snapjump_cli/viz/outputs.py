@@ -120,12 +120,17 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
         steps = path_steps(res)
     mesh = res.model.mesh if res.model is not None else None
     jobs: list[tuple[str, Path, Callable[[Path], object]]] = []
+    air = getattr(res, "air", None)  # inflated with air (snapjump_cli.air_snap): its snap, and V_d per step
     if "--csv" in wanted:
-        jobs.append(("--csv", wanted["--csv"], lambda t: _write_csv(steps.columns(), t)))
+        columns = steps.columns()
+        if air is not None:
+            columns["V_disp_m3"] = list(air.dispensed(steps.V_m3, steps.p_Pa, res.model))
+        jobs.append(("--csv", wanted["--csv"], lambda t: _write_csv(columns, t)))
     if "--plot" in wanted:
-        from snapjump_cli.plots import plot_pv_curve
+        from snapjump_cli.plots import plot_air_curves, plot_pv_curve
 
-        jobs.append(("--plot", wanted["--plot"], lambda t: plot_pv_curve(res.curve, metrics, t, title=title)))
+        plot = plot_pv_curve if air is None else plot_air_curves
+        jobs.append(("--plot", wanted["--plot"], lambda t: plot(res.curve, metrics, t, title=title)))
     if "--shapes" in wanted:
         from snapjump_cli.viz.shapes import key_shape_states, plot_shapes
 

@@ -122,6 +122,8 @@ def path_steps(res) -> Steps:
     model, path, st = res.model, res.path, res.states
     if model is None or path is None or st is None:
         raise ValueError("the scene result carries no traced path")
+    if getattr(res, "air", None) is not None:  # inflated with air: the named snap is the air snap
+        st = res.air.states
     pts = list(path.points)
     up = st.upper
     sV = res.curve_args[0][0]
