@@ -12,7 +12,7 @@ STAMP  := $(VENV)/.installed
 # build fails the kernels run JIT-compiled, with the same answers (not retried until the sources
 # or the CPU change; delete kernels/_aot_build.json to retry).
 install: $(STAMP)
-	@SNAPJUMP_NO_AOT=1 $(BIN)/python -c "from snapjump_kernels.aot import main; raise SystemExit(main(['--if-stale']))"
+	@$(BIN)/python -m snapjump_cli.fe.precompile --if-stale
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from snapjump_cli.geometry import CapScene, Design, InvalidDesign
+from snapjump_cli.geometry.caps import CapScene, Design, InvalidDesign
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER_GRID = REPO / "configs" / "paper_grid.yaml"
@@ -31,15 +31,15 @@ class Case:
 
 
 def cap_cases() -> list[Case]:
-    """The caps of Fig. 1 (:data:`snapjump_cli.designs.FIG1_CAPS`)."""
-    from snapjump_cli.designs import fig1_caps
+    """The caps of Fig. 1 (:data:`snapjump_cli.geometry.designs.FIG1_CAPS`)."""
+    from snapjump_cli.geometry.designs import fig1_caps
 
     return [Case(name, sc, "cap", f"cap theta=60, eta={sc.eta:g}, {sc.bc}") for name, sc in fig1_caps().items()]
 
 
 def named_cases(names: tuple[str, ...] = ("A", "B", "C", "D")) -> list[Case]:
-    """The paper's named designs (``snapjump_cli/data/designs.yaml``)."""
-    from snapjump_cli.designs import get_design
+    """The paper's named designs (``snapjump_cli/geometry/designs.yaml``)."""
+    from snapjump_cli.geometry.designs import get_design
 
     out = []
     for n in names:
@@ -53,7 +53,7 @@ def named_cases(names: tuple[str, ...] = ("A", "B", "C", "D")) -> list[Case]:
 def grid_cases(n: int = 10, seed: int = 20240605, config: Path = PAPER_GRID) -> list[Case]:
     """``n`` valid designs drawn uniformly (without replacement, fixed ``seed``) from the points of
     the paper grid (``configs/paper_grid.yaml``, docs/physics.md section 8); invalid ones are skipped."""
-    from snapjump_cli.config import load_config
+    from snapjump_cli.sweep.config import load_config
 
     cfg = load_config(config)
     points = list(cfg.designs())

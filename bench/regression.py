@@ -11,13 +11,17 @@ The scenes:
 
 * ``grid``: a seeded sample of paper-grid points (``configs/paper_grid.yaml``), solved as the
   sweep solves them (``solve_design`` at the grid's mesh, the row built by the sweep's own
-  ``snapjump_cli.rows.fill_row``), invalid points included;
+  ``snapjump_cli.sweep.rows.fill_row``), invalid points included;
 * ``named``: the named designs, the same way (grid mesh, with the sweep's mesh check);
 * ``curve``: the named designs and the Fig. 1 caps as ``snapjump curve`` solves them
   (``solve_scene`` at the default mesh).
 
     python -m bench.regression record [--n-grid 240] [--seed 10] [-j 2]
     python -m bench.regression compare [--only grid] [--limit N] [-j 2] [--tol 0.005]
+    python -m bench.regression same OLD_ROWS.json NEW_ROWS.json
+
+``same`` compares two ``compare --out`` row files value by value, exactly (every field but the
+timings): a change that must not move the answers (a refactoring) shows 0 changed values.
 """
 from __future__ import annotations
 
@@ -78,7 +82,7 @@ def cpu_text(cpuinfo: str = "/proc/cpuinfo") -> str:
 
 def scenes(n_grid: int, seed: int) -> list[dict]:
     """The regression scenes as plain dicts (``id``, ``kind`` and the scene's parameters)."""
-    from snapjump_cli.config import load_config
+    from snapjump_cli.sweep.config import load_config
 
     cfg = load_config(PAPER_GRID)
     points = list(cfg.designs())
@@ -110,16 +114,12 @@ def _clean(v):
 def solve_one(sc: dict, phases: bool = False) -> dict:
     """Solve one regression scene; returns its row (flags, metrics, counts, wall time).
     ``phases``: through the Python corrector, whose timers split assembly and factorisation."""
-    if phases:
-        os.environ["SNAPJUMP_PROFILE_PHASES"] = "1"
-    else:
-        os.environ.pop("SNAPJUMP_PROFILE_PHASES", None)
-    from snapjump_cli.rows import fill_row
-    from snapjump_cli.config import load_config
-    from snapjump_cli.designs import get_design
-    from snapjump_cli.geometry import CapScene, Design, InvalidDesign
+    from snapjump_cli.sweep.rows import fill_row
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.geometry.designs import get_design
+    from snapjump_cli.geometry.caps import CapScene, Design, InvalidDesign
     from snapjump_cli.settings import MeshSettings, SolverSettings
-    from snapjump_cli.solve import SolveFailed, solve_design, solve_scene
+    from snapjump_cli.fe.solve import SolveFailed, solve_design, solve_scene
 
     cfg = load_config(PAPER_GRID)
     t0 = time.perf_counter()
@@ -132,7 +132,7 @@ def solve_one(sc: dict, phases: bool = False) -> dict:
             d = None
         if d is not None:
             try:
-                m = solve_design(d, cfg.mesh, cfg.solver)
+                m = solve_design(d, cfg.mesh, cfg.solver, fused=not phases)
                 fill_row(row, m)
                 for k in ("n_factorizations", "fold_note", "stop_reason", "lower_state_note", "t_assembly_s",
                           "t_factor_s", "mesh_s", "t_residual_s", "n_assemblies", "t_newton_s"):
@@ -142,7 +142,7 @@ def solve_one(sc: dict, phases: bool = False) -> dict:
     else:
         scene = get_design(sc["name"]) if sc["kind"] == "curve" else CapScene(**sc["cap"])
         try:
-            m = solve_scene(scene, MeshSettings(), SolverSettings()).metrics
+            m = solve_scene(scene, MeshSettings(), SolverSettings(), fused=not phases).metrics
             row.update(status="ok" if m["snaps"] else "no_snap", mesh_sensitive=None)
             row.update({k: m.get(k) for k in ("snaps", "self_crossing") + METRICS + EXTRA if k in m})
         except SolveFailed as e:
@@ -164,7 +164,7 @@ def solve_all(items: list[dict], n_jobs: int, phases: bool = False) -> list[dict
 
 
 def record(args) -> int:
-    from snapjump_cli.solve import warm_up
+    from snapjump_cli.fe.solve import warm_up
 
     items = scenes(args.n_grid, args.seed)
     warm_up()
@@ -247,7 +247,7 @@ def compare(args) -> int:
     if args.limit:
         items = items[: args.limit]
     accepted = json.loads(ACCEPTED.read_text()) if ACCEPTED.exists() else {}
-    from snapjump_cli.solve import warm_up
+    from snapjump_cli.fe.solve import warm_up
 
     t_compile = warm_up()  # compiled, or loaded from the on-disk cache: timed apart from the solves
     t0 = time.perf_counter()
@@ -311,6 +311,31 @@ def compare(args) -> int:
     return 1 if bad else 0
 
 
+#: Row fields that are timings (they differ from run to run; ``same`` skips them).
+TIMINGS = ("wall_s", "mesh_s", "t_assembly_s", "t_factor_s", "t_residual_s", "t_newton_s")
+
+
+def same_rows(old: list[dict], new: list[dict]) -> list[str]:
+    """Every difference between two lists of rows (by ``id``), timings excluded, compared exactly."""
+    a, b = {r["id"]: r for r in old}, {r["id"]: r for r in new}
+    out = [f"{rid}: only in the {'old' if rid in a else 'new'} rows" for rid in sorted(set(a) ^ set(b))]
+    for rid in sorted(set(a) & set(b)):
+        for k in sorted((set(a[rid]) | set(b[rid])) - set(TIMINGS)):
+            if a[rid].get(k) != b[rid].get(k):
+                out.append(f"{rid} {k}: {a[rid].get(k)!r} -> {b[rid].get(k)!r}")
+    return out
+
+
+def same(args) -> int:
+    old, new = (json.loads(Path(f).read_text())["rows"] for f in (args.old, args.new))
+    diff = same_rows(old, new)
+    for line in diff:
+        print(line)
+    n = sum(len(set(r) - set(TIMINGS)) for r in new)
+    print(f"{len(new)} rows, {n} values compared exactly (timings excluded): {len(diff)} changed")
+    return 1 if diff else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.regression", description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -327,8 +352,11 @@ def main(argv: list[str] | None = None) -> int:
     c.add_argument("--report", default="", help="write the throughput report (markdown) here")
     c.add_argument("--phase-sample", type=int, default=0,
                    help="also solve this many grid points through the Python corrector for the phase split")
+    s = sub.add_parser("same", help="compare two --out row files exactly (timings excluded)")
+    s.add_argument("old")
+    s.add_argument("new")
     a = ap.parse_args(argv)
-    return record(a) if a.cmd == "record" else compare(a)
+    return {"record": record, "compare": compare, "same": same}[a.cmd](a)
 
 
 if __name__ == "__main__":

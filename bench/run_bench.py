@@ -162,7 +162,7 @@ def main(argv=None) -> int:
     recorded = load_runs(runs_file)
 
     if not a.report_only:
-        from snapjump_cli.solve import warm_up
+        from snapjump_cli.fe.solve import warm_up
 
         print(f"warm-up (numba compile or cache load): {warm_up():.1f} s", flush=True)
         history: dict[tuple, list] = {}

@@ -46,7 +46,7 @@ def _plain(v: Any) -> Any:
 
 
 def _child(conn, scene, mesh, solver, max_repeats: int) -> None:
-    from snapjump_cli.solve import SolveFailed, solve_scene
+    from snapjump_cli.fe.solve import SolveFailed, solve_scene
 
     try:
         n = 1

@@ -15,7 +15,7 @@ REPO = Path(__file__).resolve().parents[1]
 _WARM_SNIPPET = r"""
 import json, time
 t0 = time.perf_counter()
-import snapjump_cli.solve as s
+import snapjump_cli.fe.solve as s
 t1 = time.perf_counter()
 w = s.warm_up()
 print(json.dumps({"import_s": t1 - t0, "warm_up_s": w}))
@@ -23,8 +23,8 @@ print(json.dumps({"import_s": t1 - t0, "warm_up_s": w}))
 
 
 def mesh_timings(cases, settings, repeats: int = 5) -> list[dict]:
-    """Median wall time of :func:`snapjump_cli.mesh.mesh_scene` per (case, setting)."""
-    from snapjump_cli.mesh import mesh_scene
+    """Median wall time of :func:`snapjump_cli.mesh.build.mesh_scene` per (case, setting)."""
+    from snapjump_cli.mesh.build import mesh_scene
 
     out = []
     for c in cases:

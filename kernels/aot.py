@@ -2,10 +2,11 @@
 
 A process that calls a cached ``@njit`` kernel first pays for numba's own target (its lowering
 registries, ~0.4 s, which also import ``scipy.linalg`` for a BLAS check) and for rebuilding each
-kernel from the cache (~20 ms each). :func:`build` (``make install`` runs it) compiles the kernels
-the solver calls (:data:`snapjump_kernels.calls.KERNELS`) into one extension module,
-``snapjump_kernels/_aot*.so``, with ``numba.pycc`` for this machine's CPU and with the signatures
-the solver actually uses (collected by solving a few scenes first). :mod:`snapjump_kernels.calls`,
+kernel from the cache (~20 ms each). :func:`build` compiles the kernels the solver calls
+(:data:`snapjump_kernels.calls.KERNELS`) into one extension module, ``snapjump_kernels/_aot*.so``,
+with ``numba.pycc`` for this machine's CPU and with the signatures the solver actually uses
+(collected by solving a few scenes first: :mod:`snapjump_cli.fe.precompile`, which ``make
+install`` runs; this module never imports the solver). :mod:`snapjump_kernels.calls`,
 the module the solver imports its kernels from, then hands out the compiled functions, and a
 ``snapjump curve`` process neither imports numba nor initialises its target.
 
@@ -20,7 +21,8 @@ kernel sources' hash, this CPU (model and feature flags), the exported signature
 build failed. The extension is used only when the stamp matches the current sources and this
 CPU and ``SNAPJUMP_NO_AOT`` is not set (:func:`build_status` says why not otherwise); everything
 then runs through the JIT as before. ``make install`` checks the stamp each time
-(:func:`stale_reason`, no numba) and rebuilds when the sources or the CPU differ. The kernel
+(:func:`stale_reason`, no numba) and rebuilds when the sources or the CPU differ; a failed build
+is stamped too (:func:`record_failure`) and not retried until they do. The kernel
 modules themselves are never modified: a kernel calling another still calls its dispatcher.
 """
 from __future__ import annotations
@@ -30,7 +32,6 @@ import hashlib
 import importlib
 import json
 import os
-import sys
 from pathlib import Path
 from typing import Any, Callable
 
@@ -219,34 +220,6 @@ def active() -> bool:
     return _table()[1] is not None
 
 
-def _collect_signatures() -> dict[str, dict[str, Any]]:
-    """Solve the scenes whose kernels a run calls (a cap, a design with its lower state off the
-    path, the harmonic check) and return the dispatchers of :data:`snapjump_kernels.calls.KERNELS`
-    that were called, per kernel module (each with the signatures it was called with)."""
-    from numba.core.registry import CPUDispatcher
-
-    from snapjump_cli.geometry import CapScene, Design
-    from snapjump_cli.harmonics import check_harmonics
-    from snapjump_cli.settings import MeshSettings, SolverSettings
-    from snapjump_cli.solve import solve_checked, solve_scene
-
-    solve_scene(CapScene(theta_deg=60.0, eta=30.0, bc="clamped"), MeshSettings(), SolverSettings())
-    solve_scene(CapScene(theta_deg=60.0, eta=30.0, bc="clamped"), MeshSettings(order=1), SolverSettings())
-    off_path = Design(eta_i=5.6, theta_i_deg=80.0, eta_o=15.0, theta_o_deg=82.0, mu_ratio=5.8)  # grid-1543
-    res = solve_checked(off_path, MeshSettings(order=2, nt=2, aspect=3.0), SolverSettings())
-    check_harmonics(res, 1)
-    from snapjump_kernels.calls import KERNELS
-
-    found: dict[str, dict[str, Any]] = {}
-    for modname, names in KERNELS.items():
-        mod = importlib.import_module(f"{__package__}.{modname}")
-        for name in names:
-            obj = getattr(mod, name)
-            if isinstance(obj, CPUDispatcher) and obj.nopython_signatures:
-                found.setdefault(modname, {})[name] = obj
-    return found
-
-
 def _what_for(cpuinfo: str | Path = CPUINFO) -> dict[str, str]:
     """The stamp's record of what a build is for: the kernel sources and this CPU."""
     return {"sources": source_hash(), "cpu": cpu_signature(cpuinfo),
@@ -259,16 +232,16 @@ def _write_stamp(stamp: dict, folder: Path = HERE) -> None:
     os.replace(tmp, folder / STAMP_NAME)
 
 
-def build() -> Path:
+def build(found: dict[str, dict[str, Any]], cpuinfo: str | Path = CPUINFO) -> Path:
     """Compile the extension (see the module docstring) next to the kernels and write its stamp;
-    returns its path.
+    returns its path. ``found``: kernel module -> name -> the ``@njit`` dispatcher, with the
+    signatures it was compiled for (what a run calls: :func:`snapjump_cli.fe.precompile.collect_signatures`).
 
     The new file replaces the old one by a rename, so processes that have the old one loaded
     keep a valid mapping."""
     import tempfile
     import warnings
 
-    found = _collect_signatures()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # numba.pycc's pending deprecation
         from numba.pycc import CC
@@ -296,36 +269,10 @@ def build() -> Path:
         built = next(Path(tmp).glob(f"{MODULE}*"))
         target = HERE / built.name
         os.replace(built, target)
-    _write_stamp({**_what_for(), "built": True, "kernels": exports})
+    _write_stamp({**_what_for(cpuinfo), "built": True, "kernels": exports})
     return target
 
 
-def main(argv: list[str] | None = None, cpuinfo: str | Path = CPUINFO) -> int:
-    """``python -m snapjump_kernels.aot [--if-stale]``: build the extension (with ``--if-stale``
-    only when its stamp does not match these sources on this CPU). Exit 0 also when it cannot be
-    built (the JIT remains), with the reason on stderr; the stamp then records the failure, so
-    that ``make install`` does not retry it until the sources or the CPU change."""
-    import argparse
-    import time
-
-    ap = argparse.ArgumentParser(prog="python -m snapjump_kernels.aot", description=main.__doc__.split("\n\n")[0])
-    ap.add_argument("--if-stale", action="store_true", help="build only when the stamp does not match")
-    args = ap.parse_args(argv)
-    why = stale_reason(read_stamp(), cpuinfo)
-    if args.if_stale and not why:
-        return 0
-    sys.stderr.write(f"snapjump_kernels.aot: building ({why or 'asked to'})\n")
-    t0 = time.perf_counter()
-    try:
-        so = build()
-    except Exception as exc:  # noqa: BLE001 - any failure leaves the JIT in place
-        reason = f"{type(exc).__name__}: {exc}"
-        _write_stamp({**_what_for(), "built": False, "reason": reason[:500]})
-        sys.stderr.write(f"snapjump_kernels.aot: not built ({reason}); the kernels run JIT-compiled\n")
-        return 0
-    sys.stderr.write(f"snapjump_kernels.aot: built {so.name} in {time.perf_counter() - t0:.0f} s\n")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+def record_failure(reason: str, cpuinfo: str | Path = CPUINFO) -> None:
+    """Stamp a failed build: these sources on this CPU are not tried again (:func:`stale_reason`)."""
+    _write_stamp({**_what_for(cpuinfo), "built": False, "reason": reason[:500]})

@@ -41,7 +41,7 @@ def dot_any_order(a: np.ndarray, b: np.ndarray) -> float:
 
     Reassociation and fused multiply-adds only (no assumptions about NaN or infinity), and only
     here: the result differs from the sequential sum by round-off. Also the row products of the
-    plain element pass (:func:`snapjump_kernels.assembly._assemble_plain`, for elements other
+    plain element pass (:func:`snapjump_kernels.element_plain.assemble_plain`, for elements other
     than the grid's Q9).
     """
     s = 0.0

@@ -1,7 +1,7 @@
 """Exact cavity volume of an axisymmetric boundary and its first and second derivatives.
 
 The cavity volume is ``V(x) = pi * sum_e integral_e r^2 dy + offset`` over oriented boundary
-edges (see :mod:`snapjump_cli.meshdata`). Along an edge with Lagrange shape functions ``N_a(s)``
+edges (see :mod:`snapjump_cli.mesh.data`). Along an edge with Lagrange shape functions ``N_a(s)``
 (2 nodes: linear, 3 nodes ordered start, end, mid: quadratic) the integrand ``r(s)^2 y'(s)`` is a
 polynomial of degree <= 5, so 3-point Gauss quadrature is exact for both edge orders. Because V is
 a scalar function of the nodal positions, the load ``p dV/dx`` has the symmetric load stiffness

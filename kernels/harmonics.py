@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from snapjump_kernels.assembly import _deformation
+from snapjump_kernels.kinematics import deformation
 from snapjump_kernels.cavity import _edge_shape
 from snapjump_kernels.gent import gent_iso
 
@@ -165,7 +165,7 @@ def harmonic_element_matrices(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, 
         g[:] = 0.0
         for q in range(nq):
             # the axisymmetric deformation gradient f = [F_rR, F_rZ, F_zR, F_zZ, F_phiPhi]
-            _deformation(U, conn[e], dNdX[e, q], N_ref[q], Rq[e, q], f)
+            deformation(U, conn[e], dNdX[e, q], N_ref[q], Rq[e, q], f)
             for k in range(5):
                 fq[q, k] = f[k]
             ok, psi, J = gent_iso(f, mu_e, jm_e, 2, dpsi[q], d2psi[q], dJq[q], d2Jq[q])

@@ -15,12 +15,12 @@ import time
 
 import numpy as np
 
-from snapjump_cli.config import load_config
-from snapjump_cli.designs import get_design
-from snapjump_cli.fluid import FluidSettings
-from snapjump_cli.geometry import Design, InvalidDesign
+from snapjump_cli.sweep.config import load_config
+from snapjump_cli.geometry.designs import get_design
+from snapjump_cli.fe.fluid import FluidSettings
+from snapjump_cli.geometry.caps import Design, InvalidDesign
 from snapjump_cli.settings import MeshSettings
-from snapjump_cli.solve import SolveFailed, solve_checked, warm_up
+from snapjump_cli.fe.solve import SolveFailed, solve_checked, warm_up
 
 
 def _designs(n_grid: int) -> list[tuple[str, Design]]:

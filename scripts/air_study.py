@@ -11,7 +11,7 @@ gas, dy_pole, h_imp, the jump height and its change against water). ``crossing``
 which the jump (and dE) first differs from water by ``level`` (bisection in log V0_sys).
 ``fig-s9``: the paper's Fig. S9 computed: the pressure against the dispensed volume for water and
 air. ``ranking``: the top of two ranked sweeps side by side (the water and air ranks of each design).
-Every solve is the sweep's (:func:`snapjump_cli.solve.solve_checked`) on the default mesh (Q9, nt 2,
+Every solve is the sweep's (:func:`snapjump_cli.fe.solve.solve_checked`) on the default mesh (Q9, nt 2,
 aspect 2) unless ``--grid-mesh`` (aspect 3, the paper grid's).
 """
 from __future__ import annotations
@@ -20,10 +20,10 @@ import argparse
 import math
 
 from snapjump_cli import jump
-from snapjump_cli.designs import get_design
-from snapjump_cli.fluid import FluidSettings
+from snapjump_cli.geometry.designs import get_design
+from snapjump_cli.fe.fluid import FluidSettings
 from snapjump_cli.settings import MeshSettings
-from snapjump_cli.solve import solve_checked
+from snapjump_cli.fe.solve import solve_checked
 
 
 def _jump(m: dict, prefix: str = "") -> float:
@@ -66,9 +66,9 @@ def _V_cav0(name: str, mesh: MeshSettings) -> float:
     if name not in _CAV0:
         import numpy as np
 
-        from snapjump_cli.mesh import mesh_scene
+        from snapjump_cli.mesh.build import mesh_scene
         from snapjump_cli.settings import SolverSettings
-        from snapjump_cli.solve import build_model
+        from snapjump_cli.fe.solve import build_model
 
         d = get_design(name)
         model = build_model(d, mesh_scene(d, mesh), SolverSettings())
@@ -104,7 +104,7 @@ def fig_s9(a) -> None:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from snapjump_cli.fluid import GasLaw
+    from snapjump_cli.fe.fluid import GasLaw
 
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11.0, 4.4))
     w = solve_checked(get_design(a.design), a.mesh)

@@ -30,12 +30,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ds-max", type=float)
     ap.add_argument("--max-steps", type=int)
     a = ap.parse_args(argv)
-    from snapjump_cli.config import load_config
-    from snapjump_cli.designs import get_design
-    from snapjump_cli.geometry import Design
-    from snapjump_cli.metrics import path_derivatives, path_self_crosses
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.geometry.designs import get_design
+    from snapjump_cli.geometry.caps import Design
+    from snapjump_cli.fe.metrics import path_derivatives, path_self_crosses
     from snapjump_cli.settings import MeshSettings, SolverSettings
-    from snapjump_cli.solve import solve_checked, solve_scene
+    from snapjump_cli.fe.solve import solve_checked, solve_scene
 
     if "," in a.design:
         keys = ("eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio")

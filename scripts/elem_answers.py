@@ -21,10 +21,10 @@ COUNTS = ("n_steps", "n_newton")
 
 
 def solve(names):
-    from snapjump_cli.config import load_config
-    from snapjump_cli.designs import get_design
-    from snapjump_cli.geometry import Design
-    from snapjump_cli.solve import solve_scene, warm_up
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.geometry.designs import get_design
+    from snapjump_cli.geometry.caps import Design
+    from snapjump_cli.fe.solve import solve_scene, warm_up
 
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")
     points = list(cfg.designs())

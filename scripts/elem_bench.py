@@ -48,10 +48,10 @@ def base_kernels(rev: str):
 
 
 def state(name: str):
-    from snapjump_cli.config import load_config
-    from snapjump_cli.designs import get_design
-    from snapjump_cli.geometry import Design
-    from snapjump_cli.solve import solve_scene
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.geometry.designs import get_design
+    from snapjump_cli.geometry.caps import Design
+    from snapjump_cli.fe.solve import solve_scene
 
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")
     if name.startswith("grid-"):

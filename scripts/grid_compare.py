@@ -25,7 +25,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("new", type=Path)
     a = ap.parse_args(argv)
     sys.path.insert(0, str(REPO))
-    from snapjump_cli.results import read_results
+    from snapjump_cli.sweep.results import read_results
 
     old, new = read_results(a.old), read_results(a.new)
     # the row key changed with the key version (v1 -> v2, the settings' ds0); the grid's index does not

@@ -34,8 +34,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="take self_crossing from this result file of the same designs (e.g. a run of the "
                          "current code when the checked run mixes code versions)")
     a = ap.parse_args(argv)
-    from snapjump_cli.rank import rank_results, top_table
-    from snapjump_cli.results import read_results
+    from snapjump_cli.jump.rank import rank_results, top_table
+    from snapjump_cli.sweep.results import read_results
 
     df = read_results(a.results)
     if a.crossing is not None:

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import sys
 
-from snapjump_cli.designs import get_design, paper_values
+from snapjump_cli.geometry.designs import get_design, paper_values
 from snapjump_cli.jump import JumpParams, jump_height, masses
-from snapjump_cli.solve import SolveFailed, solve_design
+from snapjump_cli.fe.solve import SolveFailed, solve_design
 
 
 def main(names: list[str]) -> int:

@@ -1,5 +1,5 @@
 """How close K_T's next unstable mode comes to the first volume limit (the near-cusp check of
-:class:`snapjump_cli.snap.SnapTracker`) on the named designs and on random designs.
+:class:`snapjump_cli.fe.snap.SnapTracker`) on the named designs and on random designs.
 
 For each design: the first change of neg(K_T) after the volume limit, its relative distance from
 (V*, p*) ("gap", 0 in the fold's own step) and whether the tracker flagged a near-cusp.
@@ -23,11 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from snapjump_cli.config import load_config, parse_config
-from snapjump_cli.designs import get_design
-from snapjump_cli.geometry import Design, InvalidDesign
+from snapjump_cli.sweep.config import load_config, parse_config
+from snapjump_cli.geometry.designs import get_design
+from snapjump_cli.geometry.caps import Design, InvalidDesign
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.solve import SolveFailed, solve_scene
+from snapjump_cli.fe.solve import SolveFailed, solve_scene
 
 PAPER_GRID = Path(__file__).resolve().parents[1] / "configs" / "paper_grid.yaml"
 

@@ -50,10 +50,10 @@ sys.path.insert(0, str(REPO))  # bench/ (the baseline and the sample's scenes)
 
 def _variants(a: argparse.Namespace) -> None:
     from bench.regression import BASELINE, scenes
-    from snapjump_cli import continuation as C
-    from snapjump_cli.config import load_config
-    from snapjump_cli.geometry import Design
-    from snapjump_cli.solve import solve_design
+    from snapjump_cli.fe import continuation as C
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.geometry.caps import Design
+    from snapjump_cli.fe.solve import solve_design
 
     base = {r["id"]: r for r in json.loads(Path(BASELINE).read_text())["rows"]}
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")
@@ -83,18 +83,18 @@ _PARAMS = ("eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio")
 
 
 def _design_of(params) -> "Design":
-    from snapjump_cli.geometry import Design
+    from snapjump_cli.geometry.caps import Design
 
     return Design(**dict(zip(_PARAMS, map(float, params))))
 
 
 def _design(name: str):
     """A named design, ``grid-NNNN`` (the paper grid's point NNNN) or ``eta_i,theta_i,eta_o,theta_o,mu_ratio``."""
-    from snapjump_cli.designs import get_design
+    from snapjump_cli.geometry.designs import get_design
 
     if name.startswith("grid-"):
-        from snapjump_cli.config import load_config
-        from snapjump_cli.geometry import Design
+        from snapjump_cli.sweep.config import load_config
+        from snapjump_cli.geometry.caps import Design
 
         points = list(load_config(REPO / "configs" / "paper_grid.yaml").designs())
         return Design(**points[int(name[5:])].design_kwargs())
@@ -103,9 +103,9 @@ def _design(name: str):
 
 def _history(a: argparse.Namespace) -> None:
     os.environ["SNAPJUMP_PROFILE_PHASES"] = "1"  # the Python corrector, whose iterations are visible
-    from snapjump_cli import continuation as C
-    from snapjump_cli.config import load_config
-    from snapjump_cli.solve import solve_scene
+    from snapjump_cli.fe import continuation as C
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.fe.solve import solve_scene
 
     hist: list[list] = []
     orig_scale, orig_correct = C.Tracer.residual_scale, C.Tracer.correct
@@ -131,8 +131,8 @@ def _history(a: argparse.Namespace) -> None:
 
 
 def _perturb(a: argparse.Namespace) -> None:
-    from snapjump_cli.config import load_config
-    from snapjump_cli.solve import solve_scene
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.fe.solve import solve_scene
 
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")
     r = solve_scene(_design(a.design), cfg.mesh, cfg.solver)
@@ -154,7 +154,7 @@ def _perturb(a: argparse.Namespace) -> None:
 def _recheck(a: argparse.Namespace) -> None:
     import pandas as pd
 
-    from snapjump_cli.results import read_results
+    from snapjump_cli.sweep.results import read_results
 
     if a.results.is_dir():  # the part files of an unfinished sweep
         df = pd.concat([read_results(f) for f in sorted(a.results.glob("part-*.parquet"))]).drop_duplicates("key")
@@ -182,8 +182,8 @@ def _recheck(a: argparse.Namespace) -> None:
 
 def _coarse_flags(params: tuple) -> tuple:
     """``(self_crossing, lower_state_method)`` of a grid design solved at the grid's mesh alone."""
-    from snapjump_cli.config import load_config
-    from snapjump_cli.solve import SolveFailed, solve_scene
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.fe.solve import SolveFailed, solve_scene
 
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")
     try:
@@ -195,8 +195,8 @@ def _coarse_flags(params: tuple) -> tuple:
 
 def _grid_solve(name: str):
     """The scene result of ``name`` solved at the paper grid's mesh (no re-check)."""
-    from snapjump_cli.config import load_config
-    from snapjump_cli.solve import solve_scene
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.fe.solve import solve_scene
 
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")
     return solve_scene(_design(name), cfg.mesh, cfg.solver)
@@ -265,9 +265,9 @@ def _riks_calls(design: str, record):
     """Solve ``design`` through the Python corrector; ``record(tracer, u_pred, p_pred, result)`` is
     called after every Riks corrector call that converged with the error test."""
     os.environ["SNAPJUMP_PROFILE_PHASES"] = "1"
-    from snapjump_cli import continuation as C
-    from snapjump_cli.config import load_config
-    from snapjump_cli.solve import solve_scene
+    from snapjump_cli.fe import continuation as C
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.fe.solve import solve_scene
 
     orig = C.Tracer.correct
 
@@ -319,9 +319,9 @@ def _contraction(a: argparse.Namespace) -> None:
     the steps that converged and those that failed, with the give-up rule switched off: why Newton
     stops at a contraction above ``theta_max`` (ContinuationSettings)."""
     os.environ["SNAPJUMP_PROFILE_PHASES"] = "1"  # the Python corrector reports its corrections
-    from snapjump_cli import continuation as C
-    from snapjump_cli.config import load_config
-    from snapjump_cli.solve import solve_scene
+    from snapjump_cli.fe import continuation as C
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.fe.solve import solve_scene
 
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")
     orig_correct, orig_from = C.Tracer.correct, C.ContinuationSettings.from_solver.__func__

@@ -28,11 +28,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-turn", type=float, default=2.0, help="largest turn per step of the fine trace [deg]")
     ap.add_argument("--max-steps", type=int, default=20000)
     a = ap.parse_args(argv)
-    from snapjump_cli.config import load_config
-    from snapjump_cli.designs import get_design
-    from snapjump_cli.geometry import Design
-    from snapjump_cli.metrics import loading_peak
-    from snapjump_cli.solve import solve_checked
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.geometry.designs import get_design
+    from snapjump_cli.geometry.caps import Design
+    from snapjump_cli.fe.metrics import loading_peak
+    from snapjump_cli.fe.solve import solve_checked
 
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")
     fine = dataclasses.replace(cfg.solver, ds0=min(cfg.solver.ds0, a.ds_max), ds_max=a.ds_max, max_turn_deg=a.max_turn, max_steps=a.max_steps)

@@ -3,7 +3,7 @@ per iteration and the element pass against its flop count (issue 10's before/aft
 
     .venv/bin/python scripts/profile_designs.py [--repeat 3] [--designs D C grid-0037 grid-1543]
 
-Designs are named designs (``snapjump_cli/data/designs.yaml``) or ``grid-NNNN`` (the paper grid's point
+Designs are named designs (``snapjump_cli/geometry/designs.yaml``) or ``grid-NNNN`` (the paper grid's point
 NNNN); each is solved once at the grid's mesh (``solve_scene``; ``--sweep``: as the sweep solves
 it, with the mesh re-check), warm, the median of ``--repeat`` runs. ``--repo DIR`` profiles another
 checkout (e.g. a git worktree of an older commit, with a ``snapjump_kernels -> kernels`` link).
@@ -22,7 +22,7 @@ against an extended-precision solution, the band solve and product against dense
 
 meshes a seeded sample of paper-grid points (the invalid ones drop out) and counts the distinct
 mesh topologies, i.e. the node orders the sweep computes once and then looks up (the order cache
-of ``snapjump_cli/meshdata.py``).
+of ``snapjump_cli/mesh/data.py``).
 """
 from __future__ import annotations
 
@@ -61,9 +61,9 @@ def startup(profile: bool = False) -> int:
     t0 = time.perf_counter()
     import snapjump_cli.commands.curve  # noqa: F401 - what the command imports first
     t1 = time.perf_counter()
-    from snapjump_cli.geometry import CapScene
+    from snapjump_cli.geometry.caps import CapScene
     from snapjump_cli.settings import MeshSettings, SolverSettings
-    from snapjump_cli.solve import solve_scene
+    from snapjump_cli.fe.solve import solve_scene
     t2 = time.perf_counter()
     cap = CapScene(theta_deg=60.0, eta=30.0, bc="clamped")
     if profile:
@@ -89,9 +89,9 @@ def kernels(name: str, calls: int = 600, nt: int | None = None) -> int:
     grid's mesh, or with ``nt`` elements through the thickness)."""
     import numpy as np
 
-    from snapjump_cli.config import load_config
-    from snapjump_cli.designs import get_design
-    from snapjump_cli.solve import solve_scene
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.geometry.designs import get_design
+    from snapjump_cli.fe.solve import solve_scene
     from snapjump_kernels.assembly import evaluate
     from snapjump_kernels.banded import bordered_factor, bordered_solve
 
@@ -176,10 +176,10 @@ def topologies(n: int, seed: int = 0) -> int:
     """Mesh ``n`` seeded paper-grid points; print how many were valid and their distinct topologies."""
     import numpy as np
 
-    from snapjump_cli import meshdata
-    from snapjump_cli.config import load_config
-    from snapjump_cli.geometry import Design, InvalidDesign
-    from snapjump_cli.mesh import mesh_scene
+    from snapjump_cli.mesh import data as meshdata
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.geometry.caps import Design, InvalidDesign
+    from snapjump_cli.mesh.build import mesh_scene
 
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")
     points = list(cfg.designs())
@@ -220,10 +220,10 @@ def main(argv: list[str] | None = None) -> int:
         return startup(a.profile)
     if a.kernels:
         return kernels(a.kernels, nt=a.nt)
-    from snapjump_cli.config import load_config
-    from snapjump_cli.designs import get_design
-    from snapjump_cli.geometry import Design
-    from snapjump_cli.solve import solve_design, solve_scene, warm_up
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.geometry.designs import get_design
+    from snapjump_cli.geometry.caps import Design
+    from snapjump_cli.fe.solve import solve_design, solve_scene, warm_up
 
     cfg = load_config(repo / "configs" / "paper_grid.yaml")
     points = list(cfg.designs())

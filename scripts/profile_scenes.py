@@ -11,9 +11,9 @@ import os
 import statistics
 import sys
 
-from snapjump_cli.designs import fig1_caps, get_design
+from snapjump_cli.geometry.designs import fig1_caps, get_design
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.solve import solve_scene, warm_up
+from snapjump_cli.fe.solve import solve_scene, warm_up
 
 SCENES = {
     **fig1_caps(("cap30-clamped", "cap8.5-roller-point")),

@@ -18,9 +18,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from snapjump_cli import results as res
-from snapjump_cli.config import parse_config
-from snapjump_cli.sweep import run_sweep
+from snapjump_cli.sweep import results as res
+from snapjump_cli.sweep.config import parse_config
+from snapjump_cli.sweep.run import run_sweep
 
 
 def main(argv: list[str] | None = None) -> int:

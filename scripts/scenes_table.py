@@ -13,9 +13,9 @@ import json
 import sys
 import time
 
-from snapjump_cli.designs import FIG1_CAPS, fig1_caps, get_design, paper_values
+from snapjump_cli.geometry.designs import FIG1_CAPS, fig1_caps, get_design, paper_values
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.solve import SolveFailed, solve_scene, warm_up
+from snapjump_cli.fe.solve import SolveFailed, solve_scene, warm_up
 
 MU, R = 0.35e6, 0.030
 SCENES = {

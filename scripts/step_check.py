@@ -31,10 +31,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-turn", type=float, default=2.0)
     a = ap.parse_args(argv)
     sys.path.insert(0, str(REPO))
-    from snapjump_cli.config import load_config
-    from snapjump_cli.geometry import Design
-    from snapjump_cli.results import read_results
-    from snapjump_cli.solve import solve_checked
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.geometry.caps import Design
+    from snapjump_cli.sweep.results import read_results
+    from snapjump_cli.fe.solve import solve_checked
 
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")
     points = list(cfg.designs())

@@ -97,7 +97,7 @@ class SolverSettings:
         in the arc-length metric); the limit point, the lower state and the descent always use
         ``tol`` (a residual test)
     harmonics : check the traced states against non-axisymmetric perturbations ``cos n phi``,
-        ``n = 1..harmonics`` (:mod:`snapjump_cli.harmonics`; 0 = off, the default)
+        ``n = 1..harmonics`` (:mod:`snapjump_cli.fe.harmonics`; 0 = off, the default)
     u_scale : scale of the RMS displacement in the arc length, in units of the pole-displacement
         scale (0 = arc length in (V, p, pole) only)
     time_limit_s : CPU seconds one design (or scene) may take, the mesh check's re-solve and the

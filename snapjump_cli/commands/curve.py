@@ -17,7 +17,7 @@ With air (``--air-ml V0 [--gamma G] [--p0 P]``, docs/air.md) the snap metrics (`
 heights ``y_jump_m``, ``water_y_jump_m`` (the jump model of ``rank``) are added; ``fluid`` is
 ``"water"`` and the other air keys null without it.
 
-A scene is solved exactly as a sweep solves a design (:func:`snapjump_cli.solve.solve_checked`):
+A scene is solved exactly as a sweep solves a design (:func:`snapjump_cli.fe.solve.solve_checked`):
 a suspicious snap is re-solved on a finer mesh and the refined answer is reported, so ``curve``
 and the ranked table give one answer per design and mesh.
 """
@@ -35,7 +35,7 @@ import numpy as np
 from snapjump_cli.cli import verbosity_options
 from snapjump_cli.errors import BadInput
 from snapjump_cli.settings import SolverSettings
-from snapjump_cli.scenes import (
+from snapjump_cli.commands.options import (
     FiniteFloat,
     mesh_options,
     mesh_settings_from_options,
@@ -109,7 +109,7 @@ def _jumps(m: dict) -> dict:
 def _fluid(air_ml: float | None, gamma: float | None, p0: float | None, harmonics: int):
     """The fluid of ``--air-ml / --gamma / --p0`` (``None``: water), checked by the settings class
     the YAML uses too."""
-    from snapjump_cli.fluid import FluidSettings, P0_DEFAULT
+    from snapjump_cli.fe.fluid import FluidSettings, P0_DEFAULT
     from snapjump_cli.settings import SettingsError
 
     if air_ml is None:
@@ -230,7 +230,7 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
       snapjump curve --cap outer --theta 90 --eta 16.5
       snapjump curve --design C --air-ml 45 --plot c_air.png
     """
-    from snapjump_cli.solve import SolveFailed, solve_checked
+    from snapjump_cli.fe.solve import SolveFailed, solve_checked
 
     scene = scene_from_options(**pick_scene_options(kw))
     ms = mesh_settings_from_options(**pick_mesh_options(kw))

@@ -21,7 +21,7 @@ import click
 from snapjump_cli.cli import verbosity_options
 from snapjump_cli.errors import BadInput
 from snapjump_cli.settings import SolverSettings
-from snapjump_cli.scenes import (
+from snapjump_cli.commands.options import (
     mesh_options,
     mesh_settings_from_options,
     pick_mesh_options,
@@ -39,8 +39,8 @@ def summary(scene, mesh) -> dict:
     """The JSON summary of a meshed scene (see the module docstring)."""
     from snapjump_kernels.calls import cavity_volume
 
-    from snapjump_cli.geometry import Design, cap_points, cap_volumes, design_points, design_volumes
-    from snapjump_cli.mesh import meshed_design, solid_volumes
+    from snapjump_cli.geometry.caps import Design, cap_points, cap_volumes, design_points, design_volumes
+    from snapjump_cli.mesh.build import meshed_design, solid_volumes
 
     vol = solid_volumes(mesh)
     out: dict = {
@@ -90,7 +90,7 @@ def summary(scene, mesh) -> dict:
 
 
 def _describe(scene) -> str:
-    from snapjump_cli.geometry import Design
+    from snapjump_cli.geometry.caps import Design
 
     if isinstance(scene, Design):
         label = f"design {scene.name}" if scene.name else "design"
@@ -161,8 +161,8 @@ def command(out: Path | None, fmt: str, overwrite: bool, max_nodes: int, **kw) -
       snapjump mesh --cap --theta 60 --eta 8.5 --bc ring-roller --out cap.stl
     """
     from snapjump_cli.files import check_writable
-    from snapjump_cli.mesh import MESH_SUFFIXES, mesh_scene, write_mesh
-    from snapjump_cli.solids import SOLID_SUFFIXES, write_solids
+    from snapjump_cli.mesh.build import MESH_SUFFIXES, mesh_scene, write_mesh
+    from snapjump_cli.mesh.solids import SOLID_SUFFIXES, write_solids
 
     scene = scene_from_options(**pick_scene_options(kw))
     settings = mesh_settings_from_options(**pick_mesh_options(kw))

@@ -132,11 +132,11 @@ def _text(summary: dict, result: Any, output: Path, files: list[Path], from_path
 @verbosity_options
 def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | None, from_path: Path | None,
             fmt: str, plots: bool, progress: bool, overwrite: bool) -> None:
-    from snapjump_cli.config import ConfigError
     from snapjump_cli.files import check_writable, follow_links
     from snapjump_cli.optimize import OptimizeInputError, cache_paths, check_output, load_spec, read_from
-    from snapjump_cli.storage import OutputLock
-    from snapjump_cli.sweep import SweepInputError
+    from snapjump_cli.sweep.config import ConfigError
+    from snapjump_cli.sweep.run import SweepInputError
+    from snapjump_cli.sweep.storage import OutputLock
 
     try:
         sp = load_spec(spec)
@@ -172,12 +172,12 @@ def _run(sp: Any, out: Path, n_jobs: int | None, budget: int | None, from_path: 
     """The run itself, under the output's lock: search, confirm, write the table and plots, report."""
     from snapjump_cli.files import AtomicFiles, describe_os_error
     from snapjump_cli.optimize import OptimizeInputError, cache_paths, make_plots, run_optimize, write_result
-    from snapjump_cli.sweep import SweepError, SweepInputError
+    from snapjump_cli.sweep.run import SweepError, SweepInputError
 
     bar = None
     stack = ExitStack()
     if progress and not is_quiet():
-        from snapjump_cli.sweep import make_progress
+        from snapjump_cli.sweep.run import make_progress
 
         bar = make_progress(budget if budget is not None else sp.budget, 0, stack, desc="optimize", unit="solve")
 

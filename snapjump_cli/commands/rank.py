@@ -62,10 +62,10 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
             alpha: float, fmt: str, exclude_asymmetric: bool, overwrite: bool) -> None:
     import pyarrow as pa
 
-    from snapjump_cli import results as res
     from snapjump_cli.files import AtomicFiles, check_writable
+    from snapjump_cli.sweep import results as res
     from snapjump_cli.jump import JumpParams
-    from snapjump_cli.rank import RankInputError, rank_results, settings_mix, top_frame, top_table
+    from snapjump_cli.jump.rank import RankInputError, rank_results, settings_mix, top_frame, top_table
 
     try:
         params = JumpParams(rho=rho, c_d=c_d, alpha=alpha)
@@ -90,7 +90,7 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
     # every output place is checked before anything is written
     check_writable(out, BadInput, overwrite=overwrite)
     if plots_dir is not None:
-        from snapjump_cli.plots import PLOT_FILES
+        from snapjump_cli.viz.figures import PLOT_FILES
 
         check_writable(plots_dir, BadInput, what="folder")
         for name in PLOT_FILES:
@@ -121,7 +121,7 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
         else:
             written.add(out, lambda tmp: res.write_frame_atomic(ranked, tmp, meta))
         if plots_dir is not None:
-            from snapjump_cli.plots import make_plots
+            from snapjump_cli.viz.figures import make_plots
 
             files += make_plots(ranked, plots_dir, batch=written)
 

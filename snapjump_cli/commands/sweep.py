@@ -68,9 +68,9 @@ Exit codes: 0 done (even if some designs failed), 1 the sweep could not run,
 def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str | None,
             chunk_size: int | None, retry_failed: bool, append: bool, max_designs: int | None,
             progress: bool) -> None:
-    from snapjump_cli.config import ConfigError, load_config
     from snapjump_cli.files import describe_os_error, follow_links
-    from snapjump_cli.sweep import MAX_DESIGNS, SweepError, SweepInputError, parts_dir, run_sweep
+    from snapjump_cli.sweep.config import ConfigError, load_config
+    from snapjump_cli.sweep.run import MAX_DESIGNS, SweepError, SweepInputError, parts_dir, run_sweep
 
     try:
         config = load_config(grid, max_designs or MAX_DESIGNS)

@@ -47,7 +47,7 @@ def write_animation(mesh, steps, path: str | Path, *, title: str = "", volume_sy
 
     Parameters
     ----------
-    mesh : the reference mesh (:class:`snapjump_cli.meshdata.Mesh`)
+    mesh : the reference mesh (:class:`snapjump_cli.mesh.data.Mesh`)
     steps : the scene's states in path order
     path : the ``.gif`` file (written atomically)
     title : the scene

@@ -188,7 +188,7 @@ def export_steps(res, steps, path: str | Path, revolve: int = 0, stage=None) -> 
 
     Parameters
     ----------
-    res : the :class:`~snapjump_cli.solve.SceneResult` (its model gives the fields)
+    res : the :class:`~snapjump_cli.fe.solve.SceneResult` (its model gives the fields)
     steps : its :class:`~snapjump_cli.viz.states.Steps`
     path : ``.pvd`` or ``.xdmf`` file (an existing one, and a ``.pvd``'s step folder, are replaced)
     revolve : 0 for the section, else the number of sectors of the solid of revolution

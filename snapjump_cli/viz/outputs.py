@@ -88,7 +88,7 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
 
     Parameters
     ----------
-    res : the :class:`~snapjump_cli.solve.SceneResult`
+    res : the :class:`~snapjump_cli.fe.solve.SceneResult`
     scene : its scene (the title, and ``ΔV`` for a single cap's supplied volume)
     metrics : the reported metrics (JSON-ready), for the p-V plot
     paths : option -> path (``--csv``, ``--plot``, ``--shapes``, ``--animation``, ``--export``)
@@ -99,7 +99,7 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
     list of Path
         The files (and the ``.pvd``'s step folder) written.
     """
-    from snapjump_cli.geometry import CapScene
+    from snapjump_cli.geometry.caps import CapScene
 
     wanted = {k: v for k, v in paths.items() if v is not None}
     if not wanted:
@@ -120,14 +120,14 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
         steps = path_steps(res)
     mesh = res.model.mesh if res.model is not None else None
     jobs: list[tuple[str, Path, Callable[[Path], object]]] = []
-    air = getattr(res, "air", None)  # inflated with air (snapjump_cli.air_snap): its snap, and V_d per step
+    air = getattr(res, "air", None)  # inflated with air (snapjump_cli.fe.air_snap): its snap, and V_d per step
     if "--csv" in wanted:
         columns = steps.columns()
         if air is not None:
             columns["V_disp_m3"] = list(air.dispensed(steps.V_m3, steps.p_Pa, res.model))
         jobs.append(("--csv", wanted["--csv"], lambda t: _write_csv(columns, t)))
     if "--plot" in wanted:
-        from snapjump_cli.plots import plot_air_curves, plot_pv_curve
+        from snapjump_cli.viz.figures import plot_air_curves, plot_pv_curve
 
         plot = plot_pv_curve if air is None else plot_air_curves
         jobs.append(("--plot", wanted["--plot"], lambda t: plot(res.curve, metrics, t, title=title)))

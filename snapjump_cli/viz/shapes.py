@@ -78,7 +78,7 @@ class SectionDrawing:
 
     Parameters
     ----------
-    mesh : the reference mesh (:class:`snapjump_cli.meshdata.Mesh`, metres)
+    mesh : the reference mesh (:class:`snapjump_cli.mesh.data.Mesh`, metres)
     subdivision : sub-cells per element side (default: 3 for Q9, 2 for Q4)
     """
 
@@ -182,7 +182,7 @@ class SectionDrawing:
     def name_parts(self, ax: Any, r: float, ylo: float, yhi: float) -> None:
         """Name the parts of the undeformed section on its left half (a design: inner cap, ring,
         outer cap): the outer cap from above, the others from below the ground line."""
-        from snapjump_cli.meshdata import REGION_NAMES
+        from snapjump_cli.mesh.data import REGION_NAMES
 
         if ylo > -0.15 * r or len(set(self.mesh.region.tolist())) < 2:
             return
@@ -218,7 +218,7 @@ def plot_shapes(mesh, states: Sequence[ShapeState], path: str | Path, *, title: 
 
     Parameters
     ----------
-    mesh : the reference mesh the states displace (:class:`snapjump_cli.meshdata.Mesh`)
+    mesh : the reference mesh the states displace (:class:`snapjump_cli.mesh.data.Mesh`)
     states : the states (:class:`ShapeState`); each is drawn mirrored about the axis, or, with
         ``x_pi``, as its two meridian sections (left ``phi = pi``, right ``phi = 0``)
     path : the PNG file, written atomically

@@ -1,7 +1,7 @@
 """The states of a solved scene as steps: what the ``curve`` command's ``--csv``, ``--shapes``,
 ``--animation`` and ``--export`` show.
 
-:func:`path_steps` turns a :class:`~snapjump_cli.solve.SceneResult` into one sequence of states
+:func:`path_steps` turns a :class:`~snapjump_cli.fe.solve.SceneResult` into one sequence of states
 (:class:`Steps`, SI units): the traced path's points with the named states inserted at their arc
 length,
 
@@ -83,7 +83,7 @@ def _pressure_peak(res, pts: list, up) -> tuple[object | None, int]:
     """The loading path's pressure maximum: ``(state, k)`` with a state solved on the step after
     path point ``k``; ``(None, k)`` when it is path point ``k`` itself; ``(None, -1)`` when it is
     the upper state (the pressure still rises at ``V*``)."""
-    from snapjump_cli.snap import root_on_step
+    from snapjump_cli.fe.snap import root_on_step
 
     st = res.states
     last = st.k_before if (up is not None and st.k_before is not None) else len(pts) - 1
@@ -113,7 +113,7 @@ def path_steps(res) -> Steps:
 
     Parameters
     ----------
-    res : :class:`snapjump_cli.solve.SceneResult` with its model, path, states and tracer
+    res : :class:`snapjump_cli.fe.solve.SceneResult` with its model, path, states and tracer
 
     Returns
     -------

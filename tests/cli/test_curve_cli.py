@@ -86,11 +86,11 @@ def test_outputs_under_a_file_or_existing_are_refused(capsys, tmp_path):
 
 def test_curve_reports_what_the_sweep_reports(monkeypatch, capsys):
     """One answer per design: curve goes through the sweep's solve (the mesh check and re-solve)."""
-    import snapjump_cli.solve as solve
+    import snapjump_cli.fe.solve as solve
 
     calls = []
 
-    def fake_scene(scene, mesh, solver):
+    def fake_scene(scene, mesh, solver, **kw):
         calls.append((mesh.nt, mesh.aspect))
         m = {"snaps": True, "dE_J": 2.78e-3 if mesh.nt == 2 else 6.39e-3, "dE_norm": 0.3, "dy_pole_m": 0.0102,
              "lower_state_method": "path", "fold_note": "volume limit at a near-cusp: x" if mesh.nt == 2 else ""}

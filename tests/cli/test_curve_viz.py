@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from snapjump_cli.commands.curve import main
-from snapjump_cli.designs import get_design
-from snapjump_cli.geometry import design_points
+from snapjump_cli.geometry.designs import get_design
+from snapjump_cli.geometry.caps import design_points
 
 meshio = pytest.importorskip("meshio")
 

@@ -10,8 +10,8 @@ import pytest
 
 from snapjump_cli import cli
 from snapjump_cli.commands import mesh as mesh_cmd
-from snapjump_cli.designs import get_design
-from snapjump_cli.geometry import CapScene, cap_volumes, design_points, design_volumes
+from snapjump_cli.geometry.designs import get_design
+from snapjump_cli.geometry.caps import CapScene, cap_volumes, design_points, design_volumes
 
 STABLE_KEYS = ("R_o_m", "Delta_m", "n_nodes", "n_elements", "V_inner_solid_m3", "V_outer_solid_m3",
                "V_cavity_m3", "h_pole_m")

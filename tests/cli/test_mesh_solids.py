@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from snapjump_cli.commands.mesh import main
-from snapjump_cli.designs import get_design
-from snapjump_cli.geometry import CapScene, cap_volumes, design_volumes
-from snapjump_cli.solids import STL_TOLERANCE_MM
+from snapjump_cli.geometry.designs import get_design
+from snapjump_cli.geometry.caps import CapScene, cap_volumes, design_volumes
+from snapjump_cli.mesh.solids import STL_TOLERANCE_MM
 
 MM3 = 1e-9  # m^3 per mm^3
 
@@ -44,7 +44,7 @@ def _write(capsys, tmp_path, name, suffix) -> tuple[dict, object]:
 
 def _import(path) -> dict[str, float]:
     """Volumes [m^3] of the solids of a STEP/BREP file re-imported by OpenCASCADE, by label."""
-    from snapjump_cli.gmsh_session import gmsh_session
+    from snapjump_cli.mesh.gmsh_session import gmsh_session
 
     with gmsh_session("reimport") as gmsh:
         gmsh.option.setNumber("Geometry.OCCImportLabels", 1)

@@ -11,11 +11,11 @@ import yaml
 
 from snapjump_cli.cli import main as cli_main
 from snapjump_cli.commands import optimize as optimize_cmd
-from snapjump_cli.geometry import design_volumes
+from snapjump_cli.geometry.caps import design_volumes
 from snapjump_cli.optimize import finer_mesh, parse_spec, run_optimize
 from snapjump_cli.settings import MeshSettings
 
-from snapjump_cli.rows import BOOL_RESULT_KEYS, INT_RESULT_KEYS, RESULT_KEYS, STR_RESULT_KEYS
+from snapjump_cli.sweep.rows import BOOL_RESULT_KEYS, INT_RESULT_KEYS, RESULT_KEYS, STR_RESULT_KEYS
 
 #: design D: (6.2, 80, 12.1, 82, 5.8); its box of eta_i and eta_o, the other three fixed.
 D_BOX = {"eta_i": [5.9, 6.5], "theta_i": 80, "eta_o": [11.5, 12.7], "theta_o": 82, "mu_ratio": 5.8}
@@ -170,8 +170,8 @@ def test_box_around_D_reaches_D_on_a_coarse_mesh(tmp_path, capsys):
     """Two free parameters around D (the box centre, evaluated first), 12 solves on Q9 nt 1
     aspect 4; the confirmation (nt 2, aspect 4) moves this coarse mesh's jump by ~5 %, so the
     tolerance is 10 % here. Then the same command resumes from the cache."""
-    from snapjump_cli.rank import rank_results
-    from snapjump_cli.results import read_results
+    from snapjump_cli.jump.rank import rank_results
+    from snapjump_cli.sweep.results import read_results
 
     spec = {"bounds": D_BOX, "budget": 12, "seed": 1, "search": {"starts": 2},
             "mesh": {"order": 2, "nt": 1, "aspect": 4.0}, "confirm": {"tolerance": 0.1, "candidates": 3}}

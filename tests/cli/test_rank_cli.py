@@ -11,13 +11,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from snapjump_cli import results as res
+from snapjump_cli.sweep import results as res
 from snapjump_cli.cli import main as cli_main
 from snapjump_cli.commands import rank as rank_cmd
-from snapjump_cli.config import parse_config
+from snapjump_cli.sweep.config import parse_config
 from snapjump_cli.jump import JumpParams, jump_height, masses
-from snapjump_cli.rank import RANK_COLUMNS, rank_results
-from snapjump_cli.sweep import run_sweep
+from snapjump_cli.jump.rank import RANK_COLUMNS, rank_results
+from snapjump_cli.sweep.run import run_sweep
 
 FAKES = Path(__file__).resolve().parents[1] / "sweep"
 
@@ -130,7 +130,7 @@ def test_rank_module_has_command_and_main(capsys):
 
 
 def test_plots_with_no_snapping_design(tmp_path):
-    from snapjump_cli.plots import make_plots
+    from snapjump_cli.viz.figures import make_plots
 
     df = pd.DataFrame({"status": ["no_snap"], "dE_J": [0.0], "dy_pole_m": [math.nan], "R_i": [0.03],
                        "mu_i": [0.35e6], "mu_ratio": [1.0], "eta_i": [6.0], "theta_i_deg": [80.0], "eta_o": [10.0],

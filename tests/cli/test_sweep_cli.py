@@ -103,7 +103,7 @@ def test_output_that_is_not_a_result_file_exit_2(tmp_path, capsys, fake_solver):
 
 
 def test_sweep_with_fake_solver_hook_then_resume(tmp_path, capsys, fake_solver, monkeypatch):
-    from snapjump_cli.results import read_metadata, read_results
+    from snapjump_cli.sweep.results import read_metadata, read_results
 
     p = tmp_path / "g.yaml"
     p.write_text(GOOD + "output: results/from_config.parquet\nn_jobs: 1\n")

@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from bench.regression import BASELINE, compare_rows, scenes, solve_one
+from bench.regression import BASELINE, compare_rows, same_rows, scenes, solve_one
 
 #: fast path rows (two of them self-crossing) and an invalid design
 IDS = ("grid-0815", "grid-0169", "grid-1601", "grid-3364", "grid-3426", "grid-0321")
@@ -58,3 +58,13 @@ def test_the_bench_report_names_the_machine(tmp_path):
                    "flags\t\t: fpu avx avx2\n")
     assert cpu_text(str(amd)) == "AMD EPYC; family 23 model 49, 2994 MHz, avx2"
     assert "cpu_id" not in runner.cpu_info(str(tmp_path / "none"))  # no /proc/cpuinfo: no invented line
+
+
+def test_same_rows_sees_every_changed_value_but_timings(baseline):
+    _, rows = baseline
+    old = [rows["grid-0815"], rows["grid-0321"]]
+    assert same_rows(old, [dict(r) for r in old]) == []
+    assert same_rows(old, [{**old[0], "wall_s": 99.0}, old[1]]) == []
+    changed = {**old[0], "dE_J": old[0]["dE_J"] * (1 + 2**-52)}  # one ulp
+    assert same_rows(old, [changed, old[1]]) == [f"grid-0815 dE_J: {old[0]['dE_J']!r} -> {changed['dE_J']!r}"]
+    assert same_rows(old, old[:1]) == ["grid-0321: only in the old rows"]

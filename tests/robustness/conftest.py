@@ -49,8 +49,8 @@ def grid_file(tmp_path):
 def results_file(tmp_path, grid_file):
     """A finished (fake) sweep's result file."""
     import snapjump_fake_solvers as fake
-    from snapjump_cli.config import load_config
-    from snapjump_cli.sweep import run_sweep
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.sweep.run import run_sweep
 
     out = tmp_path / "r.parquet"
     run_sweep(load_config(grid_file()), output=out, n_jobs=1, solve_fn=fake.fast_solve, progress=False)

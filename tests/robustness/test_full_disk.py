@@ -11,10 +11,10 @@ import pytest
 import snapjump_fake_solvers as fake
 from conftest import CHEAP_SCENE, run_cli
 from snapjump_cli import files
-from snapjump_cli import results as res
-from snapjump_cli.config import load_config
-from snapjump_cli.storage import done_keys, parts_dir
-from snapjump_cli.sweep import run_sweep
+from snapjump_cli.sweep import results as res
+from snapjump_cli.sweep.config import load_config
+from snapjump_cli.sweep.storage import done_keys, parts_dir
+from snapjump_cli.sweep.run import run_sweep
 
 
 def _one_line(err: str) -> str:

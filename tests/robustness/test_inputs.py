@@ -10,8 +10,8 @@ import pytest
 
 import snapjump_fake_solvers as fake
 from conftest import CHEAP_SCENE, GRID, run_cli
-from snapjump_cli import results as res
-from snapjump_cli.storage import parts_dir
+from snapjump_cli.sweep import results as res
+from snapjump_cli.sweep.storage import parts_dir
 
 
 @pytest.mark.parametrize("command", ["curve", "mesh"])
@@ -27,7 +27,7 @@ def test_a_sweeps_radius_is_checked_in_the_config(tmp_path, capsys, grid_file):
 
 
 def test_curve_plot_without_matplotlib_is_one_line_before_solving(tmp_path, capsys, monkeypatch):
-    import snapjump_cli.solve as solve
+    import snapjump_cli.fe.solve as solve
 
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib -> ImportError
     monkeypatch.setattr(solve, "solve_checked", lambda *a, **k: pytest.fail("solved before checking matplotlib"))
@@ -87,7 +87,7 @@ def test_excluded_asymmetric_designs_are_not_counted_as_jumps(results_file, caps
 
 def test_an_unreachable_scheduler_leaves_no_parts_folder(tmp_path, capsys, grid_file, monkeypatch):
     pytest.importorskip("distributed")
-    monkeypatch.setattr("snapjump_cli.execution._CONNECT_TIMEOUT_S", 1.0)
+    monkeypatch.setattr("snapjump_cli.sweep.execution._CONNECT_TIMEOUT_S", 1.0)
     out = tmp_path / "x.parquet"
     code, _, err = run_cli(capsys, "sweep", str(grid_file()), "-o", str(out), "--scheduler", "tcp://127.0.0.1:1",
                            "--no-progress", solve_fn=fake.fast_solve)
@@ -96,8 +96,8 @@ def test_an_unreachable_scheduler_leaves_no_parts_folder(tmp_path, capsys, grid_
 
 
 def test_a_damaged_part_file_is_named_with_what_to_do(tmp_path, capsys, grid_file):
-    from snapjump_cli.config import load_config
-    from snapjump_cli.sweep import run_sweep
+    from snapjump_cli.sweep.config import load_config
+    from snapjump_cli.sweep.run import run_sweep
 
     out = tmp_path / "r.parquet"
     run_sweep(load_config(grid_file()), output=out, n_jobs=1, solve_fn=fake.fast_solve, progress=False, chunk_size=2,

@@ -8,13 +8,13 @@ import pytest
 import yaml
 
 from conftest import CHEAP_SCENE, run_cli
-from snapjump_cli import results as res
-from snapjump_cli.config import MAX_DESIGNS, load_config
-from snapjump_cli.geometry import Design
-from snapjump_cli.mesh import MeshTooLarge, mesh_scene
+from snapjump_cli.sweep import results as res
+from snapjump_cli.sweep.config import MAX_DESIGNS, load_config
+from snapjump_cli.geometry.caps import Design
+from snapjump_cli.mesh.build import MeshTooLarge, mesh_scene
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.solve import SolveFailed, solve_design
-from snapjump_cli.yaml_checks import YAML_MAX_BYTES
+from snapjump_cli.fe.solve import SolveFailed, solve_design
+from snapjump_cli.sweep.checks import YAML_MAX_BYTES
 
 AXES = {"theta_i": [80], "eta_o": [12], "theta_o": [82], "mu_ratio": [5.8]}
 

@@ -11,8 +11,8 @@ import yaml
 
 import snapjump_fake_solvers as fake
 from conftest import run_cli
-from snapjump_cli import results as res
-from snapjump_cli.storage import OutputLock
+from snapjump_cli.sweep import results as res
+from snapjump_cli.sweep.storage import OutputLock
 
 SPEC = {"bounds": {"eta_i": [5.5, 7.5], "theta_i": 80, "eta_o": [5, 10], "theta_o": 86, "mu_ratio": 5.8},
         "objective": "dE_J", "budget": 6, "seed": 1, "search": {"starts": 1}, "confirm": False,

@@ -14,7 +14,7 @@ import pytest
 import snapjump_fake_solvers as fake
 from conftest import CHEAP_SCENE, GRID, run_cli
 from snapjump_cli import files
-from snapjump_cli import results as res
+from snapjump_cli.sweep import results as res
 from snapjump_cli.files import AtomicFiles, OutputError, output_target, write_atomic
 
 
@@ -145,7 +145,7 @@ def test_a_sweep_into_a_link_keeps_the_link_and_writes_the_shared_target(tmp_pat
 
 
 def test_curve_writes_both_outputs_or_neither(tmp_path, capsys, monkeypatch):
-    import snapjump_cli.plots as plots
+    import snapjump_cli.viz.figures as plots
 
     csv, png = tmp_path / "c.csv", tmp_path / "c.png"
 

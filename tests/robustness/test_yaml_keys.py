@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from conftest import run_cli
-from snapjump_cli.yaml_checks import ConfigError, read_yaml
+from snapjump_cli.sweep.checks import ConfigError, read_yaml
 
 GRID = """grid:
   eta_i: [5]

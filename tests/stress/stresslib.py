@@ -1,5 +1,5 @@
 """Helpers of the numerical stress suite (``tests/stress``): design sets, sweeps through the real
-sweep machinery (:func:`snapjump_cli.sweep.run_sweep`), the row classification checks, the
+sweep machinery (:func:`snapjump_cli.sweep.run.run_sweep`), the row classification checks, the
 failure-cause table and the invariance comparisons.
 
 Environment knobs (all optional):
@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
-from snapjump_cli import results as res
-from snapjump_cli.rows import ROW_CHECK_ERRORS
-from snapjump_cli.config import SweepConfig, load_config, parse_config
+from snapjump_cli.sweep import results as res
+from snapjump_cli.sweep.rows import ROW_CHECK_ERRORS
+from snapjump_cli.sweep.config import SweepConfig, load_config, parse_config
 from snapjump_cli.settings import MeshSettings, SolverSettings
 
 REPO = Path(__file__).resolve().parents[2]
@@ -105,7 +105,7 @@ def paper_grid_points(sample: int | None = None, seed: int = 5) -> list[dict]:
 
 def invariance_candidates(n: int, seed: int) -> list[dict]:
     """The named designs B, C, D, then ``n`` valid paper-grid designs drawn at random."""
-    from snapjump_cli.designs import named_designs
+    from snapjump_cli.geometry.designs import named_designs
 
     named = named_designs()
     out = [{"eta_i": float(named[k]["eta_i"]), "theta_i_deg": float(named[k]["theta_i"]),
@@ -117,7 +117,7 @@ def invariance_candidates(n: int, seed: int) -> list[dict]:
 
 
 def valid(p: dict) -> bool:
-    from snapjump_cli.geometry import Design, InvalidDesign
+    from snapjump_cli.geometry.caps import Design, InvalidDesign
 
     try:
         Design(**p)
@@ -128,7 +128,7 @@ def valid(p: dict) -> bool:
 
 def sweep(points: list[dict], output: Path, **kw) -> "Any":
     """Run (or resume) the real sweep over ``points``; return the consolidated frame."""
-    from snapjump_cli.sweep import run_sweep
+    from snapjump_cli.sweep.run import run_sweep
 
     cfg = points_config(points, **{k: kw.pop(k) for k in ("mesh", "solver", "n_jobs") if k in kw})
     kw.setdefault("retry_failed", bool(env_int("SNAPJUMP_STRESS_RETRY_FAILED", 0)))
@@ -155,7 +155,7 @@ def check_rows(df) -> list[str]:
     * status is one of ok / no_snap / invalid_geometry / failed;
     * invalid_geometry and failed rows carry their cause (``error`` non-empty; a failed row's text
       starts with the exception type, ``Type: message``, or with the row check's own wording,
-      ``snapjump_cli.rows.ROW_CHECK_ERRORS``);
+      ``snapjump_cli.sweep.rows.ROW_CHECK_ERRORS``);
     * an ok row snaps and holds no NaN / None / inf in any float metric; no row stores inf.
     """
     bad = []
@@ -186,7 +186,7 @@ def check_rows(df) -> list[str]:
 
 def may_be_null(key: str, row) -> bool:
     """Float metrics an ok row may leave empty (the sweep turns any other None metric of a snapping
-    result into ``failed``): the optional keys of :mod:`snapjump_cli.results` (e.g. the coarse
+    result into ``failed``): the optional keys of :mod:`snapjump_cli.sweep.results` (e.g. the coarse
     values of a re-solved snap) and, for a lower state found by descent (not on the traced path),
     the path integral ``dE_path_J`` and ``dE_rel_diff``."""
     if key in getattr(res, "OPTIONAL_FLOAT_KEYS", frozenset()):

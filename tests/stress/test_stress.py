@@ -45,7 +45,7 @@ def test_paper_grid(stress_report):
     if existing:
         from pathlib import Path
 
-        from snapjump_cli import results as res
+        from snapjump_cli.sweep import results as res
 
         df = res.read_results(Path(existing))
         pts = sl.paper_grid_points(None)

@@ -9,7 +9,7 @@ import dataclasses
 import pytest
 
 import stresslib as sl
-from snapjump_cli.geometry import CapScene
+from snapjump_cli.geometry.caps import CapScene
 from snapjump_cli.settings import MeshSettings, SolverSettings
 
 COARSE = MeshSettings(order=1, nt=2, aspect=2.0)
@@ -17,7 +17,7 @@ COARSE = MeshSettings(order=1, nt=2, aspect=2.0)
 
 @pytest.fixture(scope="module")
 def warm():
-    from snapjump_cli.solve import warm_up
+    from snapjump_cli.fe.solve import warm_up
 
     warm_up()
 
@@ -42,7 +42,7 @@ def test_sample_rows_are_classified_and_deterministic(tmp_path, warm, monkeypatc
     msgs = "\n".join(sl.check_rows(bad))
     assert "ok row with dE_J = NaN" in msgs and "p_star_Pa = inf" in msgs and "failed without a cause" in msgs
     # a failed row names its cause by the exception type or by the row check's own wording
-    from snapjump_cli.rows import ROW_CHECK_ERRORS
+    from snapjump_cli.sweep.rows import ROW_CHECK_ERRORS
 
     failed = a.copy()
     failed.loc[0, ["status", "error"]] = ["failed", ROW_CHECK_ERRORS["range"] + ": h_imp_m=-2e-05 (expected >= 0)"]
@@ -54,7 +54,7 @@ def test_sample_rows_are_classified_and_deterministic(tmp_path, warm, monkeypatc
 
 @pytest.mark.parametrize("variant", ["ds0 x0.25", "ds0 x4", "tol /10"])
 def test_sample_dE_invariance(variant, warm):
-    from snapjump_cli.solve import solve_scene
+    from snapjump_cli.fe.solve import solve_scene
 
     cap = CapScene(theta_deg=60.0, eta=30.0, bc="clamped")
     base = SolverSettings()
@@ -66,7 +66,7 @@ def test_sample_dE_invariance(variant, warm):
 
 
 def test_sample_identical_runs_are_bitwise_identical(warm):
-    from snapjump_cli.solve import solve_scene
+    from snapjump_cli.fe.solve import solve_scene
 
     cap = CapScene(theta_deg=60.0, eta=8.5, bc="roller-point")
     runs = [solve_scene(cap, COARSE, SolverSettings()).metrics for _ in range(2)]

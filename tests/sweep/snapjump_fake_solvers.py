@@ -15,14 +15,14 @@ import math
 import os
 import time
 
-from snapjump_cli.geometry import design_volumes
-from snapjump_cli.rows import AIR_KEYS, RESULT_KEYS
+from snapjump_cli.geometry.caps import design_volumes
+from snapjump_cli.sweep.rows import AIR_KEYS, RESULT_KEYS
 
 WARM_UPS = []
 
 
 class SolveFailed(RuntimeError):
-    """Stand-in for snapjump_cli.solve.SolveFailed."""
+    """Stand-in for snapjump_cli.fe.solve.SolveFailed."""
 
 
 def warm_up() -> None:

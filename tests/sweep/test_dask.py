@@ -4,10 +4,10 @@ from __future__ import annotations
 import pytest
 
 import snapjump_fake_solvers as fake
-from snapjump_cli import results as res
+from snapjump_cli.sweep import results as res
 from snapjump_cli.cli import main as cli_main
-from snapjump_cli.config import load_config
-from snapjump_cli.sweep import design_key, run_sweep
+from snapjump_cli.sweep.config import load_config
+from snapjump_cli.sweep.run import design_key, run_sweep
 
 distributed = pytest.importorskip("distributed")
 
@@ -47,7 +47,7 @@ def test_cli_scheduler_option(grid_file, tmp_path, cluster, capsys, monkeypatch)
 
 
 def test_unreachable_scheduler_is_bad_input(grid_file, tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr("snapjump_cli.execution._CONNECT_TIMEOUT_S", 1.0)
+    monkeypatch.setattr("snapjump_cli.sweep.execution._CONNECT_TIMEOUT_S", 1.0)
     grid = grid_file(grid={"eta_i": [6], "eta_o": [10]})
     out = tmp_path / "x.parquet"
     code = cli_main(["sweep", str(grid), "-o", str(out), "--scheduler", "tcp://127.0.0.1:9", "--no-progress"],

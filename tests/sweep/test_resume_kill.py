@@ -16,9 +16,9 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from snapjump_cli import results as res
-from snapjump_cli.config import load_config
-from snapjump_cli.sweep import design_key, done_keys, parts_dir
+from snapjump_cli.sweep import results as res
+from snapjump_cli.sweep.config import load_config
+from snapjump_cli.sweep.run import design_key, done_keys, parts_dir
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]

@@ -11,12 +11,12 @@ import stat
 import pytest
 
 import snapjump_fake_solvers as fake
-from snapjump_cli import results as res
+from snapjump_cli.sweep import results as res
 from snapjump_cli.cli import main as cli_main
-from snapjump_cli.config import load_config
-from snapjump_cli.rows import fill_row
-from snapjump_cli.storage import OutputLock, lock_path
-from snapjump_cli.sweep import SweepInputError, run_sweep
+from snapjump_cli.sweep.config import load_config
+from snapjump_cli.sweep.rows import fill_row
+from snapjump_cli.sweep.storage import OutputLock, lock_path
+from snapjump_cli.sweep.run import SweepInputError, run_sweep
 
 
 def _dead_pid() -> int:
@@ -115,7 +115,7 @@ def test_unwritable_output_is_exit_2_naming_the_path_and_writes_nothing(grid_fil
     ({"dE_J": "1e-3"}, "dE_J='1e-3'"),
 ])
 def test_a_bad_metric_makes_the_row_failed_with_its_cause(bad, cause):
-    from snapjump_cli.geometry import Design
+    from snapjump_cli.geometry.caps import Design
     from snapjump_cli.settings import MeshSettings, SolverSettings
 
     d = Design(eta_i=6, theta_i_deg=70, eta_o=10, theta_o_deg=80, mu_ratio=5.8)

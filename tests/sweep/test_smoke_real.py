@@ -1,7 +1,7 @@
 """END-TO-END SMOKE TEST WITH THE REAL FE SOLVER: ``snapjump sweep configs/smoke.yaml`` (4 designs,
 order-1 mesh, nt = 2: the paper's designs B and C, and two invalid ones) and ``snapjump rank``.
 
-Skipped only while ``snapjump_cli/solve.py`` does not exist yet (it is written in parallel).
+Skipped only while ``snapjump_cli/fe/solve.py`` does not exist yet (it is written in parallel).
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from snapjump_cli import results as res
+from snapjump_cli.sweep import results as res
 from snapjump_cli.cli import main as cli_main
 
 REPO = Path(__file__).resolve().parents[2]
@@ -27,7 +27,7 @@ def test_smoke_sweep_and_rank_with_the_real_solver(tmp_path, capsys, monkeypatch
     assert code == 0, cap.err
     df = res.read_results(out)
     assert len(df) == 4 and df["key"].is_unique
-    assert res.read_metadata(out)["solver"] == "snapjump_cli.solve:solve_design"
+    assert res.read_metadata(out)["solver"] == "snapjump_cli.fe.solve:solve_design"
     inv = df[df["theta_o_deg"] == 55]
     assert list(inv["status"]) == ["invalid_geometry"] * 2 and inv["n_nodes"].isna().all()  # never meshed
     solved = df[df["theta_o_deg"] == 90]

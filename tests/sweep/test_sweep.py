@@ -12,11 +12,11 @@ import pyarrow.parquet as pq
 import pytest
 
 import snapjump_fake_solvers as fake
-from snapjump_cli import results as res
-from snapjump_cli.config import load_config, parse_config
-from snapjump_cli.rows import RESULT_KEYS
+from snapjump_cli.sweep import results as res
+from snapjump_cli.sweep.config import load_config, parse_config
+from snapjump_cli.sweep.rows import RESULT_KEYS
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.sweep import (
+from snapjump_cli.sweep.run import (
     SweepInputError,
     consolidate,
     design_key,
@@ -248,7 +248,7 @@ def test_other_grid_is_refused_unless_appended_then_kept(grid_file, tmp_path):
 
 
 def test_warm_up_failure_is_a_sweep_error(grid_file, tmp_path):
-    from snapjump_cli.sweep import SweepError
+    from snapjump_cli.sweep.run import SweepError
 
     def bad_warm_up():
         raise RuntimeError("numba: cannot compile")
@@ -261,7 +261,7 @@ def test_warm_up_failure_is_a_sweep_error(grid_file, tmp_path):
 def test_progress_counts_invalid_designs_as_done_from_the_start(grid_file, tmp_path, capsys, monkeypatch):
     """The log-file progress (stderr not a terminal) ends at the full count with the statuses, and
     its rate covers the solved designs only: the 8 invalid ones are done before the first solve."""
-    import snapjump_cli.sweep as sw
+    import snapjump_cli.sweep.run as sw
 
     cfg = load_config(grid_file())
     made = []

@@ -39,7 +39,7 @@ def cpus(tmp_path):
 def fake_build(tmp_path, cpus, monkeypatch):
     """A build in a temporary folder, made for these kernel sources on the Xeon fixture: its stamp,
     and a loader that hands out a stand-in extension (whose one export says it was called)."""
-    monkeypatch.delenv("SNAPJUMP_NO_AOT", raising=False)
+    monkeypatch.setenv("SNAPJUMP_NO_AOT", "")  # unset for the guard; restored afterwards
     folder = tmp_path / "build"
     folder.mkdir()
     stamp = {"sources": source_hash(), "cpu": aot.cpu_signature(cpus[0]), "cpu_model": "Intel(R) Xeon(R) Processor",
@@ -157,22 +157,36 @@ def test_not_used_when_switched_off(fake_build, cpus, monkeypatch):
 
 
 def test_install_rebuilds_exactly_when_the_stamp_is_stale(fake_build, cpus, monkeypatch):
-    """``make install`` runs ``main(["--if-stale"])`` every time: a build only when the stamp was
-    made for other sources or another CPU (or there is none); a failed build is not retried."""
+    """``make install`` runs ``precompile.main(["--if-stale"])`` every time: a build only when the
+    stamp was made for other sources or another CPU (or there is none); a failed build is not
+    retried, and its failure is stamped."""
+    from snapjump_cli.fe import precompile
+
     xeon, epyc = cpus
     assert aot.stale_reason(fake_build.stamp, xeon) == ""
     assert aot.stale_reason(fake_build.stamp, epyc).startswith("built for another CPU")
     assert aot.stale_reason({**fake_build.stamp, "sources": "x"}, xeon) == "built from other kernel sources"
     assert aot.stale_reason(None, xeon) == "not built"
 
-    builds = []
-    monkeypatch.setattr(aot, "build", lambda: builds.append(1) or fake_build.folder / "_aot.so")
+    builds, failures = [], []
+    monkeypatch.setattr(precompile, "collect_signatures", lambda: {"found": "signatures"})
+    monkeypatch.setattr(aot, "build", lambda found, cpuinfo: builds.append((found, cpuinfo)) or fake_build.folder / "_aot.so")
+    monkeypatch.setattr(aot, "record_failure", lambda reason, cpuinfo: failures.append(reason))
     for stamp, cpu, expect in ((fake_build.stamp, xeon, 0), (fake_build.stamp, epyc, 1), (None, xeon, 1),
-                               ({**fake_build.stamp, "sources": "x"}, xeon, 1)):
+                               ({**fake_build.stamp, "sources": "x"}, xeon, 1),
+                               ({**fake_build.stamp, "built": False, "reason": "no compiler"}, xeon, 0)):
         builds.clear()
         monkeypatch.setattr(aot, "read_stamp", lambda folder=aot.HERE, s=stamp: s)
-        assert aot.main(["--if-stale"], cpuinfo=cpu) == 0
-        assert len(builds) == expect, (stamp, cpu)
+        assert precompile.main(["--if-stale"], cpuinfo=cpu) == 0
+        assert builds == [({"found": "signatures"}, cpu)] * expect, (stamp, cpu)
+    assert failures == []
+
+    def broken(found, cpuinfo):
+        raise RuntimeError("no C compiler")
+
+    monkeypatch.setattr(aot, "build", broken)
+    assert precompile.main([], cpuinfo=xeon) == 0  # the JIT remains
+    assert failures == ["RuntimeError: no C compiler"]
 
 
 def test_the_build_here_is_used_exactly_when_its_stamp_matches():
@@ -195,9 +209,9 @@ def test_a_curve_process_runs_without_numba():
     """With the extension in use, solving the thin clamped cap never imports numba (the compiled
     kernels' LAPACK, behind ``np.linalg.inv``, comes from ``scipy.linalg.cython_lapack``)."""
     code = ("import sys\n"
-            "from snapjump_cli.geometry import CapScene\n"
+            "from snapjump_cli.geometry.caps import CapScene\n"
             "from snapjump_cli.settings import MeshSettings, SolverSettings\n"
-            "from snapjump_cli.solve import solve_scene\n"
+            "from snapjump_cli.fe.solve import solve_scene\n"
             "from snapjump_kernels import calls\n"
             "m = solve_scene(CapScene(theta_deg=60.0, eta=30.0, bc='clamped'), MeshSettings(), SolverSettings()).metrics\n"
             "assert m['snaps'] and calls.AOT\n"

@@ -78,10 +78,10 @@ def test_envelope_gives_the_full_band_result_bit_for_bit():
 
 def test_model_envelope_on_design_D():
     """The actuator's tangent factorised inside its envelope equals the full-band factorisation."""
-    from snapjump_cli.designs import get_design
-    from snapjump_cli.mesh import mesh_scene
+    from snapjump_cli.geometry.designs import get_design
+    from snapjump_cli.mesh.build import mesh_scene
     from snapjump_cli.settings import MeshSettings, SolverSettings
-    from snapjump_cli.solve import build_model
+    from snapjump_cli.fe.solve import build_model
 
     d = get_design("D")
     m = build_model(d, mesh_scene(d, MeshSettings()), SolverSettings())

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from snapjump_cli.config import GRID_AXES, ConfigError, load_config, parse_config
+from snapjump_cli.sweep.config import GRID_AXES, ConfigError, load_config, parse_config
 from snapjump_cli.settings import MeshSettings, SolverSettings
 
 REPO = Path(__file__).resolve().parents[2]
@@ -154,7 +154,7 @@ def test_linspace_values_are_exact_endpoints():
 
 
 def test_solver_harmonics_setting():
-    from snapjump_cli.config import ConfigError, parse_config
+    from snapjump_cli.sweep.config import ConfigError, parse_config
 
     grid = {"grid": {"eta_i": [6], "theta_i": [80], "eta_o": [12], "theta_o": [85], "mu_ratio": [1]}}
     assert parse_config({**grid, "solver": {"harmonics": 4}}).solver.harmonics == 4

@@ -4,7 +4,7 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
-from snapjump_cli.config import GRID_AXES, ConfigError, load_config, parse_config
+from snapjump_cli.sweep.config import GRID_AXES, ConfigError, load_config, parse_config
 
 P1 = {"eta_i": 6.2, "theta_i": 80, "eta_o": 13.3, "theta_o": 82, "mu_ratio": 5.8}
 P2 = {"eta_i": 5, "theta_i": 70, "eta_o": 5, "theta_o": 76, "mu_ratio": 1}

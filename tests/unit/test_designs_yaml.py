@@ -1,5 +1,5 @@
-"""snapjump_cli/data/designs.yaml: every value is a number (YAML 1.1 reads e.g. ``275e-3`` as a string)."""
-from snapjump_cli.designs import named_designs, paper_values
+"""snapjump_cli/geometry/designs.yaml: every value is a number (YAML 1.1 reads e.g. ``275e-3`` as a string)."""
+from snapjump_cli.geometry.designs import named_designs, paper_values
 
 
 def test_every_named_design_value_is_numeric():

@@ -12,9 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.model import Model
-from snapjump_cli.verification import sphere_mesh
-from snapjump_kernels.assembly import _assemble_plain, assemble
+from snapjump_cli.fe.model import Model
+from tests.sphere import sphere_mesh
+from snapjump_kernels.assembly import assemble
+from snapjump_kernels.element_plain import assemble_plain
 from snapjump_kernels.gent import gent_iso
 
 
@@ -150,7 +151,7 @@ def test_q9_lanes_agree_with_the_plain_loop(mixed):
     U = _state(M, 16)
     p_geo = 0.3 + np.random.default_rng(17).standard_normal((M.conn.shape[0], 3)) if mixed else None
     E, ok, dev, f, K, pb, H = _kernel(M, U, p_geo, True)
-    E1, ok1, dev1, f1, K1, pb1, H1 = _kernel(M, U, p_geo, True, kernel=_assemble_plain)
+    E1, ok1, dev1, f1, K1, pb1, H1 = _kernel(M, U, p_geo, True, kernel=assemble_plain)
     assert ok and ok1
     assert E == E1 and dev == dev1
     assert np.array_equal(f, f1) and np.array_equal(pb, pb1) and np.array_equal(H, H1)

@@ -1,4 +1,4 @@
-"""The fluid setting (snapjump_cli/fluid.py): the gas law, the shared checks of the YAML and the
+"""The fluid setting (snapjump_cli/fe/fluid.py): the gas law, the shared checks of the YAML and the
 command line, and how the setting enters the sweep's keys and rows."""
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from snapjump_cli.config import ConfigError, parse_config
-from snapjump_cli.fluid import WATER, FluidSettings, GasLaw, fluid_from_mapping
+from snapjump_cli.sweep.config import ConfigError, parse_config
+from snapjump_cli.fe.fluid import WATER, FluidSettings, GasLaw, fluid_from_mapping
 from snapjump_cli.settings import MeshSettings, SettingsError, SolverSettings
-from snapjump_cli.storage import design_key
-from snapjump_cli.sweep import _row_settings
+from snapjump_cli.sweep.storage import design_key
+from snapjump_cli.sweep.run import _row_settings
 
 GRID = {"eta_i": [6], "theta_i": [80], "eta_o": [12], "theta_o": [82], "mu_ratio": [5.8]}
 

@@ -5,8 +5,8 @@ import math
 
 import pytest
 
-from snapjump_cli.designs import get_design, named_designs, paper_values
-from snapjump_cli.geometry import CapScene, Design, InvalidDesign, design_points, design_volumes
+from snapjump_cli.geometry.designs import get_design, named_designs, paper_values
+from snapjump_cli.geometry.caps import CapScene, Design, InvalidDesign, design_points, design_volumes
 
 NAMES = ("A", "B", "C", "D", "S20b", "S20c")
 

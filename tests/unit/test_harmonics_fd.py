@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.harmonics import harmonic_operator
-from snapjump_cli.model import Model
-from snapjump_cli.verification import sphere_mesh
+from snapjump_cli.fe.harmonics import harmonic_operator
+from snapjump_cli.fe.model import Model
+from tests.sphere import sphere_mesh
 from snapjump_kernels.elements import element_tables
 
 _GP = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])

@@ -396,7 +396,7 @@ def test_bad_params_raise(kw, name):
 def test_grazing_dip_between_samples_is_found():
     """A dip below zero entirely between two samples (all samples positive) is still a contact,
     and a maximum between samples is located exactly."""
-    from snapjump_cli.jump_events import _first_fall, _maxima
+    from snapjump_cli.jump.events import first_fall, maxima
 
     def F(t):
         return (t - 0.5) ** 2 - 1e-6
@@ -407,7 +407,7 @@ def test_grazing_dip_between_samples_is_found():
     T = np.array([0.0, 0.3, 0.7, 1.0])
     Fv, dFv = F(T), dF(T)
     assert np.all(Fv > 0.0)
-    t = _first_fall(F, dF, T, Fv, dFv)
+    t = first_fall(F, dF, T, Fv, dFv)
     assert t == pytest.approx(0.5 - 1e-3, rel=1e-12)
 
     def G(t):
@@ -417,7 +417,7 @@ def test_grazing_dip_between_samples_is_found():
         return -dF(t)
 
     T2 = np.array([0.0, 0.45, 0.7, 1.0])  # the maximum at 0.5 lies between two samples
-    out = _maxima(G, dG, T2, G(T2), dG(T2))
+    out = maxima(G, dG, T2, G(T2), dG(T2))
     assert len(out) == 1
     assert out[0][0] == pytest.approx(0.5, abs=1e-7) and out[0][1] == pytest.approx(1e-6, rel=1e-9)
 
@@ -426,9 +426,9 @@ def test_grazing_dip_between_samples_is_found():
                                    (0.01, 0.4, 4.0), (0.01, 0.4, 4.0 * (1 + 1e-9))])
 def test_oscillator_sup_bound_is_a_nonincreasing_envelope(m, c, k):
     """The resting-phase certificate: sup_future |x| <= bound, and the bound never grows."""
-    from snapjump_cli.jump_events import _Osc
+    from snapjump_cli.jump.closed_form import Oscillator
 
-    osc = _Osc(m, c, k)
+    osc = Oscillator(m, c, k)
     rng = np.random.default_rng(0)
     T = 40.0 * osc.dt * 64
     t = np.linspace(0.0, T, 20001)
@@ -453,15 +453,15 @@ def _flight_phases(design: dict, p: JumpParams) -> tuple:
     two without gravity or centre-of-mass motion whose ``y_i`` is only the oscillator's
     ``x0 (exp(-sig t) C(t) - 1)`` and whose ``v_i`` is only ``v0 exp(-sig t) C(t)`` (so a last-bit
     change in those terms is not lost in the sum)."""
-    from snapjump_cli.jump_events import _Model, _Phase
+    from snapjump_cli.jump.closed_form import Phase, PhaseModel
 
     traj = jump_trajectory(h_imp_m=2e-3, params=p, **design)
     phases = [ph for ph in traj._phases if ph.kind == "flight" and ph.t1 > ph.t0][:3]
     md = traj._model
-    md0 = _Model(md.k, md.m_i, md.m_o, JumpParams(c_d=p.c_d, g=0.0))
+    md0 = PhaseModel(md.k, md.m_i, md.m_o, JumpParams(c_d=p.c_d, g=0.0))
     osc, r, x0, v0 = md0.rel, md0.r, 1e-2, 1.0
-    only_x = _Phase("flight", 0.0, 1.0, 0.0, r * osc.sig * x0, x0, -osc.sig * x0)
-    only_v = _Phase("flight", 0.0, 1.0, 0.0, -r * v0, -osc.sig * v0 / osc.w0sq, v0)
+    only_x = Phase("flight", 0.0, 1.0, 0.0, r * osc.sig * x0, x0, -osc.sig * x0)
+    only_v = Phase("flight", 0.0, 1.0, 0.0, -r * v0, -osc.sig * v0 / osc.w0sq, v0)
     return [(md, ph, ph.t1 - ph.t0) for ph in phases] + [(md0, only_x, 0.0), (md0, only_v, 0.0)]
 
 
@@ -469,8 +469,8 @@ def _flight_phases(design: dict, p: JumpParams) -> tuple:
                                       (OVER, JumpParams()), (_critical(), JumpParams())],
                          ids=["C", "D", "D undamped", "overdamped", "critical"])
 def test_scalar_flight_equals_the_general_form_to_the_bit(design, p):
-    """The root finders' scalar ``y_i(t)``, ``v_i(t)`` and state (``_Model.flight_at``) give
-    exactly the numbers of the general form ``_Model.flight`` at the same scalar time, and agree
+    """The root finders' scalar ``y_i(t)``, ``v_i(t)`` and state (``PhaseModel.flight_at``) give
+    exactly the numbers of the general form ``PhaseModel.flight`` at the same scalar time, and agree
     with its array form (which rounds squares differently: within a few ulp)."""
     rng = np.random.default_rng(1)
     for md, ph, span in _flight_phases(design, p):
@@ -503,11 +503,11 @@ def _answer_all(gen, evaluate):
 
 
 def test_sampling_in_pieces_finds_the_first_fall_of_the_whole_chunk():
-    """_samples_to_fall (a chunk sampled in growing pieces up to the first fall) returns what
-    _first_fall finds on the whole chunk, whatever the piece sizes: here the first fall is a
+    """samples_to_fall (a chunk sampled in growing pieces up to the first fall) returns what
+    first_fall finds on the whole chunk, whatever the piece sizes: here the first fall is a
     grazing dip between two positive samples, preceded by sampled minima that do not dip, and
     a piece boundary falls on each sample for some size."""
-    from snapjump_cli.jump_events import _Chunk, _first_fall, _samples_to_fall
+    from snapjump_cli.jump.events import Chunk, first_fall, samples_to_fall
 
     def F(t):  # minima at t = k + 1/2, the k-th at 0.05 - 0.006 k: the 9th dips below zero
         return 1.05 - 0.006 * np.floor(t) + np.cos(2.0 * np.pi * t)
@@ -527,51 +527,51 @@ def test_sampling_in_pieces_finds_the_first_fall_of_the_whole_chunk():
     times = 0.0 + 0.075 * np.arange(1.0, 201.0)
     T_prev = np.array([0.0])
     T = np.concatenate([T_prev, times])
-    whole = _first_fall(f, df, T, F(T), dF(T))
+    whole = first_fall(f, df, T, F(T), dF(T))
     assert whole is not None and 9.0 < whole < 9.5 and np.all(F(T[T <= whole]) > 0.0)
     for piece, then in [(p, 2 * p) for p in range(1, 160)] + [(1, 1), (7, 100), (130, 3)]:
-        scan = _samples_to_fall(None, f, df, _Chunk(times, 0.0, 1.0, 0, math.inf), T_prev,
+        scan = samples_to_fall(None, f, df, Chunk(times, 0.0, 1.0, 0, math.inf), T_prev,
                                 F(T_prev), dF(T_prev), piece, then)
         Tp, Fp, dFp, t = _answer_all(scan, yv)
         assert t == whole, piece
         assert Tp[-1] >= whole and np.array_equal(Tp, T[:Tp.size])
         assert np.array_equal(Fp, F(Tp)) and np.array_equal(dFp, dF(Tp))
     # no fall in the chunk: all of it sampled
-    scan = _samples_to_fall(None, f, df, _Chunk(times[:100], 0.0, 1.0, 0, math.inf), T_prev,
+    scan = samples_to_fall(None, f, df, Chunk(times[:100], 0.0, 1.0, 0, math.inf), T_prev,
                             F(T_prev), dF(T_prev), 7, 14)
     Tp, Fp, _, t = _answer_all(scan, yv)
     assert t is None and np.array_equal(Tp, T[:101]) and np.array_equal(Fp, F(Tp))
 
 
 def _time_grid_materialised(h0: float, dt: float, t_end: float):
-    """The time grid as whole arrays (what _time_grid's chunks stand for)."""
-    from snapjump_cli.jump_events import _CHUNK
+    """The time grid as whole arrays (what time_grid's chunks stand for)."""
+    from snapjump_cli.jump.events import CHUNK
 
     h0 = min(h0, dt)
     n_geo = int(math.ceil(math.log2(dt / h0))) if h0 < dt else 0
     head = np.cumsum(h0 * 2.0 ** np.arange(n_geo))
     last = float(head[-1]) if head.size else 0.0
-    chunk = np.concatenate([head, last + dt * np.arange(1, _CHUNK + 1)])
+    chunk = np.concatenate([head, last + dt * np.arange(1, CHUNK + 1)])
     while True:
         sel = chunk[chunk < t_end]
         if sel.size < chunk.size:
             yield np.append(sel, t_end)
             return
         yield chunk
-        chunk = float(chunk[-1]) + dt * np.arange(1, _CHUNK + 1)
+        chunk = float(chunk[-1]) + dt * np.arange(1, CHUNK + 1)
 
 
 def test_time_grid_chunks_hold_the_materialised_times():
-    """_time_grid's chunks make their times on demand, piece by piece: the same numbers, chunks
+    """time_grid's chunks make their times on demand, piece by piece: the same numbers, chunks
     and end as the whole arrays, and count_before counts them."""
-    from snapjump_cli.jump_events import _time_grid
+    from snapjump_cli.jump.events import time_grid
 
     rng = np.random.default_rng(3)
     dt = 1e-4
     ends = [0.5 * dt, dt, 3e-3, 0.4096, 0.4096 + 17 * dt, 1.3, float(4 * 4096 * dt + 5 * dt)]
     for h0 in (1e-4 * dt, dt, 2 * dt, 3.3e-9):
         for t_end in ends + list(rng.uniform(0.0, 1.5, 5)):
-            chunks = list(_time_grid(h0, dt, t_end))
+            chunks = list(time_grid(h0, dt, t_end))
             whole = list(_time_grid_materialised(h0, dt, t_end))
             assert [c.size for c in chunks] == [w.size for w in whole]
             for c, w in zip(chunks, whole):
@@ -588,10 +588,10 @@ def test_time_grid_chunks_hold_the_materialised_times():
                          ids=["C", "D h=0", "B-like", "overdamped", "C elastic"])
 def test_flight_scan_in_pieces_equals_the_whole_chunk(monkeypatch, design, h, p):
     """The flight scan samples a chunk of the time grid in growing pieces up to the first
-    impact (_samples_to_fall), the first one up to where the impact must have come; any first
+    impact (samples_to_fall), the first one up to where the impact must have come; any first
     piece size, down to one sample, gives exactly the contacts, apexes and phases that sampling
     whole chunks at once gives."""
-    import snapjump_cli.jump_events as je
+    import snapjump_cli.jump.events as je
 
     def run() -> tuple:
         traj = jump_trajectory(h_imp_m=h, params=p, **design)
@@ -599,10 +599,10 @@ def test_flight_scan_in_pieces_equals_the_whole_chunk(monkeypatch, design, h, p)
 
     as_is = run()
     assert as_is[1] and as_is[2]
-    monkeypatch.setattr(je._Model, "fall_time_bound", lambda self, ph: math.inf)
+    monkeypatch.setattr(je.PhaseModel, "fall_time_bound", lambda self, ph: math.inf)
     monkeypatch.setattr(je, "_PIECE_FIRST", 10**6)
     assert run() == as_is  # whole chunks
-    monkeypatch.setattr(je._Model, "fall_time_bound", lambda self, ph: 0.0)
+    monkeypatch.setattr(je.PhaseModel, "fall_time_bound", lambda self, ph: 0.0)
     for piece in (1, 3, 256):  # pieces of 2, then piece, 2 piece, ...
         monkeypatch.setattr(je, "_PIECE_MIN", piece)
         assert run() == as_is
@@ -610,7 +610,7 @@ def test_flight_scan_in_pieces_equals_the_whole_chunk(monkeypatch, design, h, p)
 
 @pytest.mark.parametrize("name,design,h,p", CASES, ids=[c[0] for c in CASES])
 def test_fall_time_bound_is_an_upper_bound(name, design, h, p):
-    """Every flight reaches the ground by _Model.fall_time_bound of its start (it sizes the
+    """Every flight reaches the ground by PhaseModel.fall_time_bound of its start (it sizes the
     first piece of the scan: a wrong bound costs time, not accuracy)."""
     traj = jump_trajectory(h_imp_m=h, params=p, **design)
     md = traj._model
@@ -621,14 +621,14 @@ def test_fall_time_bound_is_an_upper_bound(name, design, h, p):
 def test_index_scans_of_lists_equal_those_of_arrays():
     """The sign-change and sampled-extremum scans give the same indices on a list of floats (the
     short-array path) as on the array: ties, zeros, signed zeros and NaN included."""
-    from snapjump_cli.jump_events import _down_crossings, _sampled_maxima, _sampled_minima
+    from snapjump_cli.jump.events import down_crossings, sampled_maxima, sampled_minima
 
     rng = np.random.default_rng(5)
     for _ in range(400):
         n = int(rng.integers(0, 40))
         a = rng.choice([-1.0, -0.0, 0.0, 0.5, 1.0, 2.0, np.nan], n) if rng.random() < 0.5 \
             else rng.normal(size=n)
-        for scan in (_down_crossings, _sampled_minima, _sampled_maxima):
-            if scan is not _down_crossings and n < 3:
+        for scan in (down_crossings, sampled_minima, sampled_maxima):
+            if scan is not down_crossings and n < 3:
                 continue
             assert list(scan(a.tolist())) == [int(k) for k in scan(a)], (scan.__name__, a)

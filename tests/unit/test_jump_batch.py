@@ -1,4 +1,4 @@
-"""Many jump simulations at once (snapjump_cli.jump_batch, jump.jump_heights) give exactly the
+"""Many jump simulations at once (snapjump_cli.jump.batch, jump.jump_heights) give exactly the
 results of one at a time."""
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from snapjump_cli.jump import JumpParams, jump_height, jump_heights, jump_trajectory
-from snapjump_cli.jump_batch import sample_flights
+from snapjump_cli.jump.batch import sample_flights
 
 RHO = 1000.0
 C = (31.4e-3, 20.89e-3, RHO * 1.1224e-5, RHO * 9.170e-6)    # dE, dy, m_i, m_o
@@ -50,8 +50,8 @@ def test_many_at_once_equal_one_at_a_time(p):
 
 def test_a_few_at_a_time_equal_all_at_once():
     """run_many with fewer simulations running than designs (the next starting as one ends)."""
-    from snapjump_cli.jump import _simulate
-    from snapjump_cli.jump_batch import run_many
+    from snapjump_cli.jump.trajectory import _simulate
+    from snapjump_cli.jump.batch import run_many
 
     designs = _designs()
     p = JumpParams()
@@ -66,7 +66,7 @@ def test_a_few_at_a_time_equal_all_at_once():
 
 def test_sampled_flights_equal_the_flight_to_the_bit():
     """sample_flights answers requests of several designs, lengths and damping in blocks: the
-    very numbers of _Model.flight."""
+    very numbers of PhaseModel.flight."""
     rng = np.random.default_rng(11)
     requests = []
     for dE, dy, mi, mo in (C, D, OVER):

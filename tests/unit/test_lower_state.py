@@ -1,11 +1,11 @@
-"""The fixed-volume problem of the lower-state continuation (snapjump_cli/lower_state.py)."""
+"""The fixed-volume problem of the lower-state continuation (snapjump_cli/fe/lower_state.py)."""
 from __future__ import annotations
 
 import numpy as np
 
-from snapjump_cli.lower_state import FixedVolumeProblem
-from snapjump_cli.model import Model
-from snapjump_cli.verification import sphere_mesh
+from snapjump_cli.fe.lower_state import FixedVolumeProblem
+from snapjump_cli.fe.model import Model
+from tests.sphere import sphere_mesh
 
 
 def _model() -> Model:

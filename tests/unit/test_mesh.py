@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from snapjump_cli.designs import get_design
-from snapjump_cli.geometry import CapScene, Design, cap_points, cap_volumes, design_points, design_volumes
-from snapjump_cli.mesh import SNAP_FRAC, mesh_scene, meshed_design
-from snapjump_cli.mesh_io import write_mesh
-from snapjump_cli.meshdata import (
+from snapjump_cli.geometry.designs import get_design
+from snapjump_cli.geometry.caps import CapScene, Design, cap_points, cap_volumes, design_points, design_volumes
+from snapjump_cli.mesh.build import SNAP_FRAC, mesh_scene, meshed_design
+from snapjump_cli.mesh.io import write_mesh
+from snapjump_cli.mesh.data import (
     REGION_INNER_CAP,
     REGION_OUTER_CAP,
     REGION_RING,
@@ -470,7 +470,7 @@ def test_bad_settings():
 def test_gmsh_finalized_after_error(monkeypatch):
     import gmsh
 
-    import snapjump_cli.mesh as mm
+    import snapjump_cli.mesh.build as mm
 
     def boom(*a, **k):
         raise RuntimeError("boom")
@@ -517,7 +517,7 @@ def test_gmsh_session_keeps_the_python_signal_handlers():
     (exit 130, finished rows kept, workers shut down) relies on its Python SIGTERM handler."""
     import signal
 
-    from snapjump_cli.gmsh_session import gmsh_session
+    from snapjump_cli.mesh.gmsh_session import gmsh_session
 
     def caught() -> int:
         line = [x for x in open("/proc/self/status").read().splitlines() if x.startswith("SigCgt:")][0]
@@ -534,7 +534,7 @@ def test_gmsh_session_keeps_the_python_signal_handlers():
 
 
 def test_node_order_cache_gives_the_computed_order_and_a_private_copy():
-    from snapjump_cli import meshdata
+    from snapjump_cli.mesh import data as meshdata
 
     # a strip of 6 Q4 elements, 2 x 7 nodes
     conn = np.array([[i, i + 1, i + 8, i + 7] for i in range(6)], dtype=np.int64)

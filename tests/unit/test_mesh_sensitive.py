@@ -3,13 +3,13 @@ from __future__ import annotations
 
 import pytest
 
-import snapjump_cli.solve as solve
-from snapjump_cli.designs import get_design
+import snapjump_cli.fe.solve as solve
+from snapjump_cli.geometry.designs import get_design
 from snapjump_cli.settings import MeshSettings, SolverSettings
 
 
 def _fake(results_by_nt):
-    def fake_solve_scene(scene, mesh, solver):
+    def fake_solve_scene(scene, mesh, solver, **kw):
         r = results_by_nt[mesh.nt]
         if isinstance(r, Exception):
             raise r
@@ -57,7 +57,7 @@ def _cusp(m):
 def test_near_cusp_is_resolved_finer_along_the_arc(monkeypatch, fine, sensitive, still_cusp):
     seen = []
 
-    def fake(scene, mesh, solver):
+    def fake(scene, mesh, solver, **kw):
         seen.append(mesh)
         return solve.SceneResult(metrics=dict(_cusp(_m(2.5e-3, 0.0100)) if mesh.nt == 2 else fine))
 

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.continuation import ContinuationSettings
-from snapjump_cli.designs import get_design
-from snapjump_cli.model import Model
+from snapjump_cli.fe.continuation import ContinuationSettings
+from snapjump_cli.geometry.designs import get_design
+from snapjump_cli.fe.model import Model
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.solve import solve_scene
-from snapjump_cli.verification import sphere_mesh
+from snapjump_cli.fe.solve import solve_scene
+from tests.sphere import sphere_mesh
 
 
 def _model(order: int) -> Model:

@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.continuation import PathPoint
-from snapjump_cli.metrics import hermite_p_dV, path_p_dV
+from snapjump_cli.fe.continuation import PathPoint
+from snapjump_cli.fe.metrics import hermite_p_dV, path_p_dV
 
 
 def _points(s: np.ndarray, sV: float, sp: float) -> list[PathPoint]:

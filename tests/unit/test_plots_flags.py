@@ -7,7 +7,7 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from snapjump_cli import plots  # noqa: E402
+from snapjump_cli.viz import figures as plots  # noqa: E402
 
 
 def _ranked(n: int = 40, checked: bool = True) -> pd.DataFrame:

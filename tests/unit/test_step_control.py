@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from snapjump_cli.continuation import ContinuationSettings, step_turn
-from snapjump_cli.designs import get_design
+from snapjump_cli.fe.continuation import ContinuationSettings, step_turn
+from snapjump_cli.geometry.designs import get_design
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.solve import solve_scene
+from snapjump_cli.fe.solve import solve_scene
 
 _FROM_SOLVER = ContinuationSettings.from_solver.__func__
 _MESH = MeshSettings(order=2, nt=2, aspect=3.0)
@@ -88,7 +88,7 @@ def test_newton_gives_up_without_contraction_and_both_correctors_agree():
 
 
 def _cubic_points(s_a: float, s_b: float):
-    from snapjump_cli.continuation import PathPoint
+    from snapjump_cli.fe.continuation import PathPoint
 
     V = lambda s: 1.0 + 2.0 * s - 3.0 * s**2 + 0.5 * s**3  # noqa: E731
     dV = lambda s: 2.0 - 6.0 * s + 1.5 * s**2  # noqa: E731
@@ -98,7 +98,7 @@ def _cubic_points(s_a: float, s_b: float):
 
 
 def test_hermite_root_first_estimates_are_exact_on_a_cubic_volume():
-    from snapjump_cli.snap import _hermite_root
+    from snapjump_cli.fe.snap import _hermite_root
 
     a, b, V, dV = _cubic_points(0.2, 0.8)
     s_lim = (6.0 - math.sqrt(36.0 - 12.0)) / 3.0  # dV/ds = 0 at s = 0.367

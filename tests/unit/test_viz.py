@@ -39,8 +39,8 @@ def test_hoop_stretch_off_the_axis():
 
 
 def test_shapes_draw_each_half_from_its_own_section():
-    from snapjump_cli.geometry import CapScene
-    from snapjump_cli.mesh import mesh_scene
+    from snapjump_cli.geometry.caps import CapScene
+    from snapjump_cli.mesh.build import mesh_scene
     from snapjump_cli.settings import MeshSettings
     from snapjump_cli.viz.shapes import SectionDrawing
 
@@ -62,8 +62,8 @@ def test_shapes_draw_each_half_from_its_own_section():
 
 
 def test_steps_name_the_states_of_design_c():
-    from snapjump_cli.designs import get_design
-    from snapjump_cli.solve import solve_checked
+    from snapjump_cli.geometry.designs import get_design
+    from snapjump_cli.fe.solve import solve_checked
     from snapjump_cli.viz.states import path_steps
 
     res = solve_checked(get_design("C"))

@@ -1,4 +1,4 @@
-"""The snap under air (snapjump_cli/air_snap.py, docs/air.md): limits, eq 9, the energy two ways,
+"""The snap under air (snapjump_cli/fe/air_snap.py, docs/air.md): limits, eq 9, the energy two ways,
 an independent check from the water path, stability under the gas and the off-path lower state."""
 from __future__ import annotations
 
@@ -7,11 +7,11 @@ import pytest
 from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
-from snapjump_cli.designs import get_design
-from snapjump_cli.fluid import FluidSettings
-from snapjump_cli.lower_state import constrained_instability, descend_at_volume, snap_at_fixed_volume
+from snapjump_cli.geometry.designs import get_design
+from snapjump_cli.fe.fluid import FluidSettings
+from snapjump_cli.fe.lower_state import constrained_instability, descend_at_volume, snap_at_fixed_volume
 from snapjump_cli.settings import SolverSettings
-from snapjump_cli.solve import solve_checked, solve_scene
+from snapjump_cli.fe.solve import solve_checked, solve_scene
 
 P0 = 101325.0
 

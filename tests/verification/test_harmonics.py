@@ -17,20 +17,20 @@ import numpy as np
 import pytest
 import scipy.linalg as sl
 
-from snapjump_cli.continuation import ContinuationSettings, Tracer, trace
-from snapjump_cli.geometry import CapScene
-from snapjump_cli.harmonics import check_harmonics, harmonic_inertia, harmonic_operator, rigid_modes
-from snapjump_cli.meshdata import Mesh
-from snapjump_cli.model import Model
+from snapjump_cli.fe.continuation import ContinuationSettings, Tracer, trace
+from snapjump_cli.geometry.caps import CapScene
+from snapjump_cli.fe.harmonics import check_harmonics, harmonic_inertia, harmonic_operator, rigid_modes
+from snapjump_cli.mesh.data import Mesh
+from snapjump_cli.fe.model import Model
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.solve import solve_scene
-from snapjump_cli.verification import sphere_mesh
+from snapjump_cli.fe.solve import solve_scene
+from tests.sphere import sphere_mesh
 
 MU, JM = 1.0, 24.0
 
 
 def full_sphere_mesh(A: float, B: float, nt: int, n_arc: int) -> Mesh:
-    """A complete hollow sphere, free (Q9; :func:`snapjump_cli.verification.sphere_mesh`)."""
+    """A complete hollow sphere, free (Q9; :func:`tests.sphere.sphere_mesh`)."""
     return sphere_mesh(A, B, nt, n_arc, order=2, full=True)
 
 

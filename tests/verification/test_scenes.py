@@ -2,7 +2,7 @@
 (docs/physics.md section 5), the comparisons with the paper that must hold, and regression values.
 
 Regression values are the answers ``snapjump curve`` reports at the default settings (order 2,
-nt 2, aspect 2; :func:`snapjump_cli.solve.solve_checked`, i.e. after the mesh check) and are
+nt 2, aspect 2; :func:`snapjump_cli.fe.solve.solve_checked`, i.e. after the mesh check) and are
 listed in the scenes table of docs/verification.md beside the paper's values; a change of more than
 0.3 % means the numerics changed and that table must be regenerated. Design A's default mesh folds
 at a near-cusp (2.78 mJ, the coarse mesh's branch); the answer reported, and pinned here, is the
@@ -13,11 +13,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.designs import FIG1_CAPS, fig1_caps, get_design
-from snapjump_cli.geometry import CapScene, Design
-from snapjump_cli.lower_state import constrained_instability, descend_at_volume, descent_starts, snap_at_fixed_volume
+from snapjump_cli.geometry.designs import FIG1_CAPS, fig1_caps, get_design
+from snapjump_cli.geometry.caps import CapScene, Design
+from snapjump_cli.fe.lower_state import constrained_instability, descend_at_volume, descent_starts, snap_at_fixed_volume
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.solve import solve_checked, solve_scene, suspicious_snap
+from snapjump_cli.fe.solve import solve_checked, solve_scene, suspicious_snap
 
 SCENES = {
     **fig1_caps(("cap30-clamped", "cap8.5-roller-point")),
@@ -160,7 +160,7 @@ def test_ballooning_outer_cap_snap_found_by_descent():
     the snap the path folds back to zero cavity volume and never returns to V*. The descent from
     the upper state must reach a stable state at V* (it crawled for >600 iterations with a fixed
     shift floor: the sweep's one failure class)."""
-    from snapjump_cli.geometry import Design
+    from snapjump_cli.geometry.caps import Design
 
     r = solve_scene(Design(5.6, 80.0, 20.0, 90.0, 5.8), MeshSettings(order=2, nt=2, aspect=3.0), SolverSettings())
     m, st = r.metrics, r.states
@@ -188,7 +188,7 @@ def test_thin_inner_cap_on_soft_outer_cap_descends_monotonically():
     once accepted overshooting steps unchecked and climbed to 5x the energy; it must now reach a
     stable state at V* with the energy falling all the way (the same state on nt = 2 and 3:
     dE 49.7 / 49.8 mJ)."""
-    from snapjump_cli.geometry import Design
+    from snapjump_cli.geometry.caps import Design
 
     r = solve_scene(Design(11.5146, 71.8373, 25.9177, 77.5991, 6.1632), MeshSettings(), SolverSettings())
     m, st = r.metrics, r.states
@@ -205,7 +205,7 @@ def test_design_A_coarse_fold_is_flagged_and_clean_folds_are_not(results):
     (test below). Such a fold must be flagged - for the sweep a reason to re-solve - and the clean
     folds of the other scenes must not be (the thin cap's fold follows its pressure maximum within
     a step: K_T's first unstable mode is not a reason; B's next pressure extremum is 9 % lower)."""
-    from snapjump_cli.solve import suspicious_snap
+    from snapjump_cli.fe.solve import suspicious_snap
 
     a = results["A"]
     k = a.states.k_before
@@ -254,7 +254,7 @@ def test_a_finer_trace_gets_a_larger_post_snap_budget():
     fixed-volume fallback (with a fixed 1500 it ran out just before V*)."""
     import dataclasses
 
-    from snapjump_cli.solve import post_snap_budget
+    from snapjump_cli.fe.solve import post_snap_budget
 
     design = Design(eta_i=8, theta_i_deg=80, eta_o=25 / 3, theta_o_deg=82, mu_ratio=1)
     mesh = MeshSettings(order=2, nt=2, aspect=3.0)  # the paper grid's mesh

@@ -1,0 +1,369 @@
+"""One scene, end to end (docs/physics.md sections 3-5): mesh -> model -> trace -> lower state -> metrics.
+
+``solve_scene`` is what ``snapjump curve`` and every sweep worker call; each stage has its module:
+:mod:`snapjump_cli.mesh.build` (gmsh), :mod:`snapjump_cli.fe.model` (the problem interface),
+:mod:`snapjump_cli.fe.continuation` with the stop criterion of :mod:`snapjump_cli.fe.snap` (the trace and
+its upper state), :mod:`snapjump_cli.fe.lower_state` and :mod:`snapjump_cli.fe.metrics`. Everything is
+computed in scaled units (lengths / R, stresses / mu of the inner or only cap) and converted back
+to SI by the metrics. ``solve_design`` adds the mesh-sensitivity check of the sweep.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from snapjump_cli.fe.air_snap import AirSnap, fluid_keys
+from snapjump_cli.fe.continuation import ContinuationFailed, ContinuationSettings, Path, Tracer, trace
+from snapjump_cli.fe.fluid import FluidSettings
+from snapjump_cli.fe.limits import TimeLimitExceeded, time_limit
+from snapjump_cli.geometry.caps import CapScene, Design
+from snapjump_cli.fe.lower_state import find_lower_state
+from snapjump_cli.mesh.data import Mesh
+from snapjump_cli.fe.metrics import scene_curve, snap_metrics
+from snapjump_cli.fe.model import Model
+from snapjump_cli.sweep.rows import ASYM_KEYS
+from snapjump_cli.settings import MeshSettings, SolverSettings
+from snapjump_cli.fe.snap import SnapStates, SnapTracker, state_at_pressure
+
+log = logging.getLogger(__name__)
+
+__all__ = ["SolveFailed", "SceneResult", "solve_scene", "solve_checked", "solve_design", "build_model", "warm_up"]
+
+
+class SolveFailed(RuntimeError):
+    """The continuation could not characterise the scene; the message gives the cause."""
+
+
+@dataclass
+class SceneResult:
+    """Metrics (``metrics``, SI units, the stable keys) and the traced path (``curve``, computed
+    when first asked for: the sweep never needs it, and it costs an energy pass per path point)."""
+
+    metrics: dict
+    model: Model | None = None
+    path: Path | None = None
+    states: SnapStates | None = None
+    tracer: Tracer | None = None
+    curve_args: tuple | None = field(default=None, repr=False)  # (scales, V0) for :func:`scene_curve`
+    air: object | None = field(default=None, repr=False)  # the air snap (:class:`snapjump_cli.fe.air_snap.AirSnap`)
+    _curve: dict | None = field(default=None, init=False, repr=False)
+
+    @property
+    def curve(self) -> dict:
+        """The traced path in SI units (:func:`snapjump_cli.fe.metrics.scene_curve`); ``{}`` without
+        a path."""
+        if self._curve is None:
+            if self.curve_args is None or self.model is None or self.path is None:
+                self._curve = {}
+            else:
+                self._curve = scene_curve(self.model, self.path, self.states, *self.curve_args)
+                if self.air is not None:
+                    self._curve.update(self.air.curve(self.model, self.path, *self.curve_args))
+        return self._curve
+
+
+def _scales(scene: Design | CapScene) -> dict:
+    """Scaled units and path-measure scales of a scene (all in scaled units except L, S)."""
+    if isinstance(scene, Design):
+        L, S, eta, th = scene.R_i, scene.mu_i, scene.eta_i, scene.theta_i
+    else:
+        L, S, eta, th = scene.R, scene.mu, scene.eta, scene.theta
+    p_c = 4.0 / eta**2  # eq 14 with E = 3 mu, nu = 1/2, in units of mu
+    sV = math.pi * math.sin(th) ** 2 / eta  # a cap-sized volume change (area x thickness)
+    return {"L": L, "S": S, "p_c": p_c, "sV": sV, "sp": p_c, "sw": 1.0 / eta}
+
+
+def build_model(scene: Design | CapScene, mesh: Mesh, solver: SolverSettings) -> Model:
+    """The scaled FE model of a meshed scene."""
+    sc = _scales(scene)
+    if isinstance(scene, Design):
+        mu = np.array([scene.mu_i, scene.mu_o])
+        jm = np.array([scene.J_m, scene.J_m])
+    else:
+        mu = np.array([scene.mu, scene.mu])
+        jm = np.array([scene.J_m, scene.J_m])
+    return Model(mesh, mu, jm, solver.bulk_ratio, sc["L"], sc["S"])
+
+
+def _V_stop(scene: Design | CapScene, V0_scaled: float) -> float:
+    """Volume bound of the trace (scaled): 30 times the volume under the inner cap. Soft outer
+    caps balloon far before the inner cap snaps (design D snaps at about 3 times that volume)."""
+    if isinstance(scene, Design):
+        under = math.pi / 3 * (1 - math.cos(scene.theta_i)) ** 2 * (2 + math.cos(scene.theta_i))
+    else:
+        under = math.pi / 3 * (1 - math.cos(scene.theta)) ** 2 * (2 + math.cos(scene.theta))
+    return V0_scaled + 30.0 * under
+
+
+def solve_scene(
+    scene: Design | CapScene,
+    mesh_settings: MeshSettings = MeshSettings(),
+    solver: SolverSettings = SolverSettings(),
+    mesh: Mesh | None = None,
+    fluid: FluidSettings | None = None,
+    *,
+    fused: bool = True,
+) -> SceneResult:
+    """Trace a scene's pressure-volume path and compute its snap metrics.
+
+    Parameters
+    ----------
+    scene : a full actuator (:class:`Design`) or a single cap (:class:`CapScene`)
+    mesh_settings, solver : mesh density and continuation settings
+    mesh : a pre-built mesh (skips meshing)
+    fluid : water (``None``, the default) or air (:mod:`snapjump_cli.fe.air_snap`: the snap metrics
+        are the air snap's, the water snap's are kept as ``water_dE_J``, ...)
+    fused : the compiled Newton corrector (``False``: the Python corrector, whose timers split
+        assembly and factorisation; the same answers, slower: for profiling)
+
+    Returns
+    -------
+    SceneResult
+        ``metrics`` holds the keys of :data:`snapjump_cli.sweep.rows.RESULT_KEYS` (SI units).
+
+    Raises
+    ------
+    SolveFailed
+        when the continuation fails before the snap is characterised, or the mesh has more than
+        ``solver.max_nodes`` nodes (then before it is solved).
+    """
+    from snapjump_cli.mesh.build import MeshTooLarge, mesh_scene  # lazily: gmsh
+
+    t0 = time.perf_counter()
+    try:
+        if mesh is None:
+            mesh = mesh_scene(scene, mesh_settings, max_nodes=solver.max_nodes)
+        elif mesh.n_nodes > solver.max_nodes:
+            raise MeshTooLarge(mesh.n_nodes, solver.max_nodes)
+    except MeshTooLarge as exc:
+        raise SolveFailed(f"not solved: {exc}") from None
+    t_mesh = time.perf_counter() - t0
+    sc = _scales(scene)
+    scales = (sc["sV"], sc["sp"], sc["sw"])
+    model = build_model(scene, mesh, solver)
+    V0 = model.volume(np.zeros(model.n))
+    air = None
+    if fluid is not None and fluid.is_air:
+        air = AirSnap(fluid, Tracer(model, _settings(scene, solver, fused)), post_snap_budget(solver))
+    tracer, st, path, failure = _trace(scene, model, solver, V0, air, fused)
+    lower = find_lower_state(tracer, st, path.points, failure or path.stop_reason)
+    if st.upper is not None and lower.state is None:
+        raise SolveFailed(f"volume limit found (V*={st.upper.zeta[0] * sc['sV'] * sc['L']**3:.4g} m^3) but no lower "
+                          f"state ({lower.reason}; {lower.message})")
+    st.lower, st.lower_method = lower.state, lower.method
+    if st.upper is None and failure:
+        exc = SolveFailed(f"no volume limit reached before the continuation failed: {failure}")
+        exc.path, exc.model = path, model  # for diagnostics
+        raise exc
+    outer_alone = isinstance(scene, CapScene) and scene.kind == "outer"
+    metrics = snap_metrics(
+        model, path, st, scales, lower_solver=lower.solver,
+        lower_note=lower.note, outer_alone=outer_alone,
+        outer_u=state_at_pressure(tracer, path, 0.5) if outer_alone else None,  # E_o at p / mu_o = 0.5 (Fig. 3C)
+    )
+    metrics.update(fluid_keys(fluid))
+    if air is not None:
+        air_lower = air.lower_state(path.points, failure or path.stop_reason)
+        if air.states.upper is not None and air_lower.state is None:
+            raise SolveFailed(f"limit of the dispensed volume found (p={air.states.upper.p * sc['S']:.5g} Pa) but no "
+                              f"lower state under air ({air_lower.reason}; {air_lower.message})")
+        metrics = air.metrics(model, path, metrics, air_lower, scales)
+    metrics.update(
+        mesh_s=t_mesh, t_assembly_s=model.t_assembly, t_residual_s=model.t_residual, t_factor_s=model.t_factor,
+        t_newton_s=model.t_newton, n_factorizations=model.n_factorizations, n_assemblies=model.n_assemblies,
+        wall_s=time.perf_counter() - t0,
+    )
+    return SceneResult(metrics=metrics, model=model, path=path, states=st, tracer=tracer, curve_args=(scales, V0),
+                       air=air)
+
+
+def post_snap_budget(solver: SolverSettings) -> int:
+    """Steps the post-snap path may take to come back to V* before the lower state is sought at
+    fixed volume instead: three quarters of ``max_steps`` (1500 at the default 2000), so that a
+    finer trace, which needs a larger ``max_steps`` anyway, gets a proportionally larger budget
+    (with a fixed 1500, a trace with 50x shorter steps ran out of it on the way back to V*)."""
+    return max(1, (3 * solver.max_steps) // 4)
+
+
+def _settings(scene: Design | CapScene, solver: SolverSettings, fused: bool = True) -> ContinuationSettings:
+    """The continuation settings of a scene's trace."""
+    sc = _scales(scene)
+    return ContinuationSettings.from_solver(
+        solver, scales=(sc["sV"], sc["sp"], sc["sw"]), u_unit=sc["sw"],
+        fused=fused,
+    )
+
+
+def _trace(scene: Design | CapScene, model: Model, solver: SolverSettings, V0: float, air=None, fused: bool = True
+           ) -> tuple[Tracer, SnapStates, Path, str]:
+    """Trace the scene's pressure-volume path from the stress-free state until the snap tracker
+    (with ``air``, an :class:`~snapjump_cli.fe.air_snap.AirSnap`: until both snaps are characterised)
+    stops it; returns the tracer, the snap states, the path and the continuation's failure ('' if
+    none: a failed continuation keeps the path traced so far)."""
+    sc = _scales(scene)
+    cfg = _settings(scene, solver, fused)
+    tracer = air.tracer if air is not None else Tracer(model, cfg)
+    if isinstance(scene, CapScene) and scene.kind == "outer":
+        p_stop = 0.5  # E_o at p / mu_o = 0.5 (Fig. 3C)
+    else:
+        p_stop = 1.5 * sc["p_c"]
+    tracker = SnapTracker(tracer, p_stop=p_stop, V_stop=_V_stop(scene, V0) / sc["sV"], full=solver.full,
+                          post_snap_steps=post_snap_budget(solver))
+    failure = ""
+    path: Path | None = None
+    try:
+        path = trace(model, cfg, tracker if air is None else air.watch(tracker), u0=np.zeros(model.n), tracer=tracer)
+    except ContinuationFailed as exc:
+        failure = str(exc)
+        path = getattr(exc, "path", None)
+    if path is None:
+        raise SolveFailed(f"continuation failed: {failure}")
+    return tracer, tracker.states, path, failure
+
+
+#: A snap is re-solved at one mesh refinement when it is suspicious (see :func:`suspicious_snap`);
+#: it is flagged ``mesh_sensitive`` when dE or dy_pole then move by more than this fraction.
+MESH_SENSITIVE_REL = 0.05
+
+
+_TIME_KEYS = ("wall_s", "mesh_s", "t_assembly_s", "t_residual_s", "t_factor_s", "t_newton_s")
+
+
+def suspicious_snap(m: dict) -> str:
+    """Why a snap may be a mesh artefact ('' if it looks sound): the pole moves up, the snap is
+    tiny (dE < 1e-4 mu_i R_i^3), the volume limit is a near-cusp (``fold_note``: a bifurcation or a
+    second pressure extremum right at the fold, where the branch can switch with the mesh), or its
+    lower state had to be found by descent."""
+    if not m.get("snaps"):
+        return ""
+    if m["dy_pole_m"] is None or m["dy_pole_m"] <= 0:
+        return "pole moves up"
+    if m["dE_norm"] < 1e-4:
+        return "tiny snap"
+    if m.get("fold_note"):
+        return "volume limit at a near-cusp"
+    if m.get("lower_state_method") == "descent":
+        return "lower state by descent"
+    return ""
+
+
+def solve_checked(
+    scene: Design | CapScene, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings(),
+    check_mesh: bool = True, fluid: FluidSettings | None = None, *, fused: bool = True,
+) -> SceneResult:
+    """Solve a scene the way every command reports it: :func:`solve_scene`, the mesh check, and
+    (``solver.harmonics > 0``) the Fourier-harmonic stability check of the reported solve
+    (:func:`snapjump_cli.fe.harmonics.check_harmonics`: ``asym_first``, ``asym_n``, ``asym_V_m3``,
+    ``asym_p_Pa``, ``asym_lower_stable``; all None when it is off). ``fluid``: water (``None``) or
+    air (:func:`solve_scene`; not with the harmonic check); ``fused`` as in :func:`solve_scene`.
+
+    All of it runs within ``solver.time_limit_s`` CPU seconds (:mod:`snapjump_cli.fe.limits`);
+    beyond them :class:`SolveFailed` says so.
+    """
+    if fluid is not None and fluid.is_air and solver.harmonics > 0:
+        raise ValueError("the harmonic check is not available under air (fluid: air with solver.harmonics > 0)")
+    try:
+        with time_limit(solver.time_limit_s):
+            return _solve_and_check(scene, mesh, solver, check_mesh, fluid, fused)
+    except TimeLimitExceeded as exc:
+        raise SolveFailed(f"stopped: {exc}") from None
+
+
+def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool,
+                     fluid: FluidSettings | None, fused: bool) -> SceneResult:
+    res = _solve_mesh_checked(scene, mesh, solver, check_mesh, fluid, fused)
+    m = res.metrics
+    m.update({k: None for k in ASYM_KEYS})
+    if solver.harmonics > 0 and res.model is not None and res.path is not None:
+        from snapjump_cli.fe.harmonics import check_harmonics
+
+        t0 = time.perf_counter()
+        h = check_harmonics(res, solver.harmonics)
+        m.update({k: h.get(k) for k in ASYM_KEYS})
+        m["asym_wall_s"] = time.perf_counter() - t0
+        m["wall_s"] = (m.get("wall_s") or 0.0) + m["asym_wall_s"]
+    return res
+
+
+def _solve_mesh_checked(
+    scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool,
+    fluid: FluidSettings | None = None, fused: bool = True,
+) -> SceneResult:
+    """:func:`solve_scene`, then the mesh check.
+
+    With ``check_mesh``, a suspicious snap (:func:`suspicious_snap`) is re-solved with one more
+    element through the thickness (and, for a near-cusp fold, elements half as long along the arcs
+    as well: the fold is an under-resolution of the arc, design A); the refined solve is reported,
+    the first metrics kept as ``dE_J_coarse`` / ``dy_pole_m_coarse``, and ``mesh_sensitive`` is set
+    when dE or dy_pole moved by more than ``MESH_SENSITIVE_REL``, the refined run no longer snaps
+    or fails, or its fold is still a near-cusp; ``mesh_check`` says why and how it was checked. For
+    a re-solved scene the timing keys (``wall_s``, ``mesh_s``, ``t_assembly_s``, ``t_residual_s``,
+    ``t_factor_s``, ``t_newton_s``) cover both solves.
+
+    Returns
+    -------
+    SceneResult
+        The reported solve (the refined one after a re-solve), its ``metrics`` completed with
+        ``mesh_sensitive``, ``mesh_check``, ``dE_J_coarse`` and ``dy_pole_m_coarse``.
+    """
+    t0 = time.perf_counter()
+    air = {"fluid": fluid} if fluid is not None and fluid.is_air else {}
+    if not fused:
+        air["fused"] = False
+    res = solve_scene(scene, mesh, solver, **air)
+    m = res.metrics
+    m.update(mesh_sensitive=False, dE_J_coarse=None, dy_pole_m_coarse=None, mesh_check="")
+    why = suspicious_snap(m) if check_mesh else ""
+    if not why:
+        return res
+    nt = mesh.nt + 1
+    # element length along the arc ~ aspect * t / nt: halve it for a near-cusp, keep it otherwise
+    aspect = mesh.aspect * nt / (2 * mesh.nt) if m.get("fold_note") else mesh.aspect
+    finer = MeshSettings(order=mesh.order, nt=nt, aspect=aspect)
+    coarse = m
+    try:
+        res = solve_scene(scene, finer, solver, **air)
+        m = res.metrics
+        m.update(mesh_sensitive=False, mesh_check=f"{why}; re-solved at nt={finer.nt}"
+                 + (f", aspect={finer.aspect:.3g}" if finer.aspect != mesh.aspect else ""))
+    except SolveFailed as exc:
+        coarse["wall_s"] = time.perf_counter() - t0
+        coarse["mesh_sensitive"] = True
+        coarse["mesh_check"] = f"{why}; refined run failed: {exc}"
+        return res
+    m["dE_J_coarse"], m["dy_pole_m_coarse"] = coarse["dE_J"], coarse["dy_pole_m"]
+    for k in _TIME_KEYS:  # the cost of the design is that of both solves
+        m[k] = (m.get(k) or 0) + (coarse.get(k) or 0)
+    if not m["snaps"]:
+        m["mesh_sensitive"] = True
+        return res
+    if m.get("fold_note"):
+        m["mesh_sensitive"] = True
+        m["mesh_check"] += "; still a near-cusp"
+    for k in ("dE_J", "dy_pole_m"):
+        if abs(m[k] - coarse[k]) > MESH_SENSITIVE_REL * max(abs(m[k]), abs(coarse[k])):
+            m["mesh_sensitive"] = True
+    return res
+
+
+def solve_design(
+    design: Design, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings(),
+    check_mesh: bool = True, fluid: FluidSettings | None = None, *, fused: bool = True,
+) -> dict:
+    """Sweep entry point: the metrics dict of one design as :func:`solve_checked` reports it
+    (``fused``: as in :func:`solve_scene`)."""
+    return solve_checked(design, mesh, solver, check_mesh, fluid=fluid, fused=fused).metrics
+
+
+def warm_up() -> float:
+    """Compile (or load from the on-disk cache) every numba kernel; returns the seconds taken."""
+    t0 = time.perf_counter()
+    solve_scene(CapScene(theta_deg=60.0, eta=8.5, bc="clamped"), MeshSettings(order=1, nt=1, aspect=4.0),
+                SolverSettings(max_steps=3))
+    solve_scene(CapScene(theta_deg=60.0, eta=8.5, bc="clamped"), MeshSettings(order=2, nt=1, aspect=4.0),
+                SolverSettings(max_steps=3))
+    return time.perf_counter() - t0

@@ -1,0 +1,206 @@
+"""Result files: atomic parquet I/O of result tables and their provenance metadata.
+
+One row per design; the columns, their types and the validation of a solver result are the row
+contract of :mod:`snapjump_cli.sweep.rows` (re-exported here). Metrics of rows that are not ``ok`` may
+be null (read back as NaN / ``pd.NA``); an ``ok`` row never holds a NaN or infinite metric.
+
+Provenance (resolved config, package and dependency versions, git commit) is stored as JSON under
+the key ``snapjump`` of the parquet schema metadata; read it with :func:`read_metadata`.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import platform
+import subprocess
+import sys
+from datetime import datetime, timezone
+from importlib import metadata as importlib_metadata
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping
+
+from snapjump_cli.files import write_atomic
+from snapjump_cli.sweep.rows import (  # the row contract, re-exported for readers of result files
+    BOOL_RESULT_KEYS,
+    FLOAT_RESULT_KEYS,
+    INPUT_COLUMNS,
+    INT_RESULT_KEYS,
+    OPTIONAL_FLOAT_KEYS,
+    RESULT_KEYS,
+    STATUSES,
+    STR_RESULT_KEYS,
+    result_schema,
+)
+
+if TYPE_CHECKING:  # pandas / pyarrow are imported inside the functions: the sweep workers only
+    import pandas as pd  # need the column-type constants of this module and stay light
+    import pyarrow as pa
+
+__all__ = [
+    "STATUSES",
+    "INPUT_COLUMNS",
+    "METADATA_KEY",
+    "BOOL_RESULT_KEYS",
+    "INT_RESULT_KEYS",
+    "STR_RESULT_KEYS",
+    "FLOAT_RESULT_KEYS",
+    "OPTIONAL_FLOAT_KEYS",
+    "RESULT_KEYS",
+    "result_schema",
+    "rows_to_table",
+    "write_table_atomic",
+    "write_frame_atomic",
+    "read_results",
+    "pandas_types_mapper",
+    "read_metadata",
+    "provenance",
+]
+
+log = logging.getLogger(__name__)
+
+#: Key of the provenance JSON in the parquet schema metadata.
+METADATA_KEY = b"snapjump"
+
+
+def _with_metadata(table: pa.Table, meta: Mapping[str, Any] | None) -> pa.Table:
+    if meta is None:
+        return table
+    md = dict(table.schema.metadata or {})
+    md[METADATA_KEY] = json.dumps(meta, sort_keys=True, default=str).encode()
+    return table.replace_schema_metadata(md)
+
+
+def rows_to_table(rows: Iterable[Mapping[str, Any]], meta: Mapping[str, Any] | None = None) -> pa.Table:
+    """Convert row dicts (missing keys -> null) to a table with :func:`result_schema`.
+
+    Parameters
+    ----------
+    rows
+        One mapping per design; unknown keys are ignored.
+    meta
+        Provenance stored under :data:`METADATA_KEY` in the schema metadata.
+    """
+    import pandas as pd
+    import pyarrow as pa
+
+    schema = result_schema()
+    cols = {f.name: [] for f in schema}
+    for r in rows:
+        for name in cols:
+            v = r.get(name)
+            if v is not None and v is pd.NA:
+                v = None
+            cols[name].append(v)
+    arrays = [pa.array(cols[f.name], type=f.type) for f in schema]
+    return _with_metadata(pa.Table.from_arrays(arrays, schema=schema), meta)
+
+
+def write_table_atomic(table: pa.Table, path: str | Path) -> Path:
+    """Write a parquet file atomically (:func:`snapjump_cli.files.write_atomic`: a temporary file
+    in the target's folder, then a rename; links followed, devices and FIFOs refused).
+
+    A reader (or a resumed sweep) therefore sees either the complete file or none.
+    """
+    import pyarrow.parquet as pq
+
+    return write_atomic(path, lambda tmp: pq.write_table(table, tmp))
+
+
+def write_frame_atomic(df: pd.DataFrame, path: str | Path, meta: Mapping[str, Any] | None = None) -> Path:
+    """Write a DataFrame to parquet atomically, with provenance ``meta`` in the schema metadata."""
+    import pyarrow as pa
+
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    return write_table_atomic(_with_metadata(table, meta), path)
+
+
+def pandas_types_mapper() -> Callable[[Any], Any]:
+    """``types_mapper`` for ``pyarrow.Table.to_pandas``: nullable Int64, boolean and string dtypes."""
+    import pandas as pd
+    import pyarrow as pa
+
+    mapping = {pa.int64(): pd.Int64Dtype(), pa.bool_(): pd.BooleanDtype(), pa.string(): pd.StringDtype()}
+    return mapping.get
+
+
+def read_results(path: str | Path, columns: list[str] | None = None) -> pd.DataFrame:
+    """Read a result (or ranked) parquet file into pandas with nullable dtypes.
+
+    Integers become ``Int64``, booleans ``boolean``, strings ``string`` (nulls are ``pd.NA``);
+    floats stay ``float64`` with NaN for missing values.
+    """
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(path, columns=columns)
+    return table.to_pandas(types_mapper=pandas_types_mapper())
+
+
+def read_metadata(path: str | Path) -> dict[str, Any]:
+    """The provenance dict stored in a parquet file's schema metadata (``{}`` if none)."""
+    import pyarrow.parquet as pq
+
+    md = pq.read_schema(path).metadata or {}
+    raw = md.get(METADATA_KEY)
+    return json.loads(raw) if raw else {}
+
+
+# ---- provenance ---------------------------------------------------------------------------------
+_DEPENDENCIES = ("numpy", "scipy", "numba", "gmsh", "pandas", "pyarrow", "joblib", "pyyaml", "click", "tqdm",
+                 "dask", "distributed", "matplotlib")
+
+
+def _dist_version(name: str) -> str | None:
+    try:
+        return importlib_metadata.version(name)
+    except importlib_metadata.PackageNotFoundError:
+        return None
+
+
+def git_commit(path: str | Path | None = None) -> dict[str, Any] | None:
+    """The git commit (and whether the tree is dirty) of the checkout holding ``path``.
+
+    Returns ``None`` when git or the repository is unavailable.
+    """
+    cwd = Path(path) if path is not None else Path(__file__).resolve().parent
+    try:
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True, text=True, timeout=5)
+        if sha.returncode != 0:
+            return None
+        st = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=cwd,
+                            capture_output=True, text=True, timeout=5)
+        return {"commit": sha.stdout.strip(), "dirty": bool(st.stdout.strip()) if st.returncode == 0 else None}
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def provenance(config: Mapping[str, Any] | None = None, **extra: Any) -> dict[str, Any]:
+    """Provenance of a result file.
+
+    Parameters
+    ----------
+    config
+        The resolved configuration (plain data).
+    **extra
+        Further entries (e.g. ``command``, ``status_counts``).
+
+    Returns
+    -------
+    dict
+        ``package``, ``version``, ``git`` (commit/dirty or None), ``python``, ``platform``,
+        ``dependencies`` (installed versions), ``created_utc``, ``result_keys``, ``config`` and extras.
+    """
+    from snapjump_cli import __version__
+
+    meta: dict[str, Any] = {
+        "package": "snapjump",
+        "version": __version__,
+        "git": git_commit(),
+        "python": sys.version.split()[0],
+        "platform": platform.platform(),
+        "dependencies": {d: v for d in _DEPENDENCIES if (v := _dist_version(d)) is not None},
+        "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "result_keys": list(RESULT_KEYS),
+        "config": dict(config) if config is not None else None,
+    }
+    meta.update(extra)
+    return meta

@@ -1,0 +1,378 @@
+"""Where a sweep's rows live: design keys, part files, the output lock and consolidation.
+
+Layout of an output ``OUT.parquet``:
+
+* ``OUT.parquet`` - the consolidated result (sorted, one row per key);
+* ``OUT.parquet.parts/part-NNNNNN.parquet`` - rows of the running (or a killed) sweep, each part
+  written atomically, so a killed sweep loses at most the rows of one unwritten chunk;
+* ``OUT.parquet.lock`` - held by the sweep writing into ``OUT`` (pid, host, start time), so that
+  two sweeps never write into one output (a lock whose process is gone is taken over).
+
+A design's key (:func:`design_key`) hashes its parameters and the mesh + solver settings, so a
+resumed or extended sweep recognises the designs already solved, and rows computed with other
+settings never share a key with this run's.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import shutil
+import socket
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Mapping
+
+from snapjump_cli.sweep import results as res
+from snapjump_cli.sweep.config import DesignPoint
+from snapjump_cli.errors import SweepInputError
+from snapjump_cli.fe.fluid import FluidSettings
+from snapjump_cli.files import os_error_reason
+from snapjump_cli.geometry.caps import Design
+from snapjump_cli.settings import MeshSettings, SolverSettings, without_limits
+
+__all__ = [
+    "KEY_VERSION",
+    "design_key",
+    "parts_dir",
+    "part_files",
+    "result_files",
+    "lock_path",
+    "done_keys",
+    "OutputLock",
+    "PartWriter",
+    "consolidate",
+    "check_compatible",
+]
+
+log = logging.getLogger(__name__)
+
+#: Bumped whenever the meaning of a key changes (old results are then not reused). v2: ``ds0`` is
+#: used as given (v1 keys hashed a ds0 that the continuation multiplied by 2.5).
+KEY_VERSION = "snapjump-sweep-v2"
+
+
+def now_utc() -> str:
+    """The current UTC time, ISO 8601 to the second."""
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def design_key(point: DesignPoint | Design | Mapping[str, Any], mesh: MeshSettings, solver: SolverSettings,
+               fluid: "FluidSettings | None" = None) -> str:
+    """A stable hash of a design's parameters and the mesh + solver settings.
+
+    The key does not depend on the grid the design came from, on the order of the grid, on the
+    output path or on the number of jobs, so a resumed (or extended) sweep recognises the designs
+    it has already solved.
+
+    Parameters
+    ----------
+    point
+        A grid point, a :class:`Design` or a mapping with the fields of :data:`results.INPUT_COLUMNS`.
+    mesh, solver
+        The numerical settings.
+    fluid
+        The fluid (:class:`snapjump_cli.fe.fluid.FluidSettings`); water (the default) leaves the key
+        as it was before the setting existed.
+
+    Returns
+    -------
+    str
+        24 hexadecimal characters.
+    """
+    src = point if isinstance(point, Mapping) else point.__dict__
+    payload = {
+        "v": KEY_VERSION,
+        "design": {c: float(src[c]) for c in res.INPUT_COLUMNS},
+        "mesh": _typed(mesh.as_dict()),
+        "solver": _typed(_key_settings(solver)),
+    }
+    if fluid is not None and fluid.is_air:
+        payload["fluid"] = _typed(fluid.as_dict())
+    text = json.dumps(payload, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+#: Solver settings added after KEY_VERSION v2 with the value that leaves the computation as it was:
+#: left out of the key at that value, so rows computed before the setting existed are still found.
+_NEUTRAL_SETTINGS = {"harmonics": 0}
+
+
+def _key_settings(solver: SolverSettings) -> dict[str, Any]:
+    return {k: v for k, v in solver.numerics().items() if not (k in _NEUTRAL_SETTINGS and v == _NEUTRAL_SETTINGS[k])}
+
+
+def _typed(d: Mapping[str, Any]) -> dict[str, Any]:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, bool) or isinstance(v, str):
+            out[k] = v
+        elif isinstance(v, int):
+            out[k] = int(v)
+        else:
+            out[k] = float(v)
+    return out
+
+
+def parts_dir(output: str | Path) -> Path:
+    """The folder of part files of ``output``: ``<output>.parts``."""
+    output = Path(output)
+    return output.with_name(output.name + ".parts")
+
+
+def part_files(parts: Path) -> list[Path]:
+    """The part files in the folder ``parts`` (none if there is no such folder), in name order."""
+    return sorted(parts.glob("part-*.parquet")) if parts.is_dir() else []
+
+
+def result_files(output: str | Path) -> list[Path]:
+    """The files that hold the rows of ``output``: the file itself if it exists, then the part
+    files of an unfinished (or resumed) run."""
+    output = Path(output)
+    return ([output] if output.is_file() else []) + part_files(parts_dir(output))
+
+
+def _read_keys(path: Path) -> Any:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        t = pq.read_table(path, columns=["key", "status"])
+    except (pa.ArrowInvalid, KeyError, OSError) as e:
+        why = " ".join(str(e).split())
+        if path.parent.name.endswith(".parts"):  # a part of an interrupted run: its rows are solved again
+            raise SweepInputError(f"{path}: damaged part file ({why}); delete this file and run the same command "
+                                  f"again (its designs are solved again, the other parts are kept)") from None
+        raise SweepInputError(f"{path}: not a readable snapjump result file ({why}); move it away or choose "
+                              f"another output") from None
+    return t
+
+
+def done_keys(output: str | Path) -> dict[str, str]:
+    """Keys already recorded for ``output`` (its consolidated file and its part files).
+
+    Returns
+    -------
+    dict
+        key -> status (the most recent record wins).
+    """
+    output = Path(output)
+    done: dict[str, str] = {}
+    files = ([output] if output.exists() else []) + part_files(parts_dir(output))
+    for f in files:
+        t = _read_keys(f)
+        done.update(zip(t.column("key").to_pylist(), t.column("status").to_pylist()))
+    return done
+
+
+
+def lock_path(output: str | Path) -> Path:
+    """The lock file of ``output``: ``<output>.lock``."""
+    output = Path(output)
+    return output.with_name(output.name + ".lock")
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # it exists, owned by someone else
+        return True
+    except OSError:
+        return False
+    return True
+
+
+class OutputLock:
+    """Exclusive right to write into one output (``<output>.lock``, created with ``O_EXCL``), taken
+    by ``sweep`` and ``optimize`` (``command``, recorded in the lock).
+
+    A second sweep into the same output is refused (:class:`SweepInputError` naming the holder's
+    pid, host and start time). A lock left by a process that no longer runs on this host is taken
+    over with a warning. A lock from another host is never broken automatically (its process cannot
+    be checked from here): the message says which file to remove.
+    """
+
+    def __init__(self, output: str | Path, command: str = "sweep") -> None:
+        self.path = lock_path(output)
+        self.command = command  # recorded in the lock, named to whoever finds it taken
+        self.held = False
+
+    def _holder(self) -> dict[str, Any]:
+        try:
+            return json.loads(self.path.read_text())
+        except (OSError, ValueError):
+            return {}
+
+    def acquire(self) -> "OutputLock":
+        me = {"pid": os.getpid(), "host": socket.gethostname(), "started_utc": now_utc(), "command": self.command}
+        for _ in range(3):
+            try:
+                fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+            except FileExistsError:
+                h = self._holder()
+                pid, host = h.get("pid"), h.get("host")
+                if host == me["host"] and isinstance(pid, int) and not _pid_alive(pid):
+                    log.warning("%s: taking over a stale lock (pid %s on %s, started %s, no longer runs)",
+                                self.path, pid, host, h.get("started_utc"))
+                    self.path.unlink(missing_ok=True)
+                    continue
+                if not h:  # being written right now, or unreadable
+                    holder = "an unreadable lock file"
+                else:
+                    holder = f"pid {pid} on {host}, started {h.get('started_utc')}"
+                raise SweepInputError(
+                    f"{self.path.with_suffix('')}: another {h.get('command', 'sweep')} is writing into this output "
+                    f"({holder}); "
+                    f"wait for it to finish, or remove {self.path} if that process is gone")
+            except OSError as e:
+                raise SweepInputError(f"{self.path}: cannot create the lock file ({e.strerror})") from None
+            try:
+                with os.fdopen(fd, "w") as fh:
+                    json.dump(me, fh)
+            except OSError as e:  # a full disk: leave no empty lock behind (it would block every rerun)
+                self.path.unlink(missing_ok=True)
+                raise SweepInputError(f"{self.path}: cannot write the lock file ({os_error_reason(e)})") from None
+            self.held = True
+            return self
+        raise SweepInputError(f"{self.path}: cannot take the lock")
+
+    def release(self) -> None:
+        if self.held:
+            self.path.unlink(missing_ok=True)
+            self.held = False
+
+    def __enter__(self) -> "OutputLock":
+        return self.acquire()
+
+    def __exit__(self, *exc: Any) -> None:
+        self.release()
+
+
+def check_compatible(output: str | Path, keys: set[str], config: Mapping[str, Any]) -> None:
+    """Refuse to mix runs: every row already in ``output`` (or its parts) must be one of ``keys``.
+
+    A resumed run, or one over a larger grid, passes. Rows of another grid, mesh, solver or
+    material (whose keys this run would never produce) make it raise :class:`SweepInputError`
+    saying what differs from the file's recorded configuration; pass ``append=True`` to
+    :func:`snapjump_cli.sweep.run.run_sweep` (``--append``) to add to such a file deliberately.
+    """
+    output = Path(output)
+    stale = [k for k in done_keys(output) if k not in keys]
+    if not stale:
+        return
+    files = ([output] if output.exists() else []) + part_files(parts_dir(output))
+    old = {}
+    for f in files:
+        try:
+            old = res.read_metadata(f).get("config") or {}
+        except Exception:  # noqa: BLE001 - an unreadable file is reported by done_keys already
+            old = {}
+        if old:
+            break
+    diffs = []
+    for k in ("mesh", "solver", "materials", "ring", "R_i", "fluid"):
+        a, b = (without_limits(old.get(k)), without_limits(config.get(k))) if k == "solver" else (old.get(k), config.get(k))
+        if k in old and a != b:
+            diffs.append(f"{k} {a} -> {b}")
+    grid_old = old.get("points", old.get("grid"))
+    grid_new = config.get("points", config.get("grid"))
+    if grid_old is not None and grid_old != grid_new:
+        diffs.append("the designs (grid or points)")
+    what = "; ".join(diffs) if diffs else "its rows were computed for other designs or settings"
+    raise SweepInputError(
+        f"{output}: holds {len(stale)} rows that this run would not produce ({what}); "
+        f"write to another output, or pass --append to add to this file deliberately")
+
+
+class PartWriter:
+    """Buffers rows and writes them as atomic part files ``part-NNNNNN.parquet``."""
+
+    def __init__(self, parts: Path, meta: dict[str, Any], chunk_size: int, flush_interval_s: float) -> None:
+        self.parts = parts
+        self.meta = meta
+        self.chunk_size = max(1, int(chunk_size))
+        self.flush_interval_s = flush_interval_s
+        self.buffer: list[dict[str, Any]] = []
+        existing = [int(p.stem.split("-")[1]) for p in part_files(parts) if p.stem.split("-")[1].isdigit()]
+        self.seq = max(existing, default=-1) + 1
+        self.last_flush = time.monotonic()
+        self.n_written = 0
+
+    def add(self, row: dict[str, Any]) -> None:
+        self.buffer.append(row)
+        if len(self.buffer) >= self.chunk_size or time.monotonic() - self.last_flush >= self.flush_interval_s:
+            self.flush()
+
+    def flush(self) -> None:
+        if not self.buffer:
+            return
+        path = self.parts / f"part-{self.seq:06d}.parquet"
+        res.write_table_atomic(res.rows_to_table(self.buffer, self.meta), path)
+        log.debug("wrote %s (%d rows)", path, len(self.buffer))
+        self.n_written += len(self.buffer)
+        self.seq += 1
+        self.buffer = []
+        self.last_flush = time.monotonic()
+
+def consolidate(output: str | Path, meta: Mapping[str, Any], order: Mapping[str, int] | None = None) -> dict[str, int]:
+    """Merge ``<output>`` (if any) and its part files into ``<output>``, atomically.
+
+    Rows are deduplicated by key (the newest record wins), rows of the current grid (``order``:
+    key -> grid index) come first in grid order, others (from an earlier, different grid) after.
+    The parts folder is removed once the consolidated file is in place.
+
+    Returns
+    -------
+    dict
+        Rows per status in the consolidated file.
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    output = Path(output)
+    parts = parts_dir(output)
+    files = ([output] if output.exists() else []) + part_files(parts)
+    schema = res.result_schema()
+    tables = []
+    for f in files:
+        t = pq.read_table(f)
+        t = t.replace_schema_metadata(None)
+        # tolerate files written with an older column set: add the missing columns as nulls
+        for fld in schema:
+            if fld.name not in t.column_names:
+                t = t.append_column(fld, pa.nulls(len(t), type=fld.type))
+        tables.append(t.select(schema.names).cast(schema))
+    if tables:
+        df = pa.concat_tables(tables).to_pandas(types_mapper=res.pandas_types_mapper())
+    else:
+        df = res.rows_to_table([]).to_pandas(types_mapper=res.pandas_types_mapper())
+    df = df.drop_duplicates(subset="key", keep="last")
+    order = dict(order or {})
+    in_grid = df["key"].map(lambda k: k in order).astype(bool)
+    extra = int((~in_grid).sum())
+    if extra:
+        log.warning("%s: %d rows from an earlier, different grid are kept after this grid's rows", output, extra)
+    df.loc[in_grid, "index"] = df.loc[in_grid, "key"].map(order).astype("int64")
+    df = df.assign(_g=~in_grid).sort_values(["_g", "index", "key"], kind="stable").drop(columns="_g")
+    counts = {s: int((df["status"] == s).sum()) for s in res.STATUSES}
+    full_meta = dict(meta)
+    full_meta.update(n_rows=int(len(df)), status_counts=counts, consolidated_utc=now_utc())
+    table = pa.Table.from_pandas(df, schema=schema, preserve_index=False)
+    res.write_table_atomic(res._with_metadata(table, full_meta), output)
+    for f in files:  # only the parts merged here (never a part that appeared meanwhile)
+        if f != output:
+            f.unlink(missing_ok=True)
+    if parts.is_dir():
+        shutil.rmtree(parts / "running", ignore_errors=True)
+        for tmp in parts.glob(".part-*.tmp*"):  # half-written parts of a killed run (never read)
+            tmp.unlink(missing_ok=True)
+        try:
+            parts.rmdir()
+        except OSError:  # not empty: left for the next consolidation
+            pass
+    return counts
+
