@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install run test bench bench-mesh stress clean
+.PHONY: install run run-followed test bench bench-mesh stress clean
 
 # install also checks, each time (~0.1 s, no numba), that the kernels compiled ahead of time for
 # this CPU (fast start-up; docs/performance.md) were built from these kernel sources on this CPU:
@@ -23,6 +23,11 @@ $(STAMP): pyproject.toml
 run: install
 	$(BIN)/snapjump -v sweep configs/paper_grid.yaml -o results/paper_grid.parquet
 	$(BIN)/snapjump rank results/paper_grid.parquet -o results/ranked.parquet --plots results/ --overwrite
+
+# the paper grid with every asymmetric-first design's branch followed (hours on 2 cores; resumable)
+run-followed: install
+	$(BIN)/snapjump -v sweep configs/paper_grid_followed.yaml -o results/paper_grid_followed.parquet
+	$(BIN)/snapjump rank results/paper_grid_followed.parquet -o results/ranked_followed.parquet --plots results/followed/ --overwrite
 
 test: install
 	$(BIN)/python -m pytest -q -x --durations=15

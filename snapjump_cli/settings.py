@@ -100,6 +100,11 @@ class SolverSettings:
         ``n = 1..harmonics`` (:mod:`snapjump_cli.fe.harmonics`; 0 = off, the default)
     u_scale : scale of the RMS displacement in the arc length, in units of the pole-displacement
         scale (0 = arc length in (V, p, pole) only)
+    follow : when the harmonic check finds a harmonic unstable before V*, trace the branch that
+        bifurcates there (:mod:`snapjump_cli.fe.follow`) and report its snap as the design's answer
+        (needs ``harmonics >= 1``; the axisymmetric answer is kept in the ``axisym_*`` keys)
+    follow_N : highest harmonic of the followed branch's Fourier series (0 = the default,
+        ``4 n_c`` for the critical harmonic ``n_c``)
     time_limit_s : CPU seconds one design (or scene) may take, the mesh check's re-solve and the
         harmonic check included; beyond it the solve stops with a failure saying so (the paper
         grid's slowest design takes about 1.3 s)
@@ -119,6 +124,8 @@ class SolverSettings:
     u_scale: float = 1.0
     tol_path: float = 1e-6
     harmonics: int = 0
+    follow: bool = False
+    follow_N: int = 0
     time_limit_s: float = 300.0
     max_nodes: int = 20_000
 
@@ -135,6 +142,9 @@ class SolverSettings:
             "bulk_ratio": (lambda v: _is_num(v) and v > 0, "a number > 0"),
             "u_scale": (lambda v: _is_num(v) and v >= 0, "a number >= 0"),
             "harmonics": (lambda v: _is_int(v) and 0 <= v <= 64, "an integer in [0, 64]"),
+            "follow": (lambda v: isinstance(v, bool) and (not v or self.harmonics >= 1),
+                       "true or false (true needs harmonics >= 1)"),
+            "follow_N": (lambda v: _is_int(v) and 0 <= v <= 16, "an integer in [0, 16]"),
             "time_limit_s": (lambda v: _is_num(v) and v > 0, "a number of seconds > 0"),
             "max_nodes": (lambda v: _is_int(v) and 10 <= v <= 10_000_000, "an integer in [10, 10000000]"),
         })

@@ -5,7 +5,10 @@ JSON keys (stable): ``dE_J``, ``dE_norm`` (dE / (mu_i R_i^3)), ``dE_energy_J``, 
 ``L0_m``, ``snaps``, ``self_crossing``, ``lower_state_method``, ``n_steps``, ``n_newton``,
 ``wall_s``, ``mesh_sensitive``, ``mesh_check``, ``dE_J_coarse``, ``dy_pole_m_coarse``, the
 harmonic check's ``asym_first``, ``asym_n``, ``asym_V_m3``, ``asym_p_Pa``, ``asym_lower_stable``
-(null without ``--harmonics``); plus
+(null without ``--harmonics``), the followed branch's ``followed``, ``follow_n``, ``follow_N``,
+``follow_kind``, ``follow_V_bif_m3`` and ``axisym_dE_J``, ``axisym_dy_pole_m``, ``axisym_h_imp_m``,
+``axisym_V_star_m3``, ``axisym_p_star_Pa`` (null without ``--follow``: with it, ``dE_J``,
+``dy_pole_m``, ``h_imp_m``, ``V_star_m3``, ``p_star_Pa`` describe the followed snap); plus
 diagnostics (``dE_rel_diff``, ``dy_pole_upper_m``, ``p_lower_Pa``, mesh size, ``max_dilatation``,
 timings, ``stop_reason``; ``E_o_J`` for an outer cap alone).
 
@@ -160,11 +163,19 @@ def _text(scene, m: dict) -> str:
         if m["asym_first"]:
             lines.append(f"asymmetric mode  n = {m['asym_n']} loses stability before V*, at "
                          f"V = {m['asym_V_m3'] * 1e6:.5g} ml, p = {m['asym_p_Pa'] / 1e3:.5g} kPa: the axisymmetric "
-                         "snap is not what happens")
+                         "snap is not what happens" + ("" if m.get("followed") else " (--follow traces what does)"))
         else:
             lines.append("asymmetric mode  none up to V* (harmonics checked)")
+        if m.get("followed"):
+            lines.append(f"followed branch  n = {m['follow_n']} ({m['follow_kind']}, harmonics up to {m['follow_N']}) "
+                         f"from V = {m['follow_V_bif_m3'] * 1e6:.5g} ml: the snap above is the followed one; "
+                         f"axisymmetric dE {m['axisym_dE_J'] * 1e3:.6g} mJ, dy_pole {m['axisym_dy_pole_m'] * 1e3:.5g} mm, "
+                         f"V* {m['axisym_V_star_m3'] * 1e6:.5g} ml")
+        elif m.get("followed") is False and m.get("follow_note"):
+            lines.append(f"followed branch  not followed: {m['follow_note']}")
         if m.get("asym_lower_stable") is not None:
-            lines.append(f"lower state, 3D {'stable' if m['asym_lower_stable'] else 'UNSTABLE'} against the harmonics checked")
+            lines.append(f"lower state, 3D {'stable' if m['asym_lower_stable'] else 'UNSTABLE'} against the harmonics checked"
+                         + (" (the axisymmetric path's)" if m.get("followed") else ""))
     lines += [
         f"p_max            {m['p_max_Pa'] / 1e3:.5g} kPa",
         f"self-crossing    {'yes' if m['self_crossing'] else 'no'}",
@@ -206,6 +217,12 @@ def _text(scene, m: dict) -> str:
               help="Check every path state up to the snap and the lower state against non-axisymmetric "
                    "modes cos(n phi), n = 1..N (Fourier-harmonic tangents; 0 = off). Reports asym_first, "
                    "asym_n, asym_V_m3, asym_p_Pa and asym_lower_stable.")
+@click.option("--follow", is_flag=True,
+              help="With --harmonics: when a harmonic loses stability before V*, trace the branch that "
+                   "bifurcates there (nonlinear Fourier series of that harmonic and its multiples) to its own "
+                   "snap, and report that snap as the answer (the axisymmetric one as axisym_*).")
+@click.option("--follow-N", "follow_N", type=click.IntRange(0, 16), default=0, show_default=True, metavar="N",
+              help="Highest harmonic of the followed branch (0: 4 n_c for the critical harmonic n_c).")
 @click.option("--air-ml", "air_ml", type=FiniteFloat(), default=None, metavar="V0",
               help="Inflate with air from a syringe: the gas volume of syringe, tube and cavity before inflation "
                    "[mL] (paper S3's V0_sys). The snap is then at the limit of the dispensed volume; the water "
@@ -217,8 +234,8 @@ def _text(scene, m: dict) -> str:
 @verbosity_options
 def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, overwrite: bool, harmonics: int,
             shapes_path: Path | None, animation_path: Path | None, export_path: Path | None, revolve: int,
-            air_ml: float | None, gamma: float | None, p0: float | None, time_limit_s: float, max_nodes: int,
-            **kw) -> None:
+            air_ml: float | None, gamma: float | None, p0: float | None, follow: bool, follow_N: int,
+            time_limit_s: float, max_nodes: int, **kw) -> None:
     """Trace one scene's pressure-volume path through its limit points and report the snap.
 
     \b
@@ -228,10 +245,13 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
       snapjump curve --design C --plot c.png --csv c.csv
       snapjump curve --design D --shapes d.png --animation d.gif --export d.pvd
       snapjump curve --cap outer --theta 90 --eta 16.5
+      snapjump curve --design B --harmonics 4 --follow --plot b.png
       snapjump curve --design C --air-ml 45 --plot c_air.png
     """
     from snapjump_cli.fe.solve import SolveFailed, solve_checked
 
+    if follow and harmonics < 1:
+        raise BadInput("--follow needs --harmonics N with N >= 1 (the check that finds the bifurcation)")
     scene = scene_from_options(**pick_scene_options(kw))
     ms = mesh_settings_from_options(**pick_mesh_options(kw))
     fluid = _fluid(air_ml, gamma, p0, harmonics)
@@ -241,7 +261,8 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
                "--export": export_path}
     check_outputs(outputs, revolve, overwrite)
     try:
-        res = solve_checked(scene, ms, SolverSettings(full=full, harmonics=harmonics, time_limit_s=time_limit_s,
+        res = solve_checked(scene, ms, SolverSettings(full=full, harmonics=harmonics, follow=follow,
+                                                      follow_N=follow_N, time_limit_s=time_limit_s,
                                                       max_nodes=max_nodes), fluid=fluid)
     except SolveFailed as exc:
         raise click.ClickException(f"solve failed: {exc}") from None

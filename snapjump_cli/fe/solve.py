@@ -25,7 +25,7 @@ from snapjump_cli.fe.lower_state import find_lower_state
 from snapjump_cli.mesh.data import Mesh
 from snapjump_cli.fe.metrics import scene_curve, snap_metrics
 from snapjump_cli.fe.model import Model
-from snapjump_cli.sweep.rows import ASYM_KEYS
+from snapjump_cli.sweep.rows import ASYM_KEYS, FOLLOW_ROW_KEYS
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.fe.snap import SnapStates, SnapTracker, state_at_pressure
 
@@ -49,6 +49,8 @@ class SceneResult:
     states: SnapStates | None = None
     tracer: Tracer | None = None
     curve_args: tuple | None = field(default=None, repr=False)  # (scales, V0) for :func:`scene_curve`
+    stop_args: dict | None = field(default=None, repr=False)  # the snap tracker's bounds (p_stop, V_stop, ...)
+    follow: object | None = field(default=None, repr=False)  # the followed branch (snapjump_cli.fe.follow)
     air: object | None = field(default=None, repr=False)  # the air snap (:class:`snapjump_cli.fe.air_snap.AirSnap`)
     _curve: dict | None = field(default=None, init=False, repr=False)
 
@@ -177,8 +179,10 @@ def solve_scene(
         t_newton_s=model.t_newton, n_factorizations=model.n_factorizations, n_assemblies=model.n_assemblies,
         wall_s=time.perf_counter() - t0,
     )
+    stop_args = {"p_stop": tracer.stop_bounds[0], "V_stop": tracer.stop_bounds[1],
+                 "post_snap_steps": post_snap_budget(solver)}
     return SceneResult(metrics=metrics, model=model, path=path, states=st, tracer=tracer, curve_args=(scales, V0),
-                       air=air)
+                       air=air, stop_args=stop_args)
 
 
 def post_snap_budget(solver: SolverSettings) -> int:
@@ -213,6 +217,7 @@ def _trace(scene: Design | CapScene, model: Model, solver: SolverSettings, V0: f
         p_stop = 1.5 * sc["p_c"]
     tracker = SnapTracker(tracer, p_stop=p_stop, V_stop=_V_stop(scene, V0) / sc["sV"], full=solver.full,
                           post_snap_steps=post_snap_budget(solver))
+    tracer.stop_bounds = (tracker.p_stop, tracker.V_stop)
     failure = ""
     path: Path | None = None
     try:
@@ -278,6 +283,7 @@ def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: Solve
     res = _solve_mesh_checked(scene, mesh, solver, check_mesh, fluid, fused)
     m = res.metrics
     m.update({k: None for k in ASYM_KEYS})
+    m.update({k: None for k in FOLLOW_ROW_KEYS})
     if solver.harmonics > 0 and res.model is not None and res.path is not None:
         from snapjump_cli.fe.harmonics import check_harmonics
 
@@ -286,6 +292,10 @@ def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: Solve
         m.update({k: h.get(k) for k in ASYM_KEYS})
         m["asym_wall_s"] = time.perf_counter() - t0
         m["wall_s"] = (m.get("wall_s") or 0.0) + m["asym_wall_s"]
+        if solver.follow:
+            from snapjump_cli.fe.follow import apply_followed
+
+            apply_followed(res, h, solver.follow_N)
     return res
 
 

@@ -205,7 +205,7 @@ class Tracer:
             if self.on_increment is not None:  # diagnostics (scripts/newton_study.py)
                 self.on_increment(it, inc)
             if tol_inc > 0.0 and it > 0 and inc < tol_inc and inc < inc_prev:
-                aux_dir = getattr(lin, "aux_dir", None)
+                aux_dir = getattr(lin, "aux_dir", None) if getattr(lin, "aux", None) is not None else None
                 aux_next = lin.aux + aux_dir(du) if aux_dir is not None else None
                 self.n_newton += it
                 return _Corrected(u + du, p + dp, solver, aux_next, aux_dir), it

@@ -105,7 +105,9 @@ def rank_results(
         Leave unranked the rows whose harmonic check (``solver: {harmonics: N}``) found a
         non-axisymmetric mode losing stability before V* (``asym_first``): their axisymmetric snap
         does not happen. ``y_jump_m`` is NaN and ``jump_reason`` says which harmonic. Without it
-        those rows are ranked and the ``asym`` column of the table flags them.
+        those rows are ranked and the ``asym`` column of the table flags them. Rows whose branch
+        was followed (``followed``, ``solver: {follow: true}``) are ranked by the followed snap, which
+        happens, and never excluded; their jump with the axisymmetric answer is in ``y_jump_axisym_m``.
 
     Returns
     -------
@@ -131,11 +133,33 @@ def rank_results(
         masses_fn = masses_fn or jump.masses
     rho = float(getattr(params, "rho", 1000.0))
     out = _jump_columns(df, params, jump_fn, masses_fn, rho, jumps_fn, _contract_breaches(df))
+    followed = (df["followed"].astype("boolean").fillna(False).to_numpy(bool) if "followed" in df.columns
+                else np.zeros(len(df), bool))
     if exclude_asymmetric and "asym_first" in df.columns:
         n_first = df["asym_n"] if "asym_n" in df.columns else pd.Series(pd.NA, index=df.index)
-        for j in np.flatnonzero(df["asym_first"].astype("boolean").fillna(False).to_numpy(bool)):
+        # a followed row's answer is the snap of the branch it follows: it happens, keep it
+        for j in np.flatnonzero(df["asym_first"].astype("boolean").fillna(False).to_numpy(bool) & ~followed):
             _unranked(out, j, f"excluded: harmonic n = {n_first.iloc[j]} loses stability before V* (asymmetric mode)")
-    return _ranked(df, out)
+    ranked = _ranked(df, out)
+    if followed.any():
+        ranked["y_jump_axisym_m"] = _axisym_jumps(ranked, params, jump_fn, masses_fn, rho, jumps_fn)
+    return ranked
+
+
+def _axisym_jumps(ranked: pd.DataFrame, params: Any, jump_fn, masses_fn, rho: float, jumps_fn) -> np.ndarray:
+    """The jump of the axisymmetric answer (``axisym_*``) of each followed ``ok`` row (the row's own
+    ``y_jump_m`` where it was not followed): the ranking's followed answer beside the one it
+    replaced."""
+    y = ranked["y_jump_m"].to_numpy(dtype=float).copy()
+    fol = ranked["followed"].astype("boolean").fillna(False).to_numpy(bool) & (ranked["status"] == "ok").to_numpy()
+    if not fol.any():
+        return y
+    sub = ranked.loc[fol].copy()
+    for k in ("dE_J", "dy_pole_m", "h_imp_m"):
+        sub[k] = sub["axisym_" + k]
+    cols = _jump_columns(sub, params, jump_fn, masses_fn, rho, jumps_fn)
+    y[np.flatnonzero(fol)] = [math.nan if v is None else v for v in cols["y_jump_m"]]
+    return y
 
 
 def _unranked(out: dict[str, list[Any]], j: int, reason: str) -> None:
@@ -305,6 +329,8 @@ TOP_COLUMNS: dict[str, tuple[str, float]] = {
     "dy_pole_mm": ("dy_pole_m", 1e3),
     "h_imp_mm": ("h_imp_m", 1e3),
     "y_jump_mm": ("y_jump_m", 1e3),
+    "axisym_y_mm": ("y_jump_axisym_m", 1e3),
+    "followed": ("followed", 1.0),
     "jumped": ("jumped", 1.0),
     "jump_complete": ("jump_complete", 1.0),
     "self_crossing": ("self_crossing", 1.0),
@@ -340,9 +366,9 @@ def top_table(ranked: pd.DataFrame, n: int = 10) -> str:
     fmt = {k: (lambda x: "" if pd.isna(x) else f"{x:.4g}") for k in
            ("eta_i", "theta_i", "eta_o", "theta_o", "mu_ratio")}
     fmt.update({k: (lambda x: "-" if pd.isna(x) else f"{x:.2f}") for k in
-                ("dE_mJ", "dy_pole_mm", "h_imp_mm", "y_jump_mm")})
+                ("dE_mJ", "dy_pole_mm", "h_imp_mm", "y_jump_mm", "axisym_y_mm")})
     fmt.update({k: (lambda x: "-" if pd.isna(x) else ("yes" if x else "no")) for k in
-                ("jumped", "jump_complete", "self_crossing", "mesh_sensitive")})
+                ("jumped", "jump_complete", "self_crossing", "mesh_sensitive", "followed")})
     fmt["asym_n"] = lambda x: "-" if pd.isna(x) else f"{int(x)}"
     # formatted here, not through to_string's formatters: pandas leaves <NA> of nullable columns as is
     other = lambda x: "-" if pd.isna(x) else str(x)  # noqa: E731

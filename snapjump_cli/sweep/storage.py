@@ -97,7 +97,7 @@ def design_key(point: DesignPoint | Design | Mapping[str, Any], mesh: MeshSettin
 
 #: Solver settings added after KEY_VERSION v2 with the value that leaves the computation as it was:
 #: left out of the key at that value, so rows computed before the setting existed are still found.
-_NEUTRAL_SETTINGS = {"harmonics": 0}
+_NEUTRAL_SETTINGS = {"harmonics": 0, "follow": False, "follow_N": 0}
 
 
 def _key_settings(solver: SolverSettings) -> dict[str, Any]:

@@ -299,24 +299,40 @@ def make_plots(ranked: pd.DataFrame, out_dir: str | Path, batch: Any = None) -> 
     return files
 
 
-def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "") -> Path:
+def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "", branch: dict | None = None) -> Path:
     """The pressure-volume path of one scene, normalised as the paper's Fig. 2A
     (``p / mu_i`` against ``dV / R_i^3``), with the released energy dE shaded (the area between
     the path and the vertical line ``V = V*``), the volume limit point (black) and the isochoric
-    point on the lower branch (white) marked."""
+    point on the lower branch (white) marked. ``branch`` (:func:`snapjump_cli.fe.follow.branch_curve`):
+    the followed non-axisymmetric branch, drawn from its bifurcation with its own snap shaded, as
+    in the paper's Fig. S16."""
     plt = _pyplot()
     L, mu, V0 = curve["L_m"], curve["mu_Pa"], curve["V0_m3"]
     x = (np.asarray(curve["V_m3"]) - V0) / L**3
     y = np.asarray(curve["p_Pa"]) / mu
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
-    ax.plot(x, y, "-", color="tab:blue", lw=1.4, label="equilibrium path")
+    axisym = branch is not None
+    ax.plot(x, y, "-", color="tab:blue", lw=1.4, label="axisymmetric path" if axisym else "equilibrium path")
     if metrics.get("snaps") and "snap_V_m3" in curve:
         sx = (np.asarray(curve["snap_V_m3"]) - V0) / L**3
         sy = np.asarray(curve["snap_p_Pa"]) / mu
+        dE = metrics.get("axisym_dE_J") if axisym and metrics.get("axisym_dE_J") is not None else metrics["dE_J"]
         ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:blue", alpha=0.25,
-                label=f"dE = {metrics['dE_J'] * 1e3:.4g} mJ ({metrics['lower_state_method']})")
+                label=f"dE = {dE * 1e3:.4g} mJ" + ("" if axisym else f" ({metrics['lower_state_method']})"))
         ax.plot(sx[0], sy[0], "o", mfc="k", mec="k", ms=7, label="volume limit V*")
         ax.plot(sx[-1], sy[-1], "o", mfc="w", mec="k", ms=7, label="isochoric point")
+    if axisym:
+        bx = (np.asarray(branch["V_m3"]) - V0) / L**3
+        by = np.asarray(branch["p_Pa"]) / mu
+        ax.plot(bx, by, "-", color="tab:orange", lw=1.4,
+                label=f"followed branch (n = {branch['n']}, {branch['kind'] or 'no snap'}, N = {branch['N']})")
+        ax.plot(bx[:1], by[:1], "D", mfc="tab:orange", mec="k", ms=6, label="bifurcation")
+        if "snap_V_m3" in branch:
+            sx = (np.asarray(branch["snap_V_m3"]) - V0) / L**3
+            sy = np.asarray(branch["snap_p_Pa"]) / mu
+            ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:orange", alpha=0.3,
+                    label=f"followed dE = {metrics['dE_J'] * 1e3:.4g} mJ")
+            ax.plot(sx[-1], sy[-1], "s", mfc="w", mec="tab:orange", ms=6, label="followed isochoric point")
     ax.set_xlabel(r"$\Delta V / R_i^3$")
     ax.set_ylabel(r"$p / \mu_i$")
     ax.set_title(title)

@@ -129,13 +129,24 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
     if "--plot" in wanted:
         from snapjump_cli.viz.figures import plot_air_curves, plot_pv_curve
 
-        plot = plot_pv_curve if air is None else plot_air_curves
-        jobs.append(("--plot", wanted["--plot"], lambda t: plot(res.curve, metrics, t, title=title)))
-    if "--shapes" in wanted:
-        from snapjump_cli.viz.shapes import key_shape_states, plot_shapes
+        branch = None
+        if getattr(res, "follow", None) is not None:  # the followed branch beside the axisymmetric path
+            from snapjump_cli.fe.follow import branch_curve
 
+            branch = branch_curve(res.follow)
+        if air is None:
+            jobs.append(("--plot", wanted["--plot"],
+                         lambda t: plot_pv_curve(res.curve, metrics, t, title=title, branch=branch)))
+        else:
+            jobs.append(("--plot", wanted["--plot"], lambda t: plot_air_curves(res.curve, metrics, t, title=title)))
+    if "--shapes" in wanted:
+        from snapjump_cli.viz.shapes import followed_shape_states, key_shape_states, plot_shapes
+
+        shape_states = key_shape_states(steps, mesh.nodes)
+        if getattr(res, "follow", None) is not None:  # the followed snap's states, both meridian sections
+            shape_states += followed_shape_states(res.follow)
         jobs.append(("--shapes", wanted["--shapes"], lambda t: plot_shapes(
-            mesh, key_shape_states(steps, mesh.nodes), t, title=title, volume_symbol=vsym)))
+            mesh, shape_states, t, title=title, volume_symbol=vsym)))
     if "--animation" in wanted:
         from snapjump_cli.viz.animation import write_animation
 

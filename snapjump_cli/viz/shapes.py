@@ -17,7 +17,8 @@ import numpy as np
 
 from snapjump_cli.viz.fields import element_points, principal_stretch
 
-__all__ = ["ShapeState", "SectionDrawing", "plot_shapes", "key_shape_states", "state_caption", "STRETCH_LABEL"]
+__all__ = ["ShapeState", "SectionDrawing", "plot_shapes", "key_shape_states", "followed_shape_states", "state_caption",
+           "STRETCH_LABEL"]
 
 log = logging.getLogger(__name__)
 
@@ -326,4 +327,22 @@ def key_shape_states(steps, X: np.ndarray) -> list[ShapeState]:
         else:
             out.append(ShapeState("last traced state (no snap)", float(steps.p_Pa[k]), float(steps.V_m3[k]),
                                   X + steps.U[k]))
+    return out
+
+
+def followed_shape_states(fr) -> list[ShapeState]:
+    """The followed snap's upper and lower states (``fr``: :class:`snapjump_cli.fe.follow.FollowResult`)
+    (SI), each with its two meridian sections ``phi = 0`` (right half) and ``phi = pi`` (left half).
+    The colour is computed from each section as if it were an axisymmetric map: away from the axis
+    it is close to the 3D stretch in the section's plane, but near the axis the ``n = 1`` part
+    (which moves the axis sideways) makes its hoop stretch meaningless."""
+    mh, st, sc = fr.model, fr.states, fr.tracer.sc
+    if st.upper is None or st.lower is None:
+        return []
+    L, S = mh.L, mh.S
+    out = []
+    for name, pt in (("followed upper state", st.upper), ("followed lower state", st.lower)):
+        out.append(ShapeState(f"{name} (n = {fr.bif.n})", float(pt.p * S), float(pt.zeta[0] * sc[0] * L**3),
+                              mh.section(pt.u, 0.0) * L, mh.section(pt.u, np.pi) * L,
+                              note="colour: each section read as an axisymmetric map"))
     return out

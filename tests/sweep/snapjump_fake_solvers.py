@@ -16,7 +16,7 @@ import os
 import time
 
 from snapjump_cli.geometry.caps import design_volumes
-from snapjump_cli.sweep.rows import AIR_KEYS, RESULT_KEYS
+from snapjump_cli.sweep.rows import AIR_KEYS, FOLLOW_ROW_KEYS, RESULT_KEYS
 
 WARM_UPS = []
 
@@ -50,6 +50,7 @@ def fast_solve(design, mesh, solver) -> dict:
     out = {k: 0.0 for k in RESULT_KEYS}
     out.update(mesh_sensitive=False, mesh_check="", dE_J_coarse=None, dy_pole_m_coarse=None, asym_first=None,
                asym_n=None, asym_V_m3=None, asym_p_Pa=None, asym_lower_stable=None)
+    out.update({k: None for k in FOLLOW_ROW_KEYS})
     out.update({k: None for k in AIR_KEYS}, fluid="water")
     out.update(
         dE_J=dE, dE_norm=dE / (design.mu_i * design.R_i ** 3), dE_energy_J=dE, dE_path_J=dE * (1 + 1e-6),

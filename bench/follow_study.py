@@ -1,0 +1,83 @@
+"""The followed branches of the named scenes, with the N-convergence (docs/harmonics.md, section 10).
+
+    python -m bench.follow_study [SCENE ...] [--out bench/out/follow_study.json]
+
+For each scene: the axisymmetric solve (default mesh), the harmonic check (n <= 4), and when a
+harmonic goes first the followed branch with N = 4 n_c and with N + max(2, n_c) harmonics; CPU
+seconds of each part. Prints one markdown table row per scene and writes the numbers as JSON.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+SCENES = {
+    "A": ("design", "A"),
+    "B": ("design", "B"),
+    "C": ("design", "C"),
+    "D": ("design", "D"),
+    "S16-12.5-70": ("cap", dict(theta_deg=70.0, eta=12.5, bc="ring-roller")),
+    "S16-10-60": ("cap", dict(theta_deg=60.0, eta=10.0, bc="ring-roller")),
+    "clamped-30-50": ("cap", dict(theta_deg=30.0, eta=50.0, bc="clamped")),
+}
+
+
+def run(name: str) -> dict:
+    from snapjump_cli.geometry.designs import get_design
+    from snapjump_cli.fe.follow import default_harmonics, follow_branch, locate_bifurcation
+    from snapjump_cli.geometry.caps import CapScene
+    from snapjump_cli.fe.harmonics import check_harmonics
+    from snapjump_cli.settings import MeshSettings, SolverSettings
+    from snapjump_cli.fe.solve import solve_scene
+
+    kind, arg = SCENES[name]
+    scene = get_design(arg) if kind == "design" else CapScene(**arg)
+    t0 = time.process_time()
+    res = solve_scene(scene, MeshSettings(), SolverSettings())
+    t_axi = time.process_time() - t0
+    chk = check_harmonics(res, 4)
+    m = res.metrics
+    out = {"scene": name, "cpu_axisym_s": t_axi, "axisym_dE_J": m["dE_J"], "axisym_dy_pole_m": m["dy_pole_m"],
+           "axisym_V_star_m3": m["V_star_m3"], "axisym_h_imp_m": m.get("h_imp_m"), "asym_n": chk["asym_n"],
+           "asym_V_m3": chk["asym_V_m3"], "runs": []}
+    if not chk["asym_first"]:
+        return out
+    n = int(chk["asym_n"])
+    t0 = time.process_time()
+    bif = locate_bifurcation(res, n)
+    out["cpu_locate_s"] = time.process_time() - t0
+    N1 = 4 * n
+    for N in (N1, N1 + max(2, n)):
+        t0 = time.process_time()
+        fr = follow_branch(res, bif, default_harmonics(n, N))
+        fm = fr.metrics
+        row = {k: fm.get(k) for k in ("follow_kind", "dE_J", "dy_pole_m", "h_imp_m", "V_star_m3", "p_star_Pa",
+                                      "follow_lower_method", "follow_dE_rel_diff", "follow_note",
+                                      "follow_micro_folds", "follow_V_bif_m3")}
+        row.update(N=N, first_kind=fr.first_kind, cpu_s=time.process_time() - t0, steps=len(fr.path.points) - 1,
+                   assemblies=fr.model.n_assemblies, ndof=fr.model.n)
+        out["runs"].append(row)
+        print(json.dumps({"scene": name, **row}), file=sys.stderr, flush=True)
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scenes", nargs="*", default=list(SCENES))
+    ap.add_argument("--out", type=Path, default=Path("bench/out/follow_study.json"))
+    a = ap.parse_args(argv)
+    rows = []
+    for name in a.scenes:
+        r = run(name)
+        rows.append(r)
+        a.out.parent.mkdir(parents=True, exist_ok=True)
+        a.out.write_text(json.dumps(rows, indent=1, default=float))
+        print(r["scene"], json.dumps(r, default=float), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

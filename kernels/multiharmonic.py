@@ -1,0 +1,584 @@
+"""Nonlinear multi-harmonic (Fourier) mixed Gent solid: energy, residual and tangent.
+
+The displacement of the 2D mesh's solid of revolution is a truncated Fourier series in the
+circumferential angle phi, in the subspace that is mirror-symmetric about ``phi = 0``::
+
+    u_r = sum_k a_k(R, Z) cos n_k phi,   u_z = sum_k b_k(R, Z) cos n_k phi,
+    u_phi = sum_{k >= 1} c_k(R, Z) sin n_k phi,                 (n_0 = 0: no torsion)
+
+with the harmonics ``n_k`` of ``hn`` (``hn[0] = 0``). The nodal unknowns are stored node by node,
+``[a_0, b_0, a_1, b_1, c_1, a_2, ...]`` (``nc = 2 + 3 (K - 1)`` per node, ``K = len(hn)``).
+
+The full 3D deformation gradient (rows r, phi, z; columns R, Phi, Z) at ``phi`` is::
+
+    F = | 1 + u_r,R             (u_r,phi - u_phi) / R          u_r,Z     |
+        | u_phi,R               1 + (u_r + u_phi,phi) / R      u_phi,Z   |
+        | u_z,R                 u_z,phi / R                    1 + u_z,Z |
+
+stored as the 9-vector ``v = [F_rR, F_rZ, F_zR, F_zZ, F_phiPhi | F_rPhi, F_phiR, F_phiZ, F_zPhi]``:
+the first five carry ``cos n phi`` (the axisymmetric components of :mod:`snapjump_kernels.gent`),
+the last four ``sin n phi``. The energy is the phi-average (times the ``2 pi R`` weight that
+``Wq`` carries) of the mixed element's reduced energy evaluated with the 3D ``F`` at every phi
+point of a trapezoidal rule on ``[0, pi / n_1]`` (the fields are even in phi and, with harmonics
+that are multiples of ``n_1``, ``2 pi / n_1``-periodic)::
+
+    Pi = sum_j w_j [ sum_q W_q psi_iso(F_q(phi_j)) + kappa/2 g_j^T M^-1 g_j ],
+    g_j = sum_q W_q Np_q (J_q(phi_j) - 1)
+
+so the pressure and the dilatation are eliminated at every phi point, as the axisymmetric element
+does (:mod:`snapjump_kernels.assembly`). Gradient and Hessian are exact for that quadrature; they
+are formed through the phi-moments of the pointwise stress and tangent, ``sum_j w_j t_k(phi_j)
+s(phi_j)`` and ``sum_j w_j t_k t_l D(phi_j)`` (``t = cos`` or ``sin`` by component), contracted with
+the phi-independent nodal B matrices of each harmonic.
+
+The cavity volume is the exact 3D flux ``V = -1/2 int int (x, y, 0) . (x_s x x_phi) ds dphi``
+(docs/harmonics.md, section 4), a cubic polynomial of the amplitudes, integrated exactly when the
+rule has more than ``3 K_max / 2`` intervals.
+
+Arrays in, arrays out.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from snapjump_kernels.cavity import _edge_shape
+
+_GP = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
+_GW = np.array([5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0])
+# (row, column) of each of the 9 components in the 3x3 matrix
+_ROW = np.array([0, 0, 2, 2, 1, 0, 1, 1, 2])
+_COL = np.array([0, 2, 0, 2, 1, 1, 0, 2, 1])
+
+
+@njit(cache=True)
+def phi_rule(n1: int, m: int) -> tuple:
+    """Trapezoidal rule on ``[0, pi / n1]`` with ``m`` intervals (``m + 1`` points; one point of
+    weight 1 for ``m = 0``): the points and the weights of the phi-average, summing to 1."""
+    if m == 0:
+        return np.zeros(1), np.ones(1)
+    phis = np.empty(m + 1)
+    w = np.empty(m + 1)
+    for j in range(m + 1):
+        phis[j] = j * np.pi / (n1 * m)
+        w[j] = 1.0 / m
+    w[0] *= 0.5
+    w[m] *= 0.5
+    return phis, w
+
+
+@njit(cache=True)
+def _offset(k: int) -> int:
+    return 0 if k == 0 else 2 + 3 * (k - 1)
+
+
+@njit(cache=True)
+def _ndof_k(k: int) -> int:
+    return 2 if k == 0 else 3
+
+
+@njit(cache=True)
+def _node_b(bx: float, by: float, bn: float, n: float, B: np.ndarray) -> None:
+    """Dense 9 x 3 B of one node and harmonic ``n`` (columns a, b, c)."""
+    B[:, :] = 0.0
+    B[0, 0] = bx
+    B[1, 0] = by
+    B[4, 0] = bn
+    B[5, 0] = -n * bn
+    B[2, 1] = bx
+    B[3, 1] = by
+    B[8, 1] = -n * bn
+    B[4, 2] = n * bn
+    B[5, 2] = -bn
+    B[6, 2] = bx
+    B[7, 2] = by
+
+
+@njit(cache=True, inline="always")
+def _db_cols(D: np.ndarray, bx: float, by: float, bn: float, n: float, out: np.ndarray) -> None:
+    """``out (9, 3) = D (9x9) @ B`` of one node and harmonic ``n`` (the sparse B of :func:`_node_b`)."""
+    nbn = n * bn
+    for c in range(9):
+        out[c, 0] = D[c, 0] * bx + D[c, 1] * by + D[c, 4] * bn - D[c, 5] * nbn
+        out[c, 1] = D[c, 2] * bx + D[c, 3] * by - D[c, 8] * nbn
+        out[c, 2] = D[c, 4] * nbn - D[c, 5] * bn + D[c, 6] * bx + D[c, 7] * by
+
+
+@njit(cache=True, inline="always")
+def _bt_db(bx: float, by: float, bn: float, n: float, DB: np.ndarray, nk: int, nl: int, K: np.ndarray,
+           oa: int, ob: int) -> None:
+    """``K[oa:oa+nk, ob:ob+nl] += B^T DB`` for one node's sparse B (harmonic ``n``)."""
+    nbn = n * bn
+    for j in range(nl):
+        K[oa, ob + j] += bx * DB[0, j] + by * DB[1, j] + bn * DB[4, j] - nbn * DB[5, j]
+        K[oa + 1, ob + j] += bx * DB[2, j] + by * DB[3, j] - nbn * DB[8, j]
+        if nk > 2:
+            K[oa + 2, ob + j] += nbn * DB[4, j] - bn * DB[5, j] + bx * DB[6, j] + by * DB[7, j]
+
+
+@njit(cache=True)
+def gent3(v: np.ndarray, mu: float, jm: float, want: int, dpsi: np.ndarray, d2psi: np.ndarray, dJ: np.ndarray,
+          d2J: np.ndarray) -> tuple:
+    """Isochoric Gent energy of a full 3D deformation gradient (the 9-vector ``v``) with its first
+    (``want >= 1``) and second (``want >= 2``) derivatives, and ``J`` with its derivatives.
+
+    Returns ``(ok, psi, J)``; ``ok`` is False outside the Gent domain (or ``J <= 0``).
+    """
+    F = np.empty((3, 3))
+    for c in range(9):
+        F[_ROW[c], _COL[c]] = v[c]
+    J = (F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1]) - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
+         + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]))
+    # cofactor dJ/dF_iA
+    for c in range(9):
+        i = _ROW[c]
+        A = _COL[c]
+        i1 = (i + 1) % 3
+        i2 = (i + 2) % 3
+        A1 = (A + 1) % 3
+        A2 = (A + 2) % 3
+        dJ[c] = F[i1, A1] * F[i2, A2] - F[i1, A2] * F[i2, A1]
+    if want >= 2:
+        for c in range(9):
+            i = _ROW[c]
+            A = _COL[c]
+            for d in range(9):
+                j = _ROW[d]
+                B = _COL[d]
+                if i == j or A == B:
+                    d2J[c, d] = 0.0
+                else:
+                    k = 3 - i - j
+                    C = 3 - A - B
+                    s1 = 1.0 if (j - i) % 3 == 1 else -1.0
+                    s2 = 1.0 if (B - A) % 3 == 1 else -1.0
+                    d2J[c, d] = s1 * s2 * F[k, C]
+    if J <= 0.0:
+        return False, 0.0, J
+    I1 = 0.0
+    for c in range(9):
+        I1 += v[c] * v[c]
+    cc = J ** (-2.0 / 3.0)
+    arg = 1.0 - (cc * I1 - 3.0) / jm
+    if arg <= 0.0:
+        return False, 0.0, J
+    psi = -0.5 * mu * jm * np.log(arg)
+    if want >= 1:
+        a = 0.5 * mu / arg
+        b = 0.5 * mu / (jm * arg * arg)
+        cJ = (2.0 / 3.0) * cc / J
+        dI = np.empty(9)
+        for c in range(9):
+            dI[c] = 2.0 * cc * v[c] - cJ * I1 * dJ[c]
+            dpsi[c] = a * dI[c]
+        if want >= 2:
+            t = (10.0 / 9.0) * cc / (J * J) * I1
+            for c in range(9):
+                for d in range(c, 9):
+                    d2 = -cJ * (2.0 * v[c] * dJ[d] + 2.0 * v[d] * dJ[c]) + t * dJ[c] * dJ[d] - cJ * I1 * d2J[c, d]
+                    if c == d:
+                        d2 += 2.0 * cc
+                    val = a * d2 + b * dI[c] * dI[d]
+                    d2psi[c, d] = val
+                    d2psi[d, c] = val
+    return True, psi, J
+
+
+@njit(cache=True)
+def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, jm: np.ndarray,
+                kappa: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray, Wq: np.ndarray,
+                Np: np.ndarray, Minv: np.ndarray, hn: np.ndarray, phis: np.ndarray, wphi: np.ndarray,
+                want: int):
+    """Energy, element residuals and element tangents of the multi-harmonic solid.
+
+    Parameters
+    ----------
+    A : (nn, nc) nodal amplitudes (scaled displacements), layout of the module docstring
+    conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv : as in
+        :func:`snapjump_kernels.assembly.assemble`
+    hn : (K,) harmonic numbers, ``hn[0] = 0``
+    phis, wphi : the phi rule (:func:`phi_rule`)
+    want : 0 energy, 1 and residuals, 2 and tangents
+
+    Returns
+    -------
+    (E, ok, re, Ke) : the energy, False if some point left the Gent domain, the element residuals
+        (ne, nen nc) and tangents (ne, nen nc, nen nc; empty unless ``want >= 2``)
+    """
+    ne, nen = conn.shape
+    nq = Wq.shape[1]
+    npr = Np.shape[1]
+    K = hn.shape[0]
+    nc = 2 + 3 * (K - 1)
+    nd = nen * nc
+    nphi = phis.shape[0]
+    re = np.zeros((ne, nd))
+    Ke = np.zeros((ne, nd, nd)) if want >= 2 else np.zeros((0, nd, nd))
+    # trig table t[j, k, c]: cos n_k phi_j for c < 5, sin for c >= 5
+    t = np.empty((nphi, K, 9))
+    for j in range(nphi):
+        for k in range(K):
+            cs = np.cos(hn[k] * phis[j])
+            sn = np.sin(hn[k] * phis[j])
+            for c in range(9):
+                t[j, k, c] = cs if c < 5 else sn
+    E = 0.0
+    Gk = np.empty((K, 9))
+    v = np.empty(9)
+    dpsi = np.zeros(9)
+    d2psi = np.zeros((9, 9))
+    dJ = np.zeros(9)
+    d2J = np.zeros((9, 9))
+    # per element and phi point
+    Jq = np.empty((nq, nphi))
+    Sq = np.empty((nq, nphi, 9))  # W (dpsi) at each point (the pressure part added after)
+    dJq = np.empty((nq, nphi, 9))
+    Dq = np.empty((nq, nphi, 9, 9)) if want >= 2 else np.empty((0, 0, 9, 9))
+    d2Jq = np.empty((nq, nphi, 9, 9)) if want >= 2 else np.empty((0, 0, 9, 9))
+    g = np.empty((nphi, npr))
+    pel = np.empty((nphi, npr))
+    Bn = np.empty((nen, K, 9, 3))
+    S = np.empty((K, 9))
+    Dt = np.empty((9, 9))
+    DB = np.empty((nen, 9, 3))
+    Gv = np.empty((npr, nd))
+    Hv = np.empty((npr, nd))
+    bq = np.empty((nen, 3))
+    hk = np.empty(nd, np.int64)  # harmonic index of each element dof
+    for a in range(nen):
+        for k in range(K):
+            for dof in range(_ndof_k(k)):
+                hk[a * nc + _offset(k) + dof] = k
+    for e in range(ne):
+        m_ = mat[e]
+        mu_e = mu[m_]
+        jm_e = jm[m_]
+        ka = kappa[m_]
+        g[:, :] = 0.0
+        for q in range(nq):
+            R = Rq[e, q]
+            # harmonic gradients G_k = sum_a B_{k,a} q_{a,k}
+            Gk[:, :] = 0.0
+            for a in range(nen):
+                node = conn[e, a]
+                bx = dNdX[e, q, a, 0]
+                by = dNdX[e, q, a, 1]
+                bn = N_ref[q, a] / R
+                for k in range(K):
+                    n = float(hn[k])
+                    o = _offset(k)
+                    ua = A[node, o]
+                    ub = A[node, o + 1]
+                    uc = A[node, o + 2] if k > 0 else 0.0
+                    Gk[k, 0] += bx * ua
+                    Gk[k, 1] += by * ua
+                    Gk[k, 2] += bx * ub
+                    Gk[k, 3] += by * ub
+                    Gk[k, 4] += bn * (ua + n * uc)
+                    Gk[k, 5] += -bn * (n * ua + uc)
+                    Gk[k, 6] += bx * uc
+                    Gk[k, 7] += by * uc
+                    Gk[k, 8] += -n * bn * ub
+            W = Wq[e, q]
+            for j in range(nphi):
+                for c in range(9):
+                    s = 0.0
+                    for k in range(K):
+                        s += t[j, k, c] * Gk[k, c]
+                    v[c] = s
+                v[0] += 1.0
+                v[3] += 1.0
+                v[4] += 1.0
+                if want >= 2:
+                    ok, psi, J = gent3(v, mu_e, jm_e, 2, dpsi, d2psi, dJ, d2J)
+                else:
+                    ok, psi, J = gent3(v, mu_e, jm_e, want, dpsi, d2psi, dJ, d2J)
+                if not ok:
+                    return E, False, re, Ke
+                E += wphi[j] * W * psi
+                Jq[q, j] = J
+                for c in range(9):
+                    Sq[q, j, c] = W * dpsi[c]
+                    dJq[q, j, c] = dJ[c]
+                if want >= 2:
+                    for c in range(9):
+                        for d in range(9):
+                            Dq[q, j, c, d] = W * d2psi[c, d]
+                            d2Jq[q, j, c, d] = d2J[c, d]
+                for k2 in range(npr):
+                    g[j, k2] += W * Np[q, k2] * (J - 1.0)
+        # element pressures at every phi point, the volumetric energy
+        for j in range(nphi):
+            ev = 0.0
+            for k2 in range(npr):
+                s = 0.0
+                for l2 in range(npr):
+                    s += Minv[e, k2, l2] * g[j, l2]
+                pel[j, k2] = ka * s
+                ev += 0.5 * g[j, k2] * pel[j, k2]
+            E += wphi[j] * ev
+        if want < 1:
+            continue
+        for q in range(nq):
+            R = Rq[e, q]
+            for a in range(nen):
+                bx = dNdX[e, q, a, 0]
+                by = dNdX[e, q, a, 1]
+                bn = N_ref[q, a] / R
+                bq[a, 0] = bx
+                bq[a, 1] = by
+                bq[a, 2] = bn
+                for k in range(K):
+                    _node_b(bx, by, bn, float(hn[k]), Bn[a, k])
+            W = Wq[e, q]
+            # residual moments S_k = sum_j w_j t_k (W dpsi + W p dJ)
+            S[:, :] = 0.0
+            for j in range(nphi):
+                pq = 0.0
+                for k2 in range(npr):
+                    pq += Np[q, k2] * pel[j, k2]
+                for c in range(9):
+                    sj = wphi[j] * (Sq[q, j, c] + W * pq * dJq[q, j, c])
+                    for k in range(K):
+                        S[k, c] += t[j, k, c] * sj
+            for a in range(nen):
+                for k in range(K):
+                    o = a * nc + _offset(k)
+                    for dof in range(_ndof_k(k)):
+                        s = 0.0
+                        for c in range(9):
+                            s += Bn[a, k, c, dof] * S[k, c]
+                        re[e, o + dof] += s
+            if want < 2:
+                continue
+            # tangent: for each pair of harmonics k <= l the phi-moment of D, then B_k^T Dt B_l
+            # (the B of a node is sparse: _db_cols / _bt_db), mirrored afterwards
+            for j in range(nphi):
+                pq = 0.0
+                for k2 in range(npr):
+                    pq += Np[q, k2] * pel[j, k2]
+                pw = W * pq
+                for c in range(9):
+                    for d in range(9):
+                        Dq[q, j, c, d] += pw * d2Jq[q, j, c, d]
+            for k in range(K):
+                nk = _ndof_k(k)
+                fk = float(hn[k])
+                for l in range(k, K):
+                    fl = float(hn[l])
+                    nl = _ndof_k(l)
+                    Dt[:, :] = 0.0
+                    for j in range(nphi):
+                        wj = wphi[j]
+                        ck = wj * t[j, k, 0]
+                        sk = wj * t[j, k, 5]
+                        cl = t[j, l, 0]
+                        sl = t[j, l, 5]
+                        wcc = ck * cl
+                        wcs = ck * sl
+                        wsc = sk * cl
+                        wss = sk * sl
+                        for c in range(5):
+                            for d in range(5):
+                                Dt[c, d] += wcc * Dq[q, j, c, d]
+                            for d in range(5, 9):
+                                Dt[c, d] += wcs * Dq[q, j, c, d]
+                        for c in range(5, 9):
+                            for d in range(5):
+                                Dt[c, d] += wsc * Dq[q, j, c, d]
+                            for d in range(5, 9):
+                                Dt[c, d] += wss * Dq[q, j, c, d]
+                    for b in range(nen):
+                        _db_cols(Dt, bq[b, 0], bq[b, 1], bq[b, 2], fl, DB[b])
+                    for a in range(nen):
+                        oa = a * nc + _offset(k)
+                        for b in range(nen):
+                            ob = b * nc + _offset(l)
+                            _bt_db(bq[a, 0], bq[a, 1], bq[a, 2], fk, DB[b], nk, nl, Ke[e], oa, ob)
+        if want < 2:
+            continue
+        # the elastic blocks of harmonics k < l were formed once: their transposes are the (l, k) blocks
+        for i in range(nd):
+            for jj in range(nd):
+                if hk[i] < hk[jj]:
+                    Ke[e, jj, i] = Ke[e, i, jj]
+        # volumetric constraint stiffness: sum_j w_j kappa G_j^T M^-1 G_j
+        for j in range(nphi):
+            Gv[:, :] = 0.0
+            for q in range(nq):
+                R = Rq[e, q]
+                W = Wq[e, q]
+                for a in range(nen):
+                    bx = dNdX[e, q, a, 0]
+                    by = dNdX[e, q, a, 1]
+                    bn = N_ref[q, a] / R
+                    for k in range(K):
+                        _node_b(bx, by, bn, float(hn[k]), Bn[a, k])
+                        o = a * nc + _offset(k)
+                        for dof in range(_ndof_k(k)):
+                            s = 0.0
+                            for c in range(9):
+                                s += dJq[q, j, c] * t[j, k, c] * Bn[a, k, c, dof]
+                            for k2 in range(npr):
+                                Gv[k2, o + dof] += W * Np[q, k2] * s
+            for k2 in range(npr):
+                for i in range(nd):
+                    s = 0.0
+                    for l2 in range(npr):
+                        s += Minv[e, k2, l2] * Gv[l2, i]
+                    Hv[k2, i] = wphi[j] * ka * s
+            for i in range(nd):
+                for jj in range(i, nd):
+                    s = 0.0
+                    for k2 in range(npr):
+                        s += Gv[k2, i] * Hv[k2, jj]
+                    Ke[e, i, jj] += s
+                    if jj != i:
+                        Ke[e, jj, i] += s
+    return E, True, re, Ke
+
+
+@njit(cache=True)
+def _cavity_point(y: np.ndarray, want: int, dv: np.ndarray, d2v: np.ndarray) -> float:
+    """``v = -P / 2`` of the flux integrand in ``y = (rho, rho_s, rho_phi, sig, sig_s, sig_phi,
+    zeta_s, zeta_phi)``, ``P = rho sig_s zeta_phi - rho zeta_s (rho + sig_phi) + sig zeta_s (rho_phi
+    - sig) - sig rho_s zeta_phi``, with its gradient and Hessian."""
+    r, rs, rp, s, ss, sp, zs, zp = y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7]
+    P = r * ss * zp - r * zs * (r + sp) + s * zs * (rp - s) - s * rs * zp
+    if want >= 1:
+        dv[0] = ss * zp - 2.0 * r * zs - zs * sp
+        dv[1] = -s * zp
+        dv[2] = s * zs
+        dv[3] = zs * rp - 2.0 * s * zs - rs * zp
+        dv[4] = r * zp
+        dv[5] = -r * zs
+        dv[6] = -r * r - r * sp + s * rp - s * s
+        dv[7] = r * ss - s * rs
+        for i in range(8):
+            dv[i] *= -0.5
+    if want >= 2:
+        d2v[:, :] = 0.0
+        d2v[0, 0] = -2.0 * zs
+        d2v[0, 4] = zp
+        d2v[0, 7] = ss
+        d2v[0, 6] = -2.0 * r - sp
+        d2v[0, 5] = -zs
+        d2v[1, 3] = -zp
+        d2v[1, 7] = -s
+        d2v[2, 3] = zs
+        d2v[2, 6] = s
+        d2v[3, 3] = -2.0 * zs
+        d2v[3, 6] = rp - 2.0 * s
+        d2v[3, 7] = -rs
+        d2v[4, 7] = r
+        d2v[5, 6] = -r
+        for i in range(8):
+            for k in range(i + 1, 8):
+                if d2v[i, k] != 0.0:
+                    d2v[k, i] = d2v[i, k]
+                elif d2v[k, i] != 0.0:
+                    d2v[i, k] = d2v[k, i]
+        for i in range(8):
+            for k in range(8):
+                d2v[i, k] *= -0.5
+    return -0.5 * P
+
+
+@njit(cache=True)
+def mh_cavity(X: np.ndarray, A: np.ndarray, edges: np.ndarray, hn: np.ndarray, phis: np.ndarray,
+              wphi: np.ndarray, want: int):
+    """The cavity volume of the multi-harmonic surface (the 3D flux, without the offset) with its
+    gradient and Hessian per edge in the edge dofs ``(node, component)`` of the layout.
+
+    Parameters
+    ----------
+    X : (nn, 2) reference positions (scaled); A : (nn, nc) amplitudes; edges : (m, 2|3) oriented
+        cavity edges as in :mod:`snapjump_kernels.cavity`; hn, phis, wphi : as in :func:`mh_elements`
+
+    Returns
+    -------
+    (V, ge, He) : the volume, (m, nen nc) gradients, (m, nen nc, nen nc) Hessians (``want``: 0, 1, 2)
+    """
+    m, nen = edges.shape
+    K = hn.shape[0]
+    nc = 2 + 3 * (K - 1)
+    nd = nen * nc
+    nphi = phis.shape[0]
+    ge = np.zeros((m, nd))
+    He = np.zeros((m, nd, nd)) if want >= 2 else np.zeros((0, nd, nd))
+    N = np.empty(nen)
+    dN = np.empty(nen)
+    y = np.empty(8)
+    dv = np.empty(8)
+    d2v = np.empty((8, 8))
+    Lm = np.zeros((8, nd))
+    HL = np.empty((8, nd))
+    V = 0.0
+    for e in range(m):
+        for q in range(3):
+            _edge_shape(_GP[q], nen, N, dN)
+            for j in range(nphi):
+                w = 2.0 * np.pi * _GW[q] * wphi[j]
+                Lm[:, :] = 0.0
+                y[:] = 0.0
+                for a in range(nen):
+                    node = edges[e, a]
+                    y[0] += N[a] * X[node, 0]
+                    y[1] += dN[a] * X[node, 0]
+                    y[6] += dN[a] * X[node, 1]
+                    for k in range(K):
+                        n = float(hn[k])
+                        cs = np.cos(n * phis[j])
+                        sn = np.sin(n * phis[j])
+                        o = a * nc + _offset(k)
+                        Lm[0, o] = N[a] * cs
+                        Lm[1, o] = dN[a] * cs
+                        Lm[2, o] = -n * N[a] * sn
+                        Lm[6, o + 1] = dN[a] * cs
+                        Lm[7, o + 1] = -n * N[a] * sn
+                        if k > 0:
+                            Lm[3, o + 2] = N[a] * sn
+                            Lm[4, o + 2] = dN[a] * sn
+                            Lm[5, o + 2] = n * N[a] * cs
+                # y = y_ref + L A_e
+                for r in range(8):
+                    s = 0.0
+                    for a in range(nen):
+                        node = edges[e, a]
+                        for i in range(nc):
+                            s += Lm[r, a * nc + i] * A[node, i]
+                    y[r] += s
+                V += w * _cavity_point(y, want, dv, d2v)
+                if want >= 1:
+                    for i in range(nd):
+                        s = 0.0
+                        for r in range(8):
+                            s += dv[r] * Lm[r, i]
+                        ge[e, i] += w * s
+                if want >= 2:
+                    for r in range(8):
+                        for i in range(nd):
+                            s = 0.0
+                            for r2 in range(8):
+                                s += d2v[r, r2] * Lm[r2, i]
+                            HL[r, i] = s
+                    for i in range(nd):
+                        for i2 in range(nd):
+                            s = 0.0
+                            for r in range(8):
+                                s += Lm[r, i] * HL[r, i2]
+                            He[e, i, i2] += w * s
+    return V, ge, He
+
+
+@njit(cache=True)
+def scatter_vector(ve: np.ndarray, dofs: np.ndarray, coef: np.ndarray, factor: float, out: np.ndarray) -> np.ndarray:
+    """``out += factor * sum_e P_e^T ve_e`` (``dofs`` -1: constrained; ``coef`` as in
+    :func:`snapjump_kernels.harmonics.scatter_band`)."""
+    ne, nd = dofs.shape
+    for e in range(ne):
+        for i in range(nd):
+            d = dofs[e, i]
+            if d >= 0:
+                out[d] += factor * coef[e, i] * ve[e, i]
+    return out

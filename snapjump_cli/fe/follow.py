@@ -1,0 +1,434 @@
+"""Follow the branch that bifurcates from the axisymmetric path, up to its own snap (docs/harmonics.md, section 10).
+
+When the harmonic check (:func:`snapjump_cli.fe.harmonics.check_harmonics`) finds that harmonic
+``n_c`` loses stability before ``V*``, the actuator leaves the axisymmetric path there. This module
+
+1. locates the bifurcation on the axisymmetric path: the volume at which the smallest eigenvalue
+   of the pencil ``(K_n, M_n)`` crosses zero (secant iterations between the last stable and the
+   first unstable path state, each a Newton solve at fixed volume), and its critical mode;
+2. builds the :class:`~snapjump_cli.fe.multiharmonic.MultiHarmonicModel` with the harmonics
+   ``0, n_c, 2 n_c, ..., N`` (default ``N = 2 n_c``, at least 2);
+3. leaves the path along the mode: the first Riks step starts at the bifurcation state with the
+   mode as its tangent, so its hyperplane fixes the mode's amplitude and excludes the
+   axisymmetric path (Newton converges there because the branch is a symmetric pitchfork: the
+   mode's cubic term averages to zero over phi);
+4. traces the bifurcated branch under volume control with the same continuation and snap tracker
+   as the axisymmetric path, through its own limit points, to its volume limit and back to it.
+   Whether the branch rises in volume (supercritical: its own limit comes later) or turns back at
+   once (subcritical: the bifurcation point is the volume limit, and the actuator snaps there) is
+   read off the traced branch, not assumed;
+5. finds the lower state at that volume as the axisymmetric solve does
+   (:func:`snapjump_cli.fe.lower_state.find_lower_state`, on the branch or off it at fixed volume),
+   and computes the metrics.
+
+Definitions for a non-axisymmetric state: the *pole* is the material point on the axis (the
+inner cap's lower pole, as for the axisymmetric metrics); every harmonic ``n >= 1`` vanishes on
+the axis up to the ``n = 1`` translation across it, so its height is the axisymmetric part's. The
+*ground* is the lowest point of the ring's bottom face over all phi (the actuator stands on it),
+so ``h_imp`` is the pole's height above that point; the tilt of a free body (an exact symmetry)
+is fixed by the gauge of harmonic 1 (:class:`~snapjump_cli.fe.multiharmonic.MultiHarmonicModel`).
+"""
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from snapjump_cli.fe.continuation import (
+    ContinuationFailed,
+    Path,
+    PathPoint,
+    Tracer,
+    trace,
+)
+from snapjump_cli.fe.harmonics import HarmonicOperator, harmonic_operator
+from snapjump_cli.fe.lower_state import find_lower_state
+from snapjump_cli.fe.metrics import path_p_dV, snap_sequence
+from snapjump_cli.fe.multiharmonic import MultiHarmonicModel
+from snapjump_cli.fe.snap import SnapStates, SnapTracker, root_on_step
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Bifurcation", "FollowResult", "locate_bifurcation", "follow_branch", "default_harmonics",
+           "FOLLOW_KEYS", "followed_metrics", "apply_followed", "lowest_eigen", "ground_height", "branch_curve"]
+
+#: Keys :func:`followed_metrics` adds to a design's metrics (SI units).
+FOLLOW_KEYS: tuple[str, ...] = (
+    "followed", "follow_n", "follow_N", "follow_kind", "follow_V_bif_m3", "follow_p_bif_Pa",
+    "follow_lower_method", "follow_dE_rel_diff", "follow_wall_s", "follow_note",
+    "axisym_dE_J", "axisym_dy_pole_m", "axisym_h_imp_m", "axisym_V_star_m3", "axisym_p_star_Pa",
+)
+
+
+def default_harmonics(n_c: int, N: int | None = None) -> list[int]:
+    """The harmonics kept for a branch of harmonic ``n_c``: ``0, n_c, 2 n_c, ...`` up to ``N``
+    (default ``4 n_c``: with ``2 n_c`` the second-order field is complete but the branch's
+    quartic term is not, and the branch folds back spuriously; docs/harmonics.md)."""
+    if N is None or N == 0:
+        N = 4 * n_c
+    if N < n_c:
+        raise ValueError(f"N = {N} is below the critical harmonic {n_c}")
+    return [0] + list(range(n_c, N + 1, n_c))
+
+
+def lowest_eigen(op: HarmonicOperator, u: np.ndarray, p: float, shift: float = 2.0) -> tuple[float, np.ndarray] | None:
+    """The smallest eigenvalue of the pencil ``(K_n, M_n)`` (the rigid modes gauged out) and its
+    mode as nodal amplitudes ``(nn, 3)`` scaled to a largest entry of 1; ``None`` outside the Gent
+    domain. In units of ``mu_min / L^2`` of the scaled model (the harmonic check's measure).
+    Shift-invert about ``-shift mu_min``: exact for the smallest eigenvalue while it lies above
+    that (near a bifurcation it is close to 0; physical eigenvalues are of order 0.1-10)."""
+    import scipy.sparse.linalg as spla
+
+    K = op.matrix(u, p)
+    if K is None:
+        return None
+    M = op.mass()
+    keep = np.setdiff1d(np.arange(op.ndof), op.gauge_dofs(u))
+    K = K[keep][:, keep].tocsc()
+    M = M[keep][:, keep].tocsc()
+    mu = float(np.min(op.model.mu))
+    vals, vecs = spla.eigsh(K, k=2, M=M, sigma=-shift * mu, which="LM")
+    i = int(np.argmin(vals))
+    x = np.zeros(op.ndof)
+    x[keep] = vecs[:, i]
+    A = op.to_nodal(x)
+    A /= A.ravel()[np.argmax(np.abs(A))]
+    return float(vals[i]) / mu, A
+
+
+@dataclass
+class Bifurcation:
+    """The point where harmonic ``n`` loses stability on the axisymmetric path."""
+
+    n: int
+    u: np.ndarray
+    p: float
+    zeta: np.ndarray  # scaled measures
+    mode: np.ndarray  # (nn, 3) critical mode, largest entry 1
+    eig: float  # the eigenvalue there (~0)
+    iterations: int
+
+
+def locate_bifurcation(result, n: int, tol_eig: float = 1e-9, max_iter: int = 30) -> Bifurcation | None:
+    """The bifurcation of harmonic ``n`` on the axisymmetric path before ``V*`` (``None`` if the
+    harmonic stays stable up to it): the first path state whose ``K_n`` has a negative eigenvalue
+    and the last stable one before it bracket it; the smallest eigenvalue's zero (``mu_min / L^2``
+    units) is then found on that path step to ``tol_eig`` by
+    :func:`snapjump_cli.fe.snap.root_on_step` (secant and Illinois steps, each point re-solved on the
+    path)."""
+    model, pts, st, tracer = result.model, result.path.points, result.states, result.tracer
+    op = harmonic_operator(model, n)
+    states = list(pts[: st.k_before + 1]) + [st.upper] if st.upper is not None else list(pts)
+    prev = None
+    for pt in states:
+        if op.inertia(pt.u, pt.p) != 0:
+            break
+        prev = pt
+    else:
+        return None
+    if prev is None:
+        return None
+    a, b = prev, pt
+    k = next(i for i, q in enumerate(states) if q is a)
+    a_prev = states[k - 1] if k > 0 else None
+    cache: dict = {}
+
+    def f(q: PathPoint) -> float:
+        ev = lowest_eigen(op, q.u, q.p)
+        if ev is None:
+            return math.nan
+        cache[id(q)] = ev
+        return ev[0]
+
+    if not (f(a) > 0.0 > f(b)):
+        return None
+    root = root_on_step(tracer, a, b, a_prev, f, tol_eig, max_iter)
+    if id(root) not in cache:
+        f(root)
+    eig, mode = cache[id(root)]
+    log.debug("bifurcation of harmonic %d at V = %.9g (scaled), eigenvalue %.2g", n, root.zeta[0], eig)
+    return Bifurcation(n, np.array(root.u), float(root.p), np.array(root.zeta), mode, eig, len(cache))
+@dataclass
+class FollowResult:
+    """A followed branch: its path (from the bifurcation), snap states and model."""
+
+    bif: Bifurcation
+    model: MultiHarmonicModel
+    path: Path
+    states: SnapStates
+    tracer: Tracer
+    kind: str  # "supercritical", "subcritical" or "" (no snap on the branch)
+    first_kind: str = ""  # how the branch leaves the bifurcation (before folds traced through)
+    lower_method: str = ""
+    lower_note: str = ""
+    failure: str = ""
+    micro_folds: list = field(default_factory=list)  # (V, dE) of folds traced through (scaled)
+    metrics: dict = field(default_factory=dict)
+
+
+def branch_curve(fr: FollowResult) -> dict:
+    """The followed branch in SI units for plots: ``V_m3``, ``p_Pa`` per traced point (from the
+    bifurcation) and, for a snap, ``snap_V_m3`` / ``snap_p_Pa`` (upper state, the branch after
+    it, lower state) and ``kind``."""
+    mh, sc = fr.model, fr.tracer.sc
+    L3, S = mh.L**3, mh.S
+    pts = fr.path.points
+    out = {"V_m3": np.array([pt.zeta[0] * sc[0] for pt in pts]) * L3,
+           "p_Pa": np.array([pt.p for pt in pts]) * S, "kind": fr.kind, "n": fr.bif.n, "N": int(mh.hn[-1])}
+    st = fr.states
+    if st.upper is not None and st.lower is not None:
+        seq = snap_sequence(fr.path, st)
+        out["snap_V_m3"] = np.array([pt.zeta[0] * sc[0] for pt in seq]) * L3
+        out["snap_p_Pa"] = np.array([pt.p for pt in seq]) * S
+    return out
+
+
+@dataclass
+class _BranchTracker(SnapTracker):
+    """The snap tracker on a branch that starts at its bifurcation point: after the first step it
+    tells a subcritical branch (the volume falls at once: the start is the volume limit) from a
+    supercritical one (it rises, and the tracker finds the branch's own limit).
+
+    A fold whose snap would release less than ``micro_dE`` (scaled energy) is not taken for the
+    actuator's snap: the branch comes back to that volume with almost the same energy (a small
+    dynamic jump, after which inflation goes on along the branch). It is recorded in
+    ``micro_folds`` and the trace goes on to the branch's next volume limit."""
+
+    kind: str = ""
+    first_kind: str = ""  # the verdict of the first step (before any fold was traced through)
+    micro_dE: float = 0.0
+    micro_folds: list = field(default_factory=list)
+
+    def __call__(self, path: Path) -> str | None:
+        pts = path.points
+        if len(pts) == 2 and not self.kind:
+            a, b = pts
+            if b.zeta[0] < a.zeta[0]:
+                self.kind = "subcritical"
+                self.states.k_before = 0
+                self.states.upper = a
+            else:
+                self.kind = "supercritical"
+            self.first_kind = self.kind
+        reason = super().__call__(path)
+        st = self.states
+        if reason == "snap characterised" and self.micro_dE > 0:
+            pb = self.tracer.pb
+            dE = pb.energy(st.upper.u) - pb.energy(st.lower.u)
+            if dE < self.micro_dE:
+                self.micro_folds.append((float(st.upper.zeta[0]), float(dE)))
+                log.debug("branch: fold at V = %.9g releases %.3g < %.3g: traced on", st.upper.zeta[0], dE,
+                          self.micro_dE)
+                self.states = SnapStates(p_max=st.p_max)
+                self.kind = "supercritical"
+                return None
+        return reason
+
+
+#: A fold of a followed branch whose snap releases less than this fraction of the axisymmetric
+#: snap's energy is traced through, not reported as the actuator's snap.
+MICRO_FOLD_DE = 1e-2
+
+
+def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: int | None = None,
+                  micro: float = MICRO_FOLD_DE, max_steps: int | None = None) -> FollowResult:
+    """Trace the branch of ``bif`` with the harmonics ``hn`` (default :func:`default_harmonics`)
+    from the bifurcation through its volume limit to the lower state at that volume.
+
+    Parameters
+    ----------
+    result : the axisymmetric :class:`snapjump_cli.fe.solve.SceneResult`
+    bif : :func:`locate_bifurcation`'s answer
+    hn, n_phi : harmonics and phi rule of the :class:`MultiHarmonicModel`
+    micro : a fold of the branch releasing less than this fraction of the axisymmetric snap's
+        energy is traced through (``micro_folds``), not reported as the snap
+    max_steps : bound on the branch's continuation steps (default: the axisymmetric trace's)
+
+    Returns
+    -------
+    FollowResult
+        with ``kind`` and ``metrics`` (:func:`followed_metrics`'s keys without the axisymmetric ones)
+    """
+    t0 = time.perf_counter()
+    base = result.model
+    tr0 = result.tracer
+    hn = default_harmonics(bif.n) if hn is None else list(hn)
+    gauge = []
+    if bif.n == 1:
+        op1 = harmonic_operator(base, 1)
+        L = op1.layout
+        for d in op1.gauge_dofs(bif.u):
+            nodes, comps = np.nonzero((L.dofmap == d) & (L.coef > 0))
+            gauge.append((int(nodes[0]), int(comps[0])))
+    mh = MultiHarmonicModel(base, hn, n_phi=n_phi, gauge=gauge)
+    U_c = mh.embed(bif.u)
+    Phi = mh.embed(np.zeros(base.n), {bif.n: bif.mode})
+    cfg = replace(tr0.cfg, fused=False, mixed_tangent=False)
+    if max_steps is not None:
+        cfg = replace(cfg, max_steps=int(max_steps))
+    tr = Tracer(mh, cfg)
+    alpha = tr.alpha
+    if alpha <= 0.0:
+        raise ValueError("following a branch needs u_scale > 0 (the arc length must see the displacement)")
+    du_ds = Phi / (alpha * float(np.linalg.norm(Phi)))
+    z_c = tr.zeta(U_c, bif.p)[0]
+    start = PathPoint(U_c, bif.p, z_c, np.zeros(len(z_c)), du_ds, 0.0, 0.0)
+    sc = tr0.sc
+    tracker0 = getattr(result, "stop_args", None)
+    p_stop = tracker0["p_stop"] if tracker0 else 1.5 * max(pt.p for pt in result.path.points)
+    V_stop = tracker0["V_stop"] if tracker0 else 30.0 * max(pt.zeta[0] for pt in result.path.points)
+    post = tracker0["post_snap_steps"] if tracker0 else 1500
+    tracker = _BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post)
+    st0 = result.states
+    if st0 is not None and st0.upper is not None and st0.lower is not None:
+        tracker.micro_dE = micro * (base.energy(st0.upper.u) - base.energy(st0.lower.u))
+    failure = ""
+    try:
+        path = trace(mh, cfg, tracker, tracer=tr, start=start)
+    except ContinuationFailed as exc:
+        failure = str(exc)
+        path = getattr(exc, "path", None) or Path(points=[start])
+    st = tracker.states
+    fr = FollowResult(bif, mh, path, st, tr, tracker.kind if st.upper is not None else "", tracker.first_kind,
+                      failure=failure,
+                      micro_folds=list(tracker.micro_folds))
+    if st.upper is not None:
+        low = find_lower_state(tr, st, path.points, failure or path.stop_reason)
+        st.lower, st.lower_method = low.state, low.method
+        fr.lower_method, fr.lower_note = low.method, low.note or low.message
+    fr.metrics = _branch_metrics(fr, sc)
+    fr.metrics["follow_wall_s"] = time.perf_counter() - t0
+    return fr
+
+
+def _pole_height(mh: MultiHarmonicModel, u: np.ndarray, node: int) -> float:
+    return float(mh.section(u, 0.0)[node, 1])
+
+
+def ground_height(mh: MultiHarmonicModel, u: np.ndarray, nodes: np.ndarray, n_phi: int = 720) -> float:
+    """Lowest height of ``nodes`` over all phi (scaled): ``z + sum_k b_k cos n_k phi``."""
+    from snapjump_cli.fe.multiharmonic import component_index
+
+    A = mh.amplitudes(u)
+    phi = np.linspace(0.0, 2.0 * np.pi, n_phi, endpoint=False)
+    z = np.repeat(mh.X[nodes, 1][:, None], n_phi, axis=1)
+    for k, n in enumerate(mh.hn):
+        z += A[nodes, component_index(k, 1)][:, None] * np.cos(n * phi)[None, :]
+    return float(z.min())
+
+
+def _branch_metrics(fr: FollowResult, sc: np.ndarray) -> dict:
+    """The followed snap's metrics (SI)."""
+    mh, st = fr.model, fr.states
+    L, S = mh.L, mh.S
+    E_unit = S * L**3
+    out = {"follow_kind": fr.kind or None, "follow_N": int(mh.hn[-1]), "follow_n": fr.bif.n,
+           "follow_V_bif_m3": float(fr.bif.zeta[0] * sc[0] * L**3), "follow_p_bif_Pa": float(fr.bif.p * S),
+           "follow_lower_method": fr.lower_method or None,
+           "follow_note": "; ".join(x for x in (fr.failure, fr.lower_note, (
+               f"{len(fr.micro_folds)} fold(s) releasing < {MICRO_FOLD_DE:g} of the axisymmetric dE traced through"
+               if fr.micro_folds else "")) if x),
+           "snaps": st.upper is not None and st.lower is not None, "follow_micro_folds": len(fr.micro_folds)}
+    if st.upper is None or st.lower is None:
+        return out
+    up, lo = st.upper, st.lower
+    W_up, W_lo = mh.energy(up.u), mh.energy(lo.u)
+    dE = W_up - W_lo
+    dE_path = -path_p_dV(snap_sequence(fr.path, st), sc[0], sc[1]) if st.lower_method == "path" else math.nan
+    mesh = mh.mesh
+    pole1 = int(mesh.node_sets["pole_lower"][0])
+    out.update(
+        dE_J=dE * E_unit, dE_energy_J=dE * E_unit,
+        dE_path_J=dE_path * E_unit if math.isfinite(dE_path) else None,
+        follow_dE_rel_diff=abs(dE - dE_path) / max(abs(dE), 1e-300) if math.isfinite(dE_path) else None,
+        V_star_m3=float(up.zeta[0] * sc[0] * L**3), p_star_Pa=float(up.p * S),
+        dy_pole_m=(_pole_height(mh, up.u, pole1) - _pole_height(mh, lo.u, pole1)) * L,
+        p_lower_Pa=float(lo.p * S), dE_norm=dE, lower_state_method=st.lower_method or None,
+    )
+    out["dE_rel_diff"] = out["follow_dE_rel_diff"]
+    out["dy_pole_norm"] = out["dy_pole_m"] / L
+    nsets = mesh.node_sets
+    if "pole_upper" in nsets:
+        pole2 = int(nsets["pole_upper"][0])
+        out["dy_pole_upper_m"] = (_pole_height(mh, up.u, pole2) - _pole_height(mh, lo.u, pole2)) * L
+        if "outer_pole_lower" in nsets:
+            z = mh.section(up.u, 0.0)[:, 1] * L
+            out["L0_m"] = float(0.5 * (z[nsets["outer_pole_lower"][0]] + z[nsets["outer_pole_upper"][0]])
+                                - 0.5 * (z[pole1] + z[pole2]))
+    if "ground" in mesh.node_sets and len(mesh.node_sets["ground"]):
+        g = np.asarray(mesh.node_sets["ground"], np.int64)
+        out["h_imp_m"] = (_pole_height(mh, up.u, pole1) - ground_height(mh, up.u, g)) * L
+    # how far the branch is from axisymmetric at the upper state: the largest harmonic amplitude
+    amp = 0.0
+    for n in mh.hn[1:]:
+        amp = max(amp, float(np.abs(mh.harmonic_part(up.u, int(n))).max()))
+    out["follow_amplitude_m"] = amp * L
+    return out
+
+
+def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | None = None) -> tuple[dict, FollowResult | None]:
+    """The design's answer with the followed branch (the keys of :data:`FOLLOW_KEYS` and the
+    followed ``dE_J``, ``dy_pole_m``, ``h_imp_m``, ``V_star_m3``, ``p_star_Pa``), given the
+    axisymmetric ``result`` and its harmonic ``check``.
+
+    A design whose check finds no harmonic unstable before ``V*`` keeps its axisymmetric answer
+    (``followed`` False, the two sets equal). Otherwise the branch of the first unstable harmonic
+    is traced; if it cannot be followed to a snap the axisymmetric answer is kept and
+    ``follow_note`` says why.
+    """
+    m = result.metrics
+    out = {k: None for k in FOLLOW_KEYS}
+    for k in ("dE_J", "dy_pole_m", "h_imp_m", "V_star_m3", "p_star_Pa"):
+        out["axisym_" + k] = m.get(k)
+    out["followed"] = False
+    out["follow_note"] = ""
+    if not check.get("asym_first") or result.states is None or result.states.upper is None:
+        return out, None
+    t0 = time.perf_counter()
+    n = int(check["asym_n"])
+    bif = locate_bifurcation(result, n)
+    if bif is None:
+        out["follow_note"] = f"bifurcation of harmonic {n} not located"
+        return out, None
+    fr = follow_branch(result, bif, default_harmonics(n, N), n_phi=n_phi)
+    fm = fr.metrics
+    out.update({k: v for k, v in fm.items() if k in FOLLOW_KEYS})
+    if fm.get("dE_J") is None:
+        out["follow_note"] = fm.get("follow_note") or "the followed branch did not reach a snap"
+        out["follow_wall_s"] = time.perf_counter() - t0
+        return out, fr
+    out["followed"] = True
+    for k in fm:
+        if k not in out or k in _REPLACED:
+            out[k] = fm[k]
+    out["follow_wall_s"] = time.perf_counter() - t0
+    return out, fr
+
+
+#: The row keys a followed answer replaces (the axisymmetric values of the first five stay in
+#: ``axisym_*``).
+_REPLACED = ("dE_J", "dE_norm", "dE_energy_J", "dE_path_J", "dE_rel_diff", "dy_pole_m", "dy_pole_norm",
+             "dy_pole_upper_m", "h_imp_m", "V_star_m3", "p_star_Pa", "p_lower_Pa", "L0_m", "lower_state_method")
+
+
+def apply_followed(result, check: dict, N: int = 0) -> None:
+    """Follow the branch of ``result`` (a :class:`snapjump_cli.fe.solve.SceneResult` with its harmonic
+    ``check``) and make its snap the design's answer in ``result.metrics`` (the keys of
+    :data:`snapjump_cli.sweep.rows.FOLLOW_ROW_KEYS`; the replaced keys of a followed design describe the
+    followed snap). A design that stays axisymmetric, or whose branch cannot be followed to a snap,
+    keeps its axisymmetric answer (``followed`` False; ``follow_note`` says why)."""
+    m = result.metrics
+    t0 = time.perf_counter()
+    out, fr = followed_metrics(result, check, N=N or None)
+    result.follow = fr
+    m.update({k: out.get(k) for k in FOLLOW_KEYS})
+    m["follow_amplitude_m"] = out.get("follow_amplitude_m")
+    if out["followed"]:
+        for k in _REPLACED:
+            if k in out:
+                m[k] = out[k]
+    m["wall_s"] = (m.get("wall_s") or 0.0) + (time.perf_counter() - t0)
+

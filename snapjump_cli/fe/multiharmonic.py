@@ -1,0 +1,306 @@
+"""The nonlinear multi-harmonic model: the actuator's 3D deformation as a Fourier series on the 2D mesh.
+
+:class:`MultiHarmonicModel` is the problem interface of :mod:`snapjump_cli.fe.continuation` (as
+:class:`snapjump_cli.fe.model.Model` is) for displacements
+
+    u_r = sum_k a_k cos n_k phi,   u_z = sum_k b_k cos n_k phi,   u_phi = sum_{k>=1} c_k sin n_k phi
+
+on the axisymmetric model's mesh, element and cavity, with the harmonics ``n_k`` (``0`` first,
+then e.g. the multiples of a critical harmonic ``n_c``). This subspace (mirror-symmetric about
+``phi = 0``; with the multiples of ``n_c`` only, also ``2 pi / n_c``-periodic) is invariant
+under the equations, and it holds the branch that bifurcates from harmonic ``n_c`` (equivariant
+branching lemma): a trace that starts in it stays in it. The kernels are
+:mod:`snapjump_kernels.multiharmonic` (energy, residual, tangent and the exact 3D cavity volume).
+
+Constraints per harmonic are those of :class:`snapjump_cli.fe.harmonics.HarmonicOperator`: ``n = 0``
+keeps the axisymmetric model's own (so that with the harmonic 0 alone this *is* that model, to
+round-off); for ``n >= 1`` the axis conditions of a single-valued displacement (``n = 1``:
+``b = 0``, ``c = -a``; ``n >= 2``: all zero) and, for a supported cap, its supports. The rigid
+modes of harmonic 1 of a free body (translation across the axis, tilt) are exact symmetries of
+the nonlinear problem; each is removed by fixing one amplitude of harmonic 1 (``gauge``, as the
+harmonic check chooses them), which selects one member of each family of equivalent states.
+
+Units are the axisymmetric model's (lengths / L, stresses / S). The path measures are
+``(V, p, w)``, ``w`` the vertical displacement of the model's pole node: on the axis every
+harmonic ``n >= 1`` vanishes, so it is the pole's own displacement.
+"""
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+
+from snapjump_cli.mesh.data import number_dofs
+from snapjump_cli.fe.limits import check_time
+from snapjump_cli.fe.model import BorderedSolver, Linearization
+from snapjump_kernels.calls import bordered_factor, envelope_extents, scatter_band
+
+log = logging.getLogger(__name__)
+
+__all__ = ["MultiHarmonicModel", "component_index"]
+
+
+def component_index(k: int, comp: int) -> int:
+    """Column of harmonic index ``k`` (0-based in ``hn``) and component ``comp`` (0 a, 1 b, 2 c)
+    in the nodal amplitude array ``(nn, nc)``."""
+    if k == 0:
+        if comp > 1:
+            raise ValueError("harmonic 0 has no c (torsion) amplitude")
+        return comp
+    return 2 + 3 * (k - 1) + comp
+
+
+class MultiHarmonicModel:
+    """A truncated Fourier series of harmonics ``hn`` on an axisymmetric :class:`~snapjump_cli.fe.model.Model`.
+
+    Parameters
+    ----------
+    model : the axisymmetric model (mesh, materials, scales, constraints)
+    hn : the harmonics kept, starting with 0 (e.g. ``[0, 1, 2]`` or ``[0, 2, 4]``)
+    n_phi : intervals of the phi rule on ``[0, pi / hn[1]]`` (default ``2 K_max + 2``, ``K_max``
+        the highest harmonic in units of ``hn[1]``: exact for the quadratic terms and the cavity)
+    free_body : as in :class:`snapjump_cli.fe.harmonics.HarmonicOperator` (default: a full actuator)
+    gauge : ``(node, comp)`` amplitudes of harmonic 1 fixed to zero (removing the rigid modes)
+    """
+
+    solver = "banded"
+
+    def __init__(self, model, hn, n_phi: int | None = None, free_body: bool | None = None,
+                 gauge: list[tuple[int, int]] = ()) -> None:
+        from snapjump_kernels.multiharmonic import phi_rule  # numba: only where the model is used
+
+        hn = np.asarray(hn, np.int64)
+        if hn.ndim != 1 or hn[0] != 0 or np.any(np.diff(hn) <= 0):
+            raise ValueError(f"harmonics must start with 0 and increase, got {list(hn)}")
+        self.base = model
+        self.hn = hn
+        self.L, self.S = model.L, model.S
+        self.mesh = model.mesh
+        self.X = model.X
+        n1 = int(hn[1]) if len(hn) > 1 else 1
+        if len(hn) > 1 and np.any(hn % n1):
+            raise ValueError(f"harmonics must be multiples of the first one, got {list(hn)}")
+        k_max = int(hn[-1] // n1) if len(hn) > 1 else 0
+        if n_phi is None:
+            n_phi = 2 * k_max + 2 if k_max > 0 else 0
+        self.n_phi = int(n_phi)
+        self.phis, self.wphi = phi_rule(n1, self.n_phi)
+        mesh = model.mesh
+        if free_body is None:
+            free_body = mesh.scene == "design"
+        self.free_body = bool(free_body)
+        K = len(hn)
+        self.nc = 2 + 3 * (K - 1)
+        nn = model.X.shape[0]
+        fixed = np.zeros((nn, self.nc), bool)
+        fixed[:, :2] = model.fixed
+        axis = np.asarray(mesh.node_sets["axis"], np.int64)
+        dx = np.asarray(mesh.node_sets.get("dirichlet_x", np.zeros(0, np.int64)), np.int64)
+        dy = np.asarray(mesh.node_sets.get("dirichlet_y", np.zeros(0, np.int64)), np.int64)
+        tied = np.zeros(nn, bool)
+        for k in range(1, K):
+            o = component_index(k, 0)
+            if not self.free_body:
+                fixed[dx, o] = fixed[dx, o + 2] = True
+                fixed[dy, o + 1] = True
+            fixed[axis, o + 1] = True
+            if hn[k] == 1:
+                tied[axis] = ~fixed[axis, o]
+                fixed[axis, o + 2] = True
+            else:
+                fixed[axis, o:o + 3] = True
+        k1 = int(np.searchsorted(hn, 1))
+        for node, comp in gauge:
+            if k1 >= K or hn[k1] != 1:
+                raise ValueError("a gauge fixes amplitudes of harmonic 1, which is not kept")
+            fixed[node, component_index(k1, comp)] = True
+            if comp == 0:
+                tied[node] = False
+        self.fixed = fixed
+        key = np.where(model.dofmap >= 0, model.dofmap, np.iinfo(np.int64).max).min(axis=1)
+        order = np.argsort(key, kind="stable")
+        dofmap, ndof = number_dofs(order, fixed)
+        coef = np.ones((nn, self.nc))
+        if k1 < K and hn[k1] == 1:
+            o = component_index(k1, 0)
+            dofmap[tied, o + 2] = dofmap[tied, o]
+            coef[tied, o + 2] = -1.0
+        self.dofmap, self.coef, self.n = dofmap, coef, ndof
+        conn, edges = model.conn, model.edges
+        self.edofs = np.ascontiguousarray(dofmap[conn].reshape(conn.shape[0], -1))
+        self.ecoef = np.ascontiguousarray(coef[conn].reshape(conn.shape[0], -1))
+        self.gdofs = np.ascontiguousarray(dofmap[edges].reshape(edges.shape[0], -1))
+        self.gcoef = np.ascontiguousarray(coef[edges].reshape(edges.shape[0], -1))
+        rows, cols = [], []
+        for d in (self.edofs, self.gdofs):
+            nd = d.shape[1]
+            r, c = np.repeat(d, nd, axis=1).ravel(), np.tile(d, (1, nd)).ravel()
+            ok = (r >= 0) & (c >= 0)
+            rows.append(r[ok])
+            cols.append(c[ok])
+        rows, cols = np.concatenate(rows), np.concatenate(cols)
+        self.kl = int(np.abs(rows - cols).max()) if len(rows) else 0
+        self.band_ext = envelope_extents(rows, cols, ndof, self.kl)
+        self.diag_pos = np.arange(ndof) * (self.kl + 1)
+        self.pole_node = model.pole_node
+        self.pole_dof = int(dofmap[model.pole_node, 1])
+        self.V_offset = model.V_offset
+        self.n_assemblies = self.n_residuals = self.n_factorizations = 0
+        self.t_assembly = self.t_factor = 0.0
+
+    # ---- vectors -------------------------------------------------------------------------------
+    def amplitudes(self, u: np.ndarray) -> np.ndarray:
+        """Free-dof vector -> nodal amplitudes ``(nn, nc)`` (zeros where fixed, ties applied)."""
+        A = np.zeros(self.dofmap.shape)
+        m = self.dofmap >= 0
+        A[m] = u[self.dofmap[m]] * self.coef[m]
+        return A
+
+    def free_vector(self, A: np.ndarray) -> np.ndarray:
+        """Nodal amplitudes ``(nn, nc)`` -> free-dof vector (fixed entries dropped; a tied ``c``
+        is represented by its ``a``)."""
+        u = np.zeros(self.n)
+        m = (self.dofmap >= 0) & (self.coef > 0)
+        u[self.dofmap[m]] = np.asarray(A)[m]
+        return u
+
+    def embed(self, u_axi: np.ndarray, modes: dict[int, np.ndarray] | None = None) -> np.ndarray:
+        """The free vector of an axisymmetric state ``u_axi`` (of :attr:`base`) plus, optionally,
+        harmonic amplitudes ``modes[n] = (nn, 3)`` (``a, b, c`` per node, as
+        :meth:`snapjump_cli.fe.harmonics.HarmonicOperator.to_nodal` gives them)."""
+        A = np.zeros(self.dofmap.shape)
+        A[:, :2] = self.base.full_displacement(u_axi)
+        for n, Am in (modes or {}).items():
+            k = int(np.searchsorted(self.hn, n))
+            if k >= len(self.hn) or self.hn[k] != n:
+                raise ValueError(f"harmonic {n} is not kept ({list(self.hn)})")
+            o = component_index(k, 0)
+            A[:, o:o + 3] = Am
+        A[self.dofmap < 0] = 0.0
+        return self.free_vector(A)
+
+    def harmonic_part(self, u: np.ndarray, n: int) -> np.ndarray:
+        """Nodal ``(a, b, c)`` of harmonic ``n`` (``(nn, 2)`` for ``n = 0``)."""
+        A = self.amplitudes(u)
+        k = int(np.searchsorted(self.hn, n))
+        if k >= len(self.hn) or self.hn[k] != n:
+            raise ValueError(f"harmonic {n} is not kept ({list(self.hn)})")
+        o = component_index(k, 0)
+        return A[:, o:o + (2 if n == 0 else 3)].copy()
+
+    def section(self, u: np.ndarray, phi: float) -> np.ndarray:
+        """Current ``(r, z)`` of every node in the meridian section at ``phi`` (scaled; ``r`` the
+        radial coordinate of the material point's ring, i.e. ``R + u_r(phi)``; ``u_phi`` moves
+        the point out of the section and is not shown)."""
+        A = self.amplitudes(u)
+        x = self.X.copy()
+        for k, n in enumerate(self.hn):
+            o = component_index(k, 0)
+            x[:, 0] += A[:, o] * np.cos(n * phi)
+            x[:, 1] += A[:, o + 1] * np.cos(n * phi)
+        return x
+
+    def positions(self, u: np.ndarray) -> np.ndarray:
+        """The section at ``phi = 0`` (see :meth:`section`)."""
+        return self.section(u, 0.0)
+
+    # ---- evaluations ---------------------------------------------------------------------------
+    def _evaluate(self, u: np.ndarray, p: float, want: int):
+        from snapjump_kernels.multiharmonic import mh_cavity, mh_elements, scatter_vector
+
+        check_time()  # the design's CPU-time limit (snapjump_cli.fe.limits)
+        t0 = time.perf_counter()
+        M = self.base
+        A = np.ascontiguousarray(self.amplitudes(u))
+        E, ok, re, Ke = mh_elements(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
+                                    M.Minv, self.hn, self.phis, self.wphi, max(want, 0))
+        if not ok:
+            return None
+        Vf, ge, He = mh_cavity(M.X, A, M.edges, self.hn, self.phis, self.wphi, want)
+        R = np.zeros(self.n)
+        g = np.zeros(self.n)
+        data = None
+        if want >= 1:
+            scatter_vector(re, self.edofs, self.ecoef, 1.0, R)
+            scatter_vector(ge, self.gdofs, self.gcoef, 1.0, g)
+            R -= p * g
+        if want >= 2:
+            ab = np.zeros((self.n, self.kl + 1))
+            scatter_band(Ke, self.edofs, self.ecoef, 1.0, ab)
+            scatter_band(He, self.gdofs, self.gcoef, -float(p), ab)
+            data = ab.ravel()
+            self.n_assemblies += 1
+            self.t_assembly += time.perf_counter() - t0
+        else:
+            self.n_residuals += 1
+        return E, R, g, Vf + self.V_offset, data
+
+    def energy(self, u: np.ndarray) -> float:
+        """Strain energy (scaled); ``nan`` outside the material domain."""
+        out = self._evaluate(u, 0.0, 0)
+        return out[0] if out is not None else float("nan")
+
+    def energy_volume(self, u: np.ndarray) -> tuple[float, float] | None:
+        """Strain energy and cavity volume (scaled, with the offset); ``None`` outside the domain."""
+        out = self._evaluate(u, 0.0, 0)
+        return (out[0], out[3]) if out is not None else None
+
+    def volume(self, u: np.ndarray) -> float:
+        """Cavity volume (scaled, with the offset)."""
+        from snapjump_kernels.multiharmonic import mh_cavity
+
+        M = self.base
+        V, _, _ = mh_cavity(M.X, np.ascontiguousarray(self.amplitudes(u)), M.edges, self.hn, self.phis, self.wphi, 0)
+        return V + self.V_offset
+
+    def residual(self, u: np.ndarray, p: float) -> np.ndarray | None:
+        """``f_int(u) - p dV/du``; ``None`` outside the material domain."""
+        out = self._evaluate(u, p, 1)
+        return out[1] if out is not None else None
+
+    def linearize(self, u: np.ndarray, p: float, stiffness: bool = True, aux=None) -> Linearization | None:
+        """Residual and (``stiffness``) the band tangent in one pass; ``None`` outside the domain.
+        ``aux`` is accepted for the interface and ignored (no mixed linearisation here)."""
+        out = self._evaluate(u, p, 2 if stiffness else 1)
+        if out is None:
+            return None
+        E, R, g, V, data = out
+        return Linearization(self, u, p, R, g, data, V, E)
+
+    def measures(self, u: np.ndarray, p: float, lin: Linearization | None = None):
+        """Path measures ``(V, p, w)`` and their derivatives (as :meth:`snapjump_cli.fe.model.Model.measures`)."""
+        dz = np.zeros((3, self.n))
+        if lin is not None:
+            V = lin.V
+            dz[0] = lin.g
+        else:
+            from snapjump_kernels.multiharmonic import mh_cavity, scatter_vector
+
+            M = self.base
+            V, ge, _ = mh_cavity(M.X, np.ascontiguousarray(self.amplitudes(u)), M.edges, self.hn, self.phis,
+                                 self.wphi, 1)
+            V += self.V_offset
+            scatter_vector(ge, self.gdofs, self.gcoef, 1.0, dz[0])
+        dz[2, self.pole_dof] = 1.0
+        return np.array([V, p, u[self.pole_dof]]), dz, np.array([0.0, 1.0, 0.0])
+
+    def _factor(self, data, b, c_u, c_p) -> BorderedSolver | None:
+        """The bordered band factorisation (as the axisymmetric model's)."""
+        t0 = time.perf_counter()
+        n = self.n
+        K = data.reshape(n, self.kl + 1)
+        try:
+            ok, nneg, fac, Kib, schur = bordered_factor(K, self.band_ext, b, c_u, float(c_p))
+        except RuntimeError:
+            return None
+        finally:
+            self.t_factor += time.perf_counter() - t0
+        if not ok or not np.isfinite(schur) or schur == 0.0:
+            return None
+        self.n_factorizations += 1
+        return BorderedSolver("banded", fac, K, b, c_u, float(c_p), n, nneg, self.band_ext, Kib, schur)
+
+    def stiffness_matrix(self, u: np.ndarray, p: float):
+        """The tangent alone (scipy CSR), for tests and eigenvalues."""
+        return self.linearize(u, p).stiffness()

@@ -1,0 +1,119 @@
+"""Following the branch that bifurcates from the axisymmetric path (snapjump_cli.fe.follow).
+
+* the bifurcation is located where the harmonic check's inertia changes, with a zero eigenvalue;
+* leaving along the mode: the branch's first states are equilibria of the multi-harmonic model,
+  the mode's amplitude grows, the branch is a symmetric pitchfork (``V - V_c`` grows as the
+  square of the amplitude, by amplitude-controlled Newton solves independent of the continuation),
+  the trace's first state is that solve's state, and the sub/supercritical verdict follows its
+  volume;
+* design B end to end (the independent 3D computation's case): harmonic 1 goes first, the branch
+  is subcritical, the snap happens at the bifurcation with both dE evaluations agreeing, and the
+  row keys (followed, axisym_*) are filled.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from snapjump_cli.fe.follow import default_harmonics, follow_branch, locate_bifurcation
+from snapjump_cli.geometry.caps import CapScene
+from snapjump_cli.fe.harmonics import check_harmonics, harmonic_operator
+from snapjump_cli.settings import MeshSettings, SolverSettings
+from snapjump_cli.fe.solve import solve_checked, solve_scene
+
+
+@pytest.fixture(scope="module")
+def cap():
+    """A clamped cap above the asymmetric threshold (lambda = 6.1): harmonic 2 goes first."""
+    res = solve_scene(CapScene(theta_deg=30.0, eta=50.0, bc="clamped"), MeshSettings(nt=1, aspect=2.0),
+                      SolverSettings())
+    return res, check_harmonics(res, 4)
+
+
+def test_the_bifurcation_is_where_the_inertia_changes(cap):
+    res, chk = cap
+    assert chk["asym_first"] and chk["asym_n"] == 2
+    bif = locate_bifurcation(res, 2)
+    assert abs(bif.eig) < 1e-8
+    op = harmonic_operator(res.model, 2)
+    pts = [pt for pt in res.path.points[: res.states.k_before + 1]]
+    V = np.array([pt.zeta[0] for pt in pts])
+    k = int(np.searchsorted(V, bif.zeta[0]))  # the path states on either side
+    assert op.inertia(pts[k - 1].u, pts[k - 1].p) == 0 and op.inertia(pts[k].u, pts[k].p) > 0
+    # the check's bisected volume lies within its 6 bisections of this one
+    L3, sV = res.model.L**3, res.tracer.sc[0]
+    dV = (pts[k].zeta[0] - pts[k - 1].zeta[0]) * sV * L3
+    assert abs(chk["asym_V_m3"] - bif.zeta[0] * sV * L3) <= dV / 2**6 * 1.01
+
+
+def _amplitude_solve(mh, U_c, p_c, e, eps):
+    """Newton on R = 0 with the amplitude ``e . (u - U_c)`` of the unit mode ``e`` fixed to
+    ``eps`` (an independent solve: not the continuation's hyperplane)."""
+    u, p = U_c + eps * e, p_c
+    for _ in range(30):
+        lin = mh.linearize(u, p)
+        h = float(e @ (u - U_c)) - eps
+        if np.linalg.norm(lin.R) < 1e-8 * np.linalg.norm(lin.g) * abs(p_c) and abs(h) < 1e-14:
+            return lin
+        x = lin.factor(e, 0.0).solve(np.concatenate([-lin.R, [-h]]))
+        u, p = u + x[:-1], p + x[-1]
+    raise AssertionError("amplitude solve did not converge")
+
+
+def test_leaving_along_the_mode_is_a_symmetric_pitchfork(cap):
+    res, _ = cap
+    bif = locate_bifurcation(res, 2)
+    fr = follow_branch(res, bif, default_harmonics(2, 4), max_steps=6)
+    mh = fr.model
+    pts = fr.path.points
+    assert len(pts) == 7
+    # the traced branch: equilibria, leaving the axisymmetric path
+    for pt in pts[1:]:
+        lin = mh.linearize(pt.u, pt.p)
+        assert np.linalg.norm(lin.R) < 1e-6 * np.linalg.norm(lin.g) * max(abs(pt.p), 1e-3 * fr.tracer.sc[1])
+    amp = [float(np.abs(mh.harmonic_part(pt.u, 2)).max()) for pt in pts]
+    assert amp[0] == 0.0 and all(b > a for a, b in zip(amp, amp[1:]))
+    # independent solves at fixed amplitude of the mode
+    U_c = mh.embed(bif.u)
+    Phi = mh.embed(np.zeros(res.model.n), {2: bif.mode})
+    e = Phi / np.linalg.norm(Phi)
+    V_c = mh.volume(U_c)
+    # a symmetric pitchfork: V is even in the amplitude and grows as its square at small amplitudes
+    # (this cap's quartic term shows from ~2e-5 of the radius on: it folds back at ~2e-4)
+    # (differences between amplitudes, so that the located bifurcation's own tolerance cancels)
+    eps = 5e-6 / np.abs(e).max()
+    V1, V2, V3 = (_amplitude_solve(mh, U_c, bif.p, e, k * eps).V for k in (1, 2, 3))
+    Vm = _amplitude_solve(mh, U_c, bif.p, e, -2 * eps).V
+    assert abs(V2 - Vm) < 1e-4 * abs(V2 - V1)
+    assert (V3 - V1) / (V2 - V1) == pytest.approx(8.0 / 3.0, rel=5e-3)
+    # the trace's first point is the branch's state at its amplitude; its volume gives the verdict
+    lin = _amplitude_solve(mh, U_c, bif.p, e, float(e @ (pts[1].u - U_c)))
+    # (path points are accepted by the error test at tol_path = 1e-6 in the arc-length metric)
+    assert lin.V == pytest.approx(pts[1].zeta[0] * fr.tracer.sc[0], rel=1e-7)
+    assert lin.p == pytest.approx(pts[1].p, rel=1e-6)
+    assert fr.first_kind == ("subcritical" if lin.V < V_c else "supercritical")
+
+
+def test_a_design_that_stays_axisymmetric_keeps_its_answer():
+    res = solve_checked(CapScene(theta_deg=30.0, eta=25.0, bc="clamped"), MeshSettings(nt=1, aspect=2.0),
+                        SolverSettings(harmonics=4, follow=True))
+    m = res.metrics
+    assert m["asym_first"] is False and m["followed"] is False
+    for k in ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa"):
+        assert m["axisym_" + k] == m[k]
+
+
+def test_design_B_snaps_at_its_subcritical_bifurcation():
+    from snapjump_cli.geometry.designs import get_design
+
+    res = solve_checked(get_design("B"), MeshSettings(), SolverSettings(harmonics=4, follow=True))
+    m = res.metrics
+    assert m["followed"] is True and m["follow_n"] == 1 and m["follow_N"] == 4
+    assert m["follow_kind"] == "subcritical"
+    # a subcritical branch snaps at the bifurcation: below the axisymmetric V*
+    assert m["V_star_m3"] == pytest.approx(m["follow_V_bif_m3"], rel=1e-9)
+    assert 0.85 < m["V_star_m3"] / m["axisym_V_star_m3"] < 0.92  # the independent 3D code: 0.88-0.90
+    assert m["lower_state_method"] == "path"
+    assert m["dE_rel_diff"] < 1e-3  # energy difference against the path integral
+    assert 0 < m["dE_J"] < 0.5 * m["axisym_dE_J"]  # the paper's Fig. S16: less energy on the asymmetric path
+    assert 0 < m["dy_pole_m"] < m["axisym_dy_pole_m"]
