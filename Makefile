@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install run run-followed test bench bench-mesh stress clean
+.PHONY: install run run-followed test bench bench-mesh stress clean scenes-table named-jumps harmonics-counts
 
 # install also checks, each time (~0.1 s, no numba), that the kernels compiled ahead of time for
 # this CPU (fast start-up; docs/performance.md) were built from these kernel sources on this CPU:
@@ -35,6 +35,19 @@ test: install
 # throughput and answers on the seeded paper-grid sample (-j 2), against bench/regression/baseline.json
 bench: install
 	$(BIN)/python -m bench.regression compare -j 2 --phase-sample 40 --report bench/out/THROUGHPUT.md --out bench/out/regression_rows.json $(BENCH_ARGS)
+
+# the tables the README and docs quote (bench/tables.py): the paper's scenes at three mesh levels
+# (~2 min), the named designs end to end (~10 s), the harmonic check over a sweep run with
+# solver: {harmonics: 4} (RESULTS=..., default results/paper_grid_h4.parquet)
+scenes-table: install
+	$(BIN)/python -m bench.tables scenes $(TABLE_ARGS)
+
+named-jumps: install
+	$(BIN)/python -m bench.tables named-jumps $(TABLE_ARGS)
+
+RESULTS ?= results/paper_grid_h4.parquet
+harmonics-counts: install
+	$(BIN)/python -m bench.tables harmonics $(RESULTS) $(TABLE_ARGS)
 
 # run time against error per mesh setting (hours; resumable)
 bench-mesh: install

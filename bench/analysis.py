@@ -21,7 +21,7 @@ from typing import Iterable
 from scipy.optimize import brentq
 
 METRICS = ("dE_J", "dy_pole_m")
-#: Error thresholds of the default (issue 5): dE <= 1 %, dy_pole <= 0.5 %.
+#: Error thresholds of the default: dE <= 1 %, dy_pole <= 0.5 %.
 THRESH = {"dE_J": 0.01, "dy_pole_m": 0.005}
 CONV_EST = {"dE_J": 0.02, "dy_pole_m": 0.01}
 CONV_PAIR = {"dE_J": 0.0025, "dy_pole_m": 0.001}

@@ -17,7 +17,7 @@ _GW = np.array([5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0])
 
 
 @njit(cache=True)
-def _edge_shape(s: float, nen: int, N: np.ndarray, dN: np.ndarray) -> None:
+def edge_shape(s: float, nen: int, N: np.ndarray, dN: np.ndarray) -> None:
     if nen == 2:
         N[0] = 0.5 * (1.0 - s)
         N[1] = 0.5 * (1.0 + s)
@@ -41,7 +41,7 @@ def cavity_volume(x: np.ndarray, edges: np.ndarray) -> float:
     v = 0.0
     for e in range(edges.shape[0]):
         for q in range(3):
-            _edge_shape(_GP[q], nen, N, dN)
+            edge_shape(_GP[q], nen, N, dN)
             r = 0.0
             dy = 0.0
             for a in range(nen):
@@ -59,7 +59,7 @@ def _edge_terms(x, nodes, N, dN, ge, he):
     he[:, :] = 0.0
     v = 0.0
     for q in range(3):
-        _edge_shape(_GP[q], nen, N, dN)
+        edge_shape(_GP[q], nen, N, dN)
         r = 0.0
         dy = 0.0
         for a in range(nen):

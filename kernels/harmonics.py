@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit
 
 from snapjump_kernels.kinematics import deformation
-from snapjump_kernels.cavity import _edge_shape
+from snapjump_kernels.cavity import edge_shape
 from snapjump_kernels.gent import gent_iso
 
 _GP = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
@@ -275,7 +275,7 @@ def harmonic_cavity_matrices(x: np.ndarray, edges: np.ndarray, n: float, wc: flo
     dN = np.empty(nen)
     for e in range(m):
         for q in range(3):
-            _edge_shape(_GP[q], nen, N, dN)
+            edge_shape(_GP[q], nen, N, dN)
             r = 0.0
             rs = 0.0
             zs = 0.0

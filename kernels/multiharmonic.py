@@ -42,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from snapjump_kernels.cavity import _edge_shape
+from snapjump_kernels.cavity import edge_shape
 
 _GP = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
 _GW = np.array([5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0])
@@ -516,7 +516,7 @@ def mh_cavity(X: np.ndarray, A: np.ndarray, edges: np.ndarray, hn: np.ndarray, p
     V = 0.0
     for e in range(m):
         for q in range(3):
-            _edge_shape(_GP[q], nen, N, dN)
+            edge_shape(_GP[q], nen, N, dN)
             for j in range(nphi):
                 w = 2.0 * np.pi * _GW[q] * wphi[j]
                 Lm[:, :] = 0.0

@@ -159,3 +159,11 @@ class SolverSettings:
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in fields(cls))
+
+
+#: The jump model's defaults (docs/physics.md section 6), the one source of ``JumpParams`` and of
+#: ``snapjump rank``'s options: rubber density [kg/m^3], dashpot coefficient [kg/s] and the
+#: ground's coefficient of restitution (eq 25).
+JUMP_RHO = 1000.0
+JUMP_C_D = 0.4
+JUMP_ALPHA = 0.5

@@ -12,6 +12,7 @@ import click
 
 from snapjump_cli.cli import is_quiet, verbosity_options
 from snapjump_cli.errors import BadInput
+from snapjump_cli.settings import JUMP_ALPHA, JUMP_C_D, JUMP_RHO
 
 __all__ = ["command", "main"]
 
@@ -45,9 +46,9 @@ command); nothing is written when any output place is unusable.
                    "[default: <RESULTS stem>.ranked.parquet next to RESULTS]")
 @click.option("--plots", "plots_dir", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
               help="Write fig4a.png, fig4c.png and jump_vs_parameters.png into DIR (needs matplotlib).")
-@click.option("--rho", type=float, default=1000.0, show_default=True, help="Rubber density [kg/m^3].")
-@click.option("--c-d", "c_d", type=float, default=0.4, show_default=True, help="Dashpot coefficient [kg/s].")
-@click.option("--alpha", type=float, default=0.5, show_default=True, help="Ground restitution coefficient, in [0, 1].")
+@click.option("--rho", type=float, default=JUMP_RHO, show_default=True, help="Rubber density [kg/m^3].")
+@click.option("--c-d", "c_d", type=float, default=JUMP_C_D, show_default=True, help="Dashpot coefficient [kg/s].")
+@click.option("--alpha", type=float, default=JUMP_ALPHA, show_default=True, help="Ground restitution coefficient, in [0, 1].")
 @click.option("--format", "fmt", type=click.Choice(["text", "csv", "json"]), default="text", show_default=True,
               help="Standard output: the summary and top-N table (text), the top-N rows as CSV, or a JSON "
                    "document (counts, top-N rows, files written). Messages go to stderr with csv/json.")

@@ -43,6 +43,18 @@ log = logging.getLogger(__name__)
 
 __all__ = ["Problem", "PathPoint", "Path", "ContinuationFailed", "ContinuationSettings", "trace", "Tracer"]
 
+#: Step control after an accepted step: the next step is ``STEP_GROW`` times longer when Newton
+#: took at most ``n_opt`` iterations, ``STEP_KEEP`` times up to ``n_opt + 2`` and ``STEP_SHRINK``
+#: times beyond; the growth is capped so that the next step turns by about ``TURN_AIM`` of
+#: ``max_turn_deg``, and never falls below ``STEP_FACTOR_MIN``. A rejected step is cut by
+#: ``STEP_CUT`` and tried again.
+STEP_GROW = 1.6
+STEP_KEEP = 1.0
+STEP_SHRINK = 0.6
+TURN_AIM = 0.5
+STEP_FACTOR_MIN = 0.5
+STEP_CUT = 0.5
+
 
 
 def step_turn(a: PathPoint, b: PathPoint, alpha: float = 0.0) -> float:
@@ -167,15 +179,15 @@ def trace(
                 # Newton's iteration count hardly depends on the step while the predictor is in
                 # its basin: grow while it converges in <= n_opt iterations, shrink beyond
                 its = max(new.newton, 1)
-                grow = 1.6 if its <= cfg.n_opt else (1.0 if its <= cfg.n_opt + 2 else 0.6)
+                grow = STEP_GROW if its <= cfg.n_opt else (STEP_KEEP if its <= cfg.n_opt + 2 else STEP_SHRINK)
                 if ang > 0:
-                    grow = min(grow, 0.5 * cfg.max_turn_deg / ang)
-                ds = min(cfg.ds_max, ds * max(0.5, grow))
+                    grow = min(grow, TURN_AIM * cfg.max_turn_deg / ang)
+                ds = min(cfg.ds_max, ds * max(STEP_FACTOR_MIN, grow))
                 continue
         else:
             cause = "corrector did not converge"
         path.n_rejected += 1
-        ds *= 0.5
+        ds *= STEP_CUT
         log.debug("step rejected (%s); ds -> %.3g", cause, ds)
         if ds < cfg.ds_min:
             z = pt.zeta * tr.sc

@@ -189,7 +189,7 @@ class _FixedVolumeLinearization:
         n = pb.model.n
         e = pb.e
         base = lin.factor(pb.c_V * lin.g, 0.0)
-        if base is None or getattr(base, "kind", "") != "banded":
+        if base is None:
             return None
         B = np.stack([-lin.g, -e], axis=1)
         C = np.stack([pb.c_V * lin.g, c_x[:n]], axis=1)
@@ -379,6 +379,22 @@ def _constrained_negatives(solver, g: np.ndarray, c: float = 0.0) -> int:
     return int(solver.n_negative - (1 if c + gKg < 0 else 0))
 
 
+#: The energy descent at fixed volume (:func:`descend_at_volume`): the largest volume change per
+#: iteration while ``V*`` is restored, ``max(DESCENT_DH_ABS, DESCENT_DH_REL |V*|)`` (scaled units);
+#: the diagonal shift (relative to ``|diag K|``) grows by ``DESCENT_SHIFT_GROW`` after a rejected
+#: trial step or while the shifted system is not positive definite, up to ``DESCENT_SHIFT_MAX``,
+#: and shrinks by ``DESCENT_SHIFT_SHRINK`` after an accepted one; below ``DESCENT_SHIFT_NEWTON``
+#: (and without an unstable mode) the step is Newton's; ``DESCENT_STALL`` iterations without an
+#: energy change at round-off end the descent.
+DESCENT_DH_ABS = 0.05
+DESCENT_DH_REL = 0.01
+DESCENT_SHIFT_GROW = 8.0
+DESCENT_SHIFT_SHRINK = 0.25
+DESCENT_SHIFT_MAX = 1e6
+DESCENT_SHIFT_NEWTON = 1e-10
+DESCENT_STALL = 20
+
+
 def descend_at_volume(
     tracer: Tracer, upper: PathPoint, kick: float = 0.2, max_iter: int = 2000, tol: float | None = None,
     start: PathPoint | None = None, control: Tracer | None = None,
@@ -420,10 +436,10 @@ def descend_at_volume(
         u = upper.u + kick * upper.du_ds
         p = upper.p + kick * upper.dp_ds
     sigma_rel = 1.0
-    dh_max = max(0.05, 0.01 * abs(V_star))  # largest volume change per iteration (scaled) while restoring V*
+    dh_max = max(DESCENT_DH_ABS, DESCENT_DH_REL * abs(V_star))  # largest volume change per iteration while restoring V*
     step_small = False
     E_hist: list[float] = []  # energy of the accepted iterates
-    n_stall = 20
+    n_stall = DESCENT_STALL
     accepted = None  # (u, p, lin, merit-function pieces, unshifted factorisation, its instability)
     for it in range(max_iter):
         if accepted is None:
@@ -443,11 +459,11 @@ def descend_at_volume(
             if outside:
                 dh_max *= 0.5
             if lin is None:
-                sigma_rel = min(sigma_rel * 8.0, 1e6)
+                sigma_rel = min(sigma_rel * DESCENT_SHIFT_GROW, DESCENT_SHIFT_MAX)
                 u, p, lin, E_new, h, base, n_unstable = accepted
             else:
                 E_new, h = E_trial, h_trial
-                sigma_rel *= 0.25
+                sigma_rel *= DESCENT_SHIFT_SHRINK
                 base = None
             z, dz_du, dz_dp = ctl.zeta(u, p, lin)
         c = float(dz_dp[0])  # the control's compliance (0 at fixed volume)
@@ -461,7 +477,7 @@ def descend_at_volume(
         E_hist.append(E_new)
         # Newton at round-off: a snap at p ~ 0 has a tiny residual scale (the pressure load), and
         # the residual can stall above tol while energy, volume and state no longer change
-        stalled = (len(E_hist) > n_stall and sigma_rel < 1e-10 and rn < 1e-3
+        stalled = (len(E_hist) > n_stall and sigma_rel < DESCENT_SHIFT_NEWTON and rn < 1e-3
                    and abs(E_hist[-1] - E_hist[-1 - n_stall]) <= 1e-13 * max(abs(E_new), 1e-300))
         if n_unstable == 0 and abs(h) < tol and (rn < tol or (rn < 100 * tol and step_small) or stalled):
             t, v, q, zz = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
@@ -522,14 +538,14 @@ def _descent_solver(lin, dz_du: np.ndarray, base, n_unstable: int, sigma_rel: fl
     ``sigma_rel <= 1e-10`` the unshifted factorisation ``base`` is used (Newton's step). ``c``: the
     bordered row's compliance (``c_model`` in the model's units; 0 at fixed volume)."""
     solver = None
-    while sigma_rel <= 1e6:
-        if n_unstable != 0 or sigma_rel > 1e-10:
+    while sigma_rel <= DESCENT_SHIFT_MAX:
+        if n_unstable != 0 or sigma_rel > DESCENT_SHIFT_NEWTON:
             solver = lin.factor(dz_du[0], c, shift=sigma_rel * lin.diag_abs())
         else:
             solver = base
         if solver is not None and (n_unstable == 0 or _constrained_negatives(solver, lin.g, c_model) == 0):
             break
-        sigma_rel = max(sigma_rel * 8.0, 1e-10)
+        sigma_rel = max(sigma_rel * DESCENT_SHIFT_GROW, DESCENT_SHIFT_NEWTON)
         solver = None
     return solver, sigma_rel
 

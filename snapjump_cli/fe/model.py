@@ -17,11 +17,11 @@ Interface used by :mod:`snapjump_cli.fe.continuation` (nothing about meshes leak
 
 Linear solvers. The free dofs are numbered along the structure (Cuthill-McKee from the inner
 cap's lower pole, :func:`snapjump_cli.mesh.data.cuthill_mckee`, the node order of the meshes of
-:func:`snapjump_cli.mesh.build.mesh_scene`), so the symmetric ``K_T`` is banded. ``solver="banded"``
-(default) factorises it with a numba band LDL^T (:mod:`snapjump_kernels.banded`, which also gives the number of negative
-eigenvalues) and handles the border by block elimination with one step of iterative refinement
-on the full bordered system (accurate next to limit points, where ``K_T`` is nearly singular);
-``solver="superlu"`` factorises the whole bordered matrix with SuperLU (a cross-check).
+:func:`snapjump_cli.mesh.build.mesh_scene`), so the symmetric ``K_T`` is banded. It is factorised
+by a numba band LDL^T (:mod:`snapjump_kernels.banded`, which also gives the number of negative
+eigenvalues), and the border is handled by block elimination with one step of iterative
+refinement on the full bordered system (accurate next to limit points, where ``K_T`` is nearly
+singular).
 """
 from __future__ import annotations
 
@@ -86,13 +86,10 @@ class Linearization:
         import scipy.sparse as sp
 
         m, n = self.model, self.model.n
-        if m.solver == "banded":
-            ab = self.data.reshape(n, m.kl + 1)
-            L = sp.diags([ab[: n - k, k] for k in range(m.kl + 1)], [-k for k in range(m.kl + 1)],
-                         shape=(n, n), format="csr")
-            return (L + sp.triu(L.T, 1)).tocsr()
-        A = sp.csr_matrix((self.data, m.indices, m.indptr), shape=(n + 1, n + 1))
-        return A[:n, :n].tocsr()
+        ab = self.data.reshape(n, m.kl + 1)
+        L = sp.diags([ab[: n - k, k] for k in range(m.kl + 1)], [-k for k in range(m.kl + 1)],
+                     shape=(n, n), format="csr")
+        return (L + sp.triu(L.T, 1)).tocsr()
 
     def diag_abs(self) -> np.ndarray:
         """``|diag K_T|`` per dof (a Jacobi metric for ``shift``)."""
@@ -102,22 +99,19 @@ class Linearization:
 class BorderedSolver:
     """Solves the bordered system ``[[K, b], [c^T, d]] [x; y] = [r; s]``.
 
-    ``kind="banded"``: ``fac`` is the band LDL^T of ``K`` (``K`` kept for the refinement step);
-    ``kind="superlu"``: ``fac`` is the SuperLU factorisation of the whole bordered matrix.
+    ``fac`` is the band LDL^T of ``K`` (``K`` kept for the refinement step).
     """
 
-    def __init__(self, kind, fac, K, b, c, d, n, n_negative=-1, ext=None, Kib=None, schur=None):
-        self.kind, self.fac, self.K, self.b, self.c, self.d, self.n = kind, fac, K, b, c, d, n
-        self.n_negative = n_negative  # negative eigenvalues of K (banded only)
-        self.ext = ext  # envelope column extents of the band (banded only)
-        self.Kib, self.schur = Kib, schur  # K^-1 b and d - c^T K^-1 b (banded only)
+    def __init__(self, fac, K, b, c, d, n, n_negative=-1, ext=None, Kib=None, schur=None):
+        self.fac, self.K, self.b, self.c, self.d, self.n = fac, K, b, c, d, n
+        self.n_negative = n_negative  # negative eigenvalues of K
+        self.ext = ext  # envelope column extents of the band
+        self.Kib, self.schur = Kib, schur  # K^-1 b and d - c^T K^-1 b
 
     def solve(self, rhs: np.ndarray, refine: bool = True) -> np.ndarray:
         """Solution of the bordered system for one right-hand side ``[r; s]`` (length n + 1),
-        with (``refine``) one step of iterative refinement on the full bordered system (banded)."""
+        with (``refine``) one step of iterative refinement on the full bordered system."""
         rhs = np.asarray(rhs, dtype=float)
-        if self.kind == "superlu":
-            return self.fac.solve(rhs)
         return bordered_solve(self.fac, self.K, self.ext, self.b, self.c, self.d, self.Kib, self.schur, rhs, refine)
 
 
@@ -133,7 +127,6 @@ class Model:
     L, S : length and stress scales (SI) used to non-dimensionalise
     pole_node : node whose vertical displacement is the path measure ``w``
         (default: ``mesh.node_sets["pole_upper"]``)
-    solver : ``"banded"`` (LAPACK band LU + bordering) or ``"superlu"``
     """
 
     def __init__(
@@ -145,11 +138,7 @@ class Model:
         L: float,
         S: float,
         pole_node: int | None = None,
-        solver: str = "banded",
     ) -> None:
-        if solver not in ("banded", "superlu"):
-            raise ValueError(f"solver must be 'banded' or 'superlu', got {solver!r}")
-        self.solver = solver
         self.mesh = mesh
         self.L = float(L)
         self.S = float(S)
@@ -206,7 +195,7 @@ class Model:
         """Element and cavity dof tables, the band and its envelope (and for SuperLU the CSR pattern
         of the bordered matrix), and the position of every element (and cavity) matrix entry in the
         assembled data array."""
-        solver, dofmap = self.solver, self.dofmap
+        dofmap = self.dofmap
         edofs = dofmap[self.conn].reshape(self.conn.shape[0], -1)
         self.edofs = np.ascontiguousarray(edofs)
         edge_dofs = dofmap[self.edges].reshape(self.edges.shape[0], -1)
@@ -226,33 +215,12 @@ class Model:
             p = c * (self.kl + 1) + (r - c)
             return np.where((r >= 0) & (c >= 0) & (r >= c), p, -1)
 
-        if solver == "banded":
-            pos = band_pos
-        else:  # the CSR pattern of the bordered matrix (only SuperLU needs it: ~5 ms a model)
-            gd = np.unique(edge_dofs[edge_dofs >= 0])
-            self.border_dofs = np.union1d(gd, [self.pole_dof])
-            n1 = n + 1
-            bd = self.border_dofs
-            br = np.concatenate([bd, np.full(len(bd), n), [n]])
-            bc = np.concatenate([np.full(len(bd), n), bd, [n]])
-            keys = np.unique(np.concatenate([ri[valid] * n1 + ci[valid], br * n1 + bc]))
-            self.indptr = np.searchsorted(keys // n1, np.arange(n1 + 1)).astype(np.int64)
-            self.indices = (keys % n1).astype(np.int64)
-
-            def csr_pos(r, c):
-                p = np.searchsorted(keys, r * n1 + c)
-                return np.where((r >= 0) & (c >= 0), p, -1)
-
-            pos = csr_pos
+        pos = band_pos
         self.epos = np.ascontiguousarray(pos(ri, ci).reshape(self.conn.shape[0], nd, nd).astype(np.int64))
         self.edge_pos = np.ascontiguousarray(pos(rg, cg).reshape(self.edges.shape[0], nde, nde).astype(np.int64))
-        self.ndata = (self.kl + 1) * n if solver == "banded" else len(keys)
+        self.ndata = (self.kl + 1) * n
         ar = np.arange(n)
         self.diag_pos = pos(ar, ar)
-        if solver == "superlu":
-            self.col_pos = csr_pos(bd, np.full(len(bd), n))
-            self.row_pos = csr_pos(np.full(len(bd), n), bd)
-            self.corner_pos = int(csr_pos(np.array([n]), np.array([n]))[0])
 
     # ---- displacement bookkeeping --------------------------------------------------------------
     def full_displacement(self, u: np.ndarray) -> np.ndarray:
@@ -418,23 +386,11 @@ class Model:
         t0 = time.perf_counter()
         n = self.n
         try:
-            if self.solver == "banded":
-                K = data.reshape(n, self.kl + 1)
-                ok, nneg, fac, Kib, schur = bordered_factor(K, self.band_ext, b, c_u, float(c_p))
-                if not ok or not np.isfinite(schur) or schur == 0.0:
-                    return None
-                s = BorderedSolver("banded", fac, K, b, c_u, float(c_p), n, nneg, self.band_ext, Kib, schur)
-            else:
-                import scipy.sparse as sp
-                import scipy.sparse.linalg as spla
-
-                bd = self.border_dofs
-                data = data.copy()
-                data[self.col_pos] = b[bd]
-                data[self.row_pos] = c_u[bd]
-                data[self.corner_pos] = c_p
-                A = sp.csr_matrix((data, self.indices, self.indptr), shape=(n + 1, n + 1)).tocsc()
-                s = BorderedSolver("superlu", spla.splu(A, permc_spec="NATURAL"), None, b, c_u, c_p, n)
+            K = data.reshape(n, self.kl + 1)
+            ok, nneg, fac, Kib, schur = bordered_factor(K, self.band_ext, b, c_u, float(c_p))
+            if not ok or not np.isfinite(schur) or schur == 0.0:
+                return None
+            s = BorderedSolver(fac, K, b, c_u, float(c_p), n, nneg, self.band_ext, Kib, schur)
         except RuntimeError:  # exactly singular
             return None
         finally:

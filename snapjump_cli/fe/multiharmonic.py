@@ -299,7 +299,7 @@ class MultiHarmonicModel:
         if not ok or not np.isfinite(schur) or schur == 0.0:
             return None
         self.n_factorizations += 1
-        return BorderedSolver("banded", fac, K, b, c_u, float(c_p), n, nneg, self.band_ext, Kib, schur)
+        return BorderedSolver(fac, K, b, c_u, float(c_p), n, nneg, self.band_ext, Kib, schur)
 
     def stiffness_matrix(self, u: np.ndarray, p: float):
         """The tangent alone (scipy CSR), for tests and eigenvalues."""

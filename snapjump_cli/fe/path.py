@@ -31,7 +31,7 @@ class Problem(Protocol):
         With ``stiffness=False`` only ``.R`` is needed (no ``factor``).
 
         Optional auxiliary field: a problem that accepts ``linearize(u, p, aux=a)`` builds the
-        tangent with ``a`` and gives ``.aux`` (the field at ``u``) and ``.aux_step(x)`` (its
+        tangent with ``a`` and gives ``.aux`` (the field at ``u``) and ``.aux_dir(x)`` (its
         linearised change for a correction ``x``) on the result."""
         ...
 
@@ -84,7 +84,7 @@ class ContinuationSettings:
         tolerance) is more than ``theta_max`` times the one before: converging steps contract by
         ~1e-3 per iteration (90 % below 2e-2; above 0.5 in 3 of ~800 steps), failing ones by ~0.9
         in the median (often growing), and iterating on to ``max_newton`` cost ~9 element passes
-        per failed step (``scripts/newton_study.py contraction``)
+        per failed step (``lab/newton_study.py contraction``)
     mixed_tangent : linearise with the auxiliary field carried along the path, if the problem has one
     split_steps : a step that turned more than ``max_turn_deg`` is kept, with its half-way point
         added, when each half turns less (else it is rejected and the step halved); the converged

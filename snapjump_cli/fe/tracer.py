@@ -202,7 +202,7 @@ class Tracer:
                 return None
             dz = dz_du @ du + dz_dp * dp
             inc = math.sqrt(float(dz @ dz) + self.alpha**2 * float(du @ du))
-            if self.on_increment is not None:  # diagnostics (scripts/newton_study.py)
+            if self.on_increment is not None:  # diagnostics (lab/newton_study.py)
                 self.on_increment(it, inc)
             if tol_inc > 0.0 and it > 0 and inc < tol_inc and inc < inc_prev:
                 aux_dir = getattr(lin, "aux_dir", None) if getattr(lin, "aux", None) is not None else None
@@ -225,7 +225,7 @@ class Tracer:
 
         The predictor is the tangent line, or with ``prev`` (the point before ``pt``) the cubic
         Hermite extrapolation through both points and their tangents (fewer steps than the
-        quadratic through ``prev`` tangent at ``pt``: scripts/profile_designs.py, docs/performance.md).
+        quadratic through ``prev`` tangent at ``pt``: python -m bench.profile_designs, docs/performance.md).
         The auxiliary field, if the points carry one, is extrapolated along its tangent.
         ``error_test``: accept the state by the error test (ordinary path points), else by the
         residual test (snap states, roots).

@@ -10,7 +10,7 @@ result table).
 """
 from __future__ import annotations
 
-from snapjump_cli.jump.closed_form import eigensystem, system_matrices
+from snapjump_cli.jump.closed_form import eigensystem, spring_stiffness, system_matrices
 from snapjump_cli.jump.ode import jump_height_ode
 from snapjump_cli.jump.params import JumpParams, JumpResult
 from snapjump_cli.jump.trajectory import (
@@ -19,7 +19,6 @@ from snapjump_cli.jump.trajectory import (
     jump_heights,
     jump_trajectory,
     masses,
-    spring_stiffness,
 )
 
 __all__ = ["JumpParams", "JumpResult", "JumpTrajectory", "masses", "spring_stiffness", "eigensystem",

@@ -15,15 +15,27 @@ from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from snapjump_cli.jump.params import check_real
+
 if TYPE_CHECKING:
     from snapjump_cli.jump.params import JumpParams
 
-__all__ = ["system_matrices", "eigensystem"]
+__all__ = ["spring_stiffness", "system_matrices", "eigensystem"]
 
 #: Rebound speed (relative to sqrt(2 dE / mu)) below which a pressed-down m_i comes to rest.
 V_STICK_REL = 1e-7
 #: Samples per oscillation period when scanning for contacts, lift-offs and apexes.
 SAMPLES_PER_PERIOD = 64
+
+
+def spring_stiffness(dE_J: float, dy_pole_m: float) -> float:
+    """Spring stiffness ``k_s = 2 dE / dy_pole^2`` [N/m] (``0`` if ``dE <= 0`` or ``dy_pole <= 0``)."""
+    dE = check_real("dE_J", dE_J)
+    dy = check_real("dy_pole_m", dy_pole_m)
+    if dE <= 0.0 or dy <= 0.0:
+        return 0.0
+    return 2.0 * dE / dy**2
+
 
 
 def system_matrices(k_s: float, m_i: float, m_o: float, c_d: float, g: float,

@@ -13,7 +13,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from snapjump_cli.jump.closed_form import SAMPLES_PER_PERIOD, V_STICK_REL, PhaseModel, system_matrices
+from snapjump_cli.jump.closed_form import SAMPLES_PER_PERIOD, V_STICK_REL, PhaseModel, spring_stiffness, system_matrices
 from snapjump_cli.jump.params import JumpParams, JumpResult, finish, no_snap, validate
 
 __all__ = ["jump_height_ode"]
@@ -105,7 +105,7 @@ class _OdeJump:
     def __init__(self, dE: float, dy: float, h: float, mi: float, mo: float, p: JumpParams,
                  rtol: float, atol: float) -> None:
         self.p, self.h, self.mi, self.mo = p, h, mi, mo
-        k = 2.0 * dE / dy**2
+        k = spring_stiffness(dE, dy)
         c, g = p.c_d, p.g
         M = mi + mo
         mu = mi * mo / M

@@ -11,6 +11,8 @@ import logging
 import math
 from dataclasses import dataclass
 
+from snapjump_cli.settings import JUMP_ALPHA, JUMP_C_D, JUMP_RHO
+
 __all__ = ["JumpParams", "JumpResult"]
 
 #: The jump model's messages keep the logger of its public module.
@@ -52,10 +54,10 @@ class JumpParams:
         Limit on the number of ground impacts (same consequence as ``t_max``).
     """
 
-    rho: float = 1000.0
-    c_d: float = 0.4
+    rho: float = JUMP_RHO
+    c_d: float = JUMP_C_D
     g: float = 9.81
-    alpha: float = 0.5
+    alpha: float = JUMP_ALPHA
     t_max: float = 5.0
     max_contacts: int = 200
 

@@ -22,6 +22,8 @@ from typing import Any, Callable
 import numpy as np
 import pandas as pd
 
+from snapjump_cli.settings import JUMP_RHO
+
 __all__ = ["RANK_COLUMNS", "REQUIRED_COLUMNS", "RankInputError", "check_types", "rank_results", "settings_mix",
            "top_frame", "top_table", "TOP_COLUMNS"]
 
@@ -131,7 +133,7 @@ def rank_results(
         if jump_fn is None:
             jumps_fn = jump.jump_heights
         masses_fn = masses_fn or jump.masses
-    rho = float(getattr(params, "rho", 1000.0))
+    rho = float(getattr(params, "rho", JUMP_RHO))
     out = _jump_columns(df, params, jump_fn, masses_fn, rho, jumps_fn, _contract_breaches(df))
     followed = (df["followed"].astype("boolean").fillna(False).to_numpy(bool) if "followed" in df.columns
                 else np.zeros(len(df), bool))

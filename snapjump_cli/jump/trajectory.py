@@ -64,23 +64,23 @@ from typing import Iterable
 import numpy as np
 
 from snapjump_cli.jump.batch import Simulation, run_many, run_one
-from snapjump_cli.jump.closed_form import V_STICK_REL, Phase, PhaseModel
+from snapjump_cli.jump.closed_form import V_STICK_REL, Phase, PhaseModel, spring_stiffness
 from snapjump_cli.jump.events import scan_flight, scan_rest
 from snapjump_cli.jump.params import JumpParams, JumpResult, check_real, finish, no_snap, validate
+from snapjump_cli.settings import JUMP_RHO
 
 __all__ = [
     "JumpParams",
     "JumpResult",
     "JumpTrajectory",
     "masses",
-    "spring_stiffness",
     "jump_height",
     "jump_heights",
     "jump_trajectory",
 ]
 
 
-def masses(V_inner_solid_m3: float, V_outer_solid_m3: float, rho: float = 1000.0) -> tuple[float, float]:
+def masses(V_inner_solid_m3: float, V_outer_solid_m3: float, rho: float = JUMP_RHO) -> tuple[float, float]:
     """Masses of the two bodies from their solid rubber volumes.
 
     Parameters
@@ -106,15 +106,6 @@ def masses(V_inner_solid_m3: float, V_outer_solid_m3: float, rho: float = 1000.0
     vo = check_real("V_outer_solid_m3", V_outer_solid_m3, positive=True)
     r = check_real("rho", rho, positive=True)
     return r * vi, r * vo
-
-
-def spring_stiffness(dE_J: float, dy_pole_m: float) -> float:
-    """Spring stiffness ``k_s = 2 dE / dy_pole^2`` [N/m] (``0`` if ``dE <= 0`` or ``dy_pole <= 0``)."""
-    dE = check_real("dE_J", dE_J)
-    dy = check_real("dy_pole_m", dy_pole_m)
-    if dE <= 0.0 or dy <= 0.0:
-        return 0.0
-    return 2.0 * dE / dy**2
 
 
 # --------------------------------------------------------------------------------------------
@@ -233,7 +224,7 @@ def _simulate(dE_J: float, dy_pole_m: float, h_imp_m: float, m_i_kg: float, m_o_
     if ns is not None:
         return JumpTrajectory(result=ns, contact_times=(), apexes=(), L_rest=L0 + max(dy, 0.0))
     p = params
-    k = 2.0 * dE / dy**2
+    k = spring_stiffness(dE, dy)
     md = PhaseModel(k, mi, mo, p)
     v_stick = V_STICK_REL * math.sqrt(2.0 * dE / md.mu)
 

@@ -25,6 +25,7 @@ def _pyplot() -> Any:
 
 
 def _save_atomic(fig: Any, path: Path) -> Path:
+    """Write ``fig`` as a PNG atomically, with the mode the umask gives (as every output)."""
     from snapjump_cli.files import write_atomic
 
     return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=150, format="png"))

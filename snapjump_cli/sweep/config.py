@@ -339,8 +339,9 @@ def _parse_points(ctx: CheckContext, value: Any, max_designs: int = MAX_DESIGNS)
     return tuple(out)
 
 
-def _settings_from(ctx: CheckContext, path: str, value: Any, cls: type, checks: Mapping[str, Callable]) -> Any:
-    """Build a settings dataclass, typing each field after its default value."""
+def _settings_from(ctx: CheckContext, path: str, value: Any, cls: type) -> Any:
+    """Build a settings dataclass, typing each field after its default value; the ranges are
+    checked by the settings class itself (the same for YAML and the command line)."""
     defaults = cls()
     names = [f.name for f in dataclasses.fields(cls)]
     if value is None:
@@ -358,22 +359,11 @@ def _settings_from(ctx: CheckContext, path: str, value: Any, cls: type, checks: 
             x = ctx.number(kp, v)
         else:  # pragma: no cover - settings only hold bools and numbers today
             x = v
-        if k in checks:
-            good, expected = checks[k]
-            if not good(x):
-                raise ctx.fail(kp, expected, v)
         kwargs[k] = x
     try:
         return cls(**kwargs)
     except SettingsError as e:
         raise ctx.fail(f"{path}.{e.field}", e.expected, m.get(e.field, e.value)) from None
-
-
-# The ranges of every setting are checked by the settings classes themselves
-# (snapjump_cli.settings: MeshSettings / SolverSettings.__post_init__), the same for YAML and CLI;
-# these hold extra checks only (none today).
-_MESH_CHECKS: dict[str, tuple[Callable[[Any], bool], str]] = {}
-_SOLVER_CHECKS: dict[str, tuple[Callable[[Any], bool], str]] = {}
 
 
 def _parse_fluid(ctx: CheckContext, value: Any) -> FluidSettings:
@@ -441,8 +431,8 @@ def parse_config(doc: Any, source: str = "<dict>", max_designs: int = MAX_DESIGN
         r = ctx.mapping("ring", top["ring"], {"t_ring_frac": "t_ring / R_i", "w_ring_frac": "w_ring / R_i"})
         for k in r:
             kw[k] = ctx.positive(f"ring.{k}", r[k])
-    kw["mesh"] = _settings_from(ctx, "mesh", top.get("mesh"), MeshSettings, _MESH_CHECKS)
-    kw["solver"] = _settings_from(ctx, "solver", top.get("solver"), SolverSettings, _SOLVER_CHECKS)
+    kw["mesh"] = _settings_from(ctx, "mesh", top.get("mesh"), MeshSettings)
+    kw["solver"] = _settings_from(ctx, "solver", top.get("solver"), SolverSettings)
     if top.get("fluid") is not None:
         kw["fluid"] = _parse_fluid(ctx, top["fluid"])
         if kw["fluid"].is_air and kw["solver"].harmonics > 0:

@@ -74,9 +74,9 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 #: CPU seconds per solved design on the paper grid's mesh (order 2, nt 2, aspect 3), the basis of
-#: the time estimate printed before a sweep: the mean over the full paper grid of 23 November 2026 (session 9)
-#: at commit daf4d67 on a 2-core Xeon with AVX-512 was 0.117 s, on the slower 2-core Xeon of the
-#: day before 0.35 s (docs/performance.md); the estimate takes the middle, 0.2 s.
+#: the time estimate printed before a sweep: the mean over the full paper grid (``make run``) was
+#: 0.117 s on a 2-core Xeon with AVX-512 and 0.35 s on a slower 2-core Xeon (docs/performance.md);
+#: the estimate takes the middle, 0.2 s.
 CPU_S_PER_DESIGN = 0.2
 
 

@@ -8,8 +8,8 @@
 
 Every sweep asserts the row contract (no unhandled exception, every non-ok row classified with its
 cause, no NaN/inf in an ok row), and writes a summary (counts, failure rate, causes) next to its
-resumable result file in ``results/stress/`` (``SNAPJUMP_STRESS_DIR``). The full run takes hours on
-a small machine (the paper grid alone ~4800 x 2-20 s): it resumes where a killed run stopped. Knobs
+resumable result file in ``results/stress/`` (``SNAPJUMP_STRESS_DIR``). The full run took ~15 min
+on a 2-core machine (bench/README.md): it resumes where a killed run stopped. Knobs
 (sample sizes, mesh, jobs): see ``stresslib``.
 """
 from __future__ import annotations

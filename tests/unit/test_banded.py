@@ -4,8 +4,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_kernels.banded import (band_ldlt, band_ldlt_solve, envelope_extents, full_extents,
+from snapjump_kernels.banded import (band_ldlt, band_ldlt_solve, envelope_extents,
                                      sym_band_matvec)
+
+
+def full_extents(n: int, kl: int) -> np.ndarray:
+    """The extents of a full band (no envelope information)."""
+    return np.minimum(kl, n - 1 - np.arange(n, dtype=np.int64))
 
 
 def _random_profile_matrix(n: int, kl: int, seed: int, shift: float):

@@ -1,9 +1,9 @@
 """The snap under air against water: the tables and figures of docs/air.md.
 
-    python scripts/air_study.py table [--designs C D] [--V0 1 2 5 10 20 45 100 200 500 1000] [--gamma 1 1.4]
-    python scripts/air_study.py crossing [--designs C D] [--level 0.05]
-    python scripts/air_study.py fig-s9 OUT.png [--design C] [--V0 40 45 100]
-    python scripts/air_study.py ranking WATER.ranked.parquet AIR.ranked.parquet [--top 20]
+    python lab/air_study.py table [--designs C D] [--V0 1 2 5 10 20 45 100 200 500 1000] [--gamma 1 1.4]
+    python lab/air_study.py crossing [--designs C D] [--level 0.05]
+    python lab/air_study.py fig-s9 OUT.png [--design C] [--V0 40 45 100]
+    python lab/air_study.py ranking WATER.ranked.parquet AIR.ranked.parquet [--top 20]
 
 ``table``: per design the water snap and, for every V0_sys and polytropic exponent, the air snap
 (pressures before and after, the actuator's volume change and eq 9's, the energy of rubber and

@@ -1,15 +1,15 @@
 """Reproduce the iteration-count study of the speed work (docs/performance.md, issue 10 notes).
 
-    .venv/bin/python scripts/newton_study.py variants --n 20            # counts per continuation variant
-    .venv/bin/python scripts/newton_study.py history --design D         # Newton residuals per step
-    .venv/bin/python scripts/newton_study.py perturb --design D         # Newton from perturbed states
-    .venv/bin/python scripts/newton_study.py recheck results/paper_grid.parquet   # nt 2 vs nt 3 re-check
-    .venv/bin/python scripts/newton_study.py recheck results/paper_grid.parquet --flags -j 2   # ... and flags
-    .venv/bin/python scripts/newton_study.py predictor --design D       # predictor errors per step
-    .venv/bin/python scripts/newton_study.py turning --design D         # where the path turns
-    .venv/bin/python scripts/newton_study.py pressure --design D        # element pressure at predictions
-    .venv/bin/python scripts/newton_study.py accepted --design D        # residual of the accepted states
-    .venv/bin/python scripts/newton_study.py contraction D grid-1543    # Newton contraction, steps kept and failed
+    .venv/bin/python lab/newton_study.py variants --n 20            # counts per continuation variant
+    .venv/bin/python lab/newton_study.py history --design D         # Newton residuals per step
+    .venv/bin/python lab/newton_study.py perturb --design D         # Newton from perturbed states
+    .venv/bin/python lab/newton_study.py recheck results/paper_grid.parquet   # nt 2 vs nt 3 re-check
+    .venv/bin/python lab/newton_study.py recheck results/paper_grid.parquet --flags -j 2   # ... and flags
+    .venv/bin/python lab/newton_study.py predictor --design D       # predictor errors per step
+    .venv/bin/python lab/newton_study.py turning --design D         # where the path turns
+    .venv/bin/python lab/newton_study.py pressure --design D        # element pressure at predictions
+    .venv/bin/python lab/newton_study.py accepted --design D        # residual of the accepted states
+    .venv/bin/python lab/newton_study.py contraction D grid-1543    # Newton contraction, steps kept and failed
 
 ``variants`` solves the first N valid, snapping designs of the seeded benchmark sample (the grid
 rows of bench/regression/baseline.json) as the sweep does and prints the assemblies, steps and
@@ -37,7 +37,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import os
 import sys
 from collections import Counter
 from pathlib import Path
@@ -102,7 +101,6 @@ def _design(name: str):
 
 
 def _history(a: argparse.Namespace) -> None:
-    os.environ["SNAPJUMP_PROFILE_PHASES"] = "1"  # the Python corrector, whose iterations are visible
     from snapjump_cli.fe import continuation as C
     from snapjump_cli.sweep.config import load_config
     from snapjump_cli.fe.solve import solve_scene
@@ -123,7 +121,7 @@ def _history(a: argparse.Namespace) -> None:
 
     C.Tracer.residual_scale, C.Tracer.correct = residual_scale, correct
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")
-    m = solve_scene(_design(a.design), cfg.mesh, cfg.solver).metrics
+    m = solve_scene(_design(a.design), cfg.mesh, cfg.solver, fused=False).metrics
     print(f"{a.design}: steps {m['n_steps']}, Newton {m['n_newton']}, rejected {m['n_rejected']}")
     print("solves per corrector call:", dict(sorted(Counter(len(h) - 1 for h in hist).items())))
     for h in hist[a.skip: a.skip + a.show]:
@@ -264,7 +262,6 @@ def _turning(a: argparse.Namespace) -> None:
 def _riks_calls(design: str, record):
     """Solve ``design`` through the Python corrector; ``record(tracer, u_pred, p_pred, result)`` is
     called after every Riks corrector call that converged with the error test."""
-    os.environ["SNAPJUMP_PROFILE_PHASES"] = "1"
     from snapjump_cli.fe import continuation as C
     from snapjump_cli.sweep.config import load_config
     from snapjump_cli.fe.solve import solve_scene
@@ -280,7 +277,7 @@ def _riks_calls(design: str, record):
     C.Tracer.correct = correct
     try:
         cfg = load_config(REPO / "configs" / "paper_grid.yaml")
-        return solve_scene(_design(design), cfg.mesh, cfg.solver).metrics
+        return solve_scene(_design(design), cfg.mesh, cfg.solver, fused=False).metrics
     finally:
         C.Tracer.correct = orig
 
@@ -318,7 +315,6 @@ def _contraction(a: argparse.Namespace) -> None:
     """Contraction of the Newton corrections (each one over the one before) on the path steps, for
     the steps that converged and those that failed, with the give-up rule switched off: why Newton
     stops at a contraction above ``theta_max`` (ContinuationSettings)."""
-    os.environ["SNAPJUMP_PROFILE_PHASES"] = "1"  # the Python corrector reports its corrections
     from snapjump_cli.fe import continuation as C
     from snapjump_cli.sweep.config import load_config
     from snapjump_cli.fe.solve import solve_scene
@@ -341,7 +337,7 @@ def _contraction(a: argparse.Namespace) -> None:
         C.ContinuationSettings.from_solver = classmethod(
             lambda cls, *x, **k: orig_from(cls, *x, **{**k, "theta_max": float("inf")}))
         try:
-            m = solve_scene(_design(name), cfg.mesh, cfg.solver).metrics
+            m = solve_scene(_design(name), cfg.mesh, cfg.solver, fused=False).metrics
         finally:
             C.Tracer.correct = orig_correct
             C.ContinuationSettings.from_solver = classmethod(orig_from)

@@ -1,8 +1,8 @@
 """The largest pressure on a design's path, from the points and from the Hermite curve, at the
 default and at finer steps.
 
-    .venv/bin/python scripts/pmax_check.py 5,80,10,90,5.8 5,70,13.333333333333334,76,5.8
-    .venv/bin/python scripts/pmax_check.py D --ds-max 0.02 --max-turn 2
+    .venv/bin/python lab/pmax_check.py 5,80,10,90,5.8 5,70,13.333333333333334,76,5.8
+    .venv/bin/python lab/pmax_check.py D --ds-max 0.02 --max-turn 2
 
 Solves each design as the sweep does (the grid's mesh and the mesh re-check) at the default steps
 and at finer ones, and prints the largest pressure on the loading path (up to the upper state)

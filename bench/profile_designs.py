@@ -1,16 +1,16 @@
 """Per-design cost of a sweep solve: steps, Newton iterations, assemblies, factorisations, time
-per iteration and the element pass against its flop count (issue 10's before/after table).
+per iteration and the element pass against its flop count.
 
-    .venv/bin/python scripts/profile_designs.py [--repeat 3] [--designs D C grid-0037 grid-1543]
+    .venv/bin/python -m bench.profile_designs [--repeat 3] [--designs D C grid-0037 grid-1543]
 
 Designs are named designs (``snapjump_cli/geometry/designs.yaml``) or ``grid-NNNN`` (the paper grid's point
 NNNN); each is solved once at the grid's mesh (``solve_scene``; ``--sweep``: as the sweep solves
 it, with the mesh re-check), warm, the median of ``--repeat`` runs. ``--repo DIR`` profiles another
 checkout (e.g. a git worktree of an older commit, with a ``snapjump_kernels -> kernels`` link).
 Prints a markdown table. With the compiled corrector the per-assembly and per-factorisation times
-need ``SNAPJUMP_PROFILE_PHASES=1`` (the Python corrector, whose timers split the phases).
+are not timed apart; ``--phases`` solves through the Python corrector, whose timers split them.
 
-    .venv/bin/python scripts/profile_designs.py --kernels D
+    .venv/bin/python -m bench.profile_designs --kernels D
 
 times each kernel of one Newton iteration (CPU time per call, 600 calls) at the middle point of
 the design's path: the element pass with the stiffness, with the residual only and with the
@@ -18,7 +18,7 @@ energy only, the bordered band LDL^T and one refined bordered solve (``--nt 3``:
 the re-check), then how exact the band kernels are there (condition number, the bordered solve
 against an extended-precision solution, the band solve and product against dense numpy).
 
-    .venv/bin/python scripts/profile_designs.py --topologies 400
+    .venv/bin/python -m bench.profile_designs --topologies 400
 
 meshes a seeded sample of paper-grid points (the invalid ones drop out) and counts the distinct
 mesh topologies, i.e. the node orders the sweep computes once and then looks up (the order cache
@@ -203,6 +203,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--designs", nargs="*", default=["D", "C", "grid-0037", "grid-1543"])
     ap.add_argument("--sweep", action="store_true", help="solve_design (with the mesh re-check)")
+    ap.add_argument("--phases", action="store_true",
+                    help="through the Python corrector (fused=False), whose timers split the phases")
     ap.add_argument("--repo", default=str(REPO))
     ap.add_argument("--kernels", metavar="DESIGN", help="only time the kernels of one iteration at a path state")
     ap.add_argument("--nt", type=int, help="with --kernels: elements through the thickness (default: the grid's)")
@@ -237,10 +239,11 @@ def main(argv: list[str] | None = None) -> int:
         runs = []
         for _ in range(a.repeat):
             t0 = time.perf_counter()
+            kw = {"fused": False} if a.phases else {}
             if a.sweep:
-                m = solve_design(d, cfg.mesh, cfg.solver)
+                m = solve_design(d, cfg.mesh, cfg.solver, **kw)
             else:
-                r = solve_scene(d, cfg.mesh, cfg.solver)
+                r = solve_scene(d, cfg.mesh, cfg.solver, **kw)
                 m = r.metrics
                 m["n_assemblies"] = r.model.n_assemblies  # (older code: every element pass, energy ones too)
             m["_wall"] = time.perf_counter() - t0

@@ -1,7 +1,7 @@
 """The bench sample solved with the ahead-of-time compiled kernels and with the JIT-compiled ones:
 every reported value must be the same bits.
 
-    .venv/bin/python scripts/aot_check.py [-j 2]
+    .venv/bin/python -m bench.aot_check [-j 2]
 
 Runs ``bench.regression compare`` twice (``SNAPJUMP_NO_AOT=0`` and ``=1``, the 257 rows of the
 seeded paper-grid sample, the named designs and the Fig. 1 caps), then compares every value of

@@ -1,6 +1,6 @@
 """The lower state off the path two ways: the fixed-volume continuation and the energy descent.
 
-    .venv/bin/python scripts/lower_state_check.py [grid-1543 grid-3911 ...] [--design A --nt 2 --aspect 1]
+    .venv/bin/python lab/lower_state_check.py [grid-1543 grid-3911 ...] [--design A --nt 2 --aspect 1]
 
 For each design (``grid-NNNN``: the paper grid's point NNNN at the grid's mesh; a named design
 with ``--nt``/``--aspect``), traces the path, then finds the lower state from the upper state with

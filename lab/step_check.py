@@ -1,7 +1,7 @@
 """Re-solve paper-grid rows at much finer steps and compare both an older run and this code with
 them: which one the step-converged answer is nearer to.
 
-    .venv/bin/python scripts/step_check.py OLD.parquet 1404 3854 ...
+    .venv/bin/python lab/step_check.py OLD.parquet 1404 3854 ...
 
 For each grid index (the row of ``configs/paper_grid.yaml``) the design is solved as the sweep
 solves it (the grid's mesh and the mesh re-check) at the default steps and at 20x shorter largest

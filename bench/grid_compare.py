@@ -1,6 +1,6 @@
 """Compare two full sweeps of the same grid row by row, and the time per design of the newer one.
 
-    .venv/bin/python scripts/grid_compare.py OLD.parquet NEW.parquet
+    .venv/bin/python -m bench.grid_compare OLD.parquet NEW.parquet
 
 Prints how many rows changed status, each flag (``self_crossing``, ``lower_state_method``,
 ``snaps``, ``mesh_sensitive``) on the rows ok in both, the largest relative change of dE,

@@ -3,7 +3,7 @@
 Solves each design with water and with air (V0_sys = 45 mL, isothermal) alternately, ``--repeats``
 times, in one warm process, and prints the CPU time per design and the ratio air/water::
 
-    python scripts/air_cost.py [--repeats 3] [--V0 45] [--grid 12]
+    python lab/air_cost.py [--repeats 3] [--V0 45] [--grid 12]
 
 The designs: C, D and ``--grid`` designs drawn with a fixed seed from the paper grid's valid points
 at mu_i/mu_o = 5.8 (the grid's mesh: Q9, nt 2, aspect 3).

@@ -2,7 +2,7 @@
 
 Used to bring the paper grid's descent rows (many solved with the first descent) up to date:
 
-    .venv/bin/python scripts/resolve_rows.py results/grid_b9bda24.parquet \
+    .venv/bin/python lab/resolve_rows.py results/grid_b9bda24.parquet \
         --where "status == 'ok' and lower_state_method == 'descent'" --mesh 2,2,3 \
         --resolved results/stress/grid_descent_rows_resolved.parquet --merged results/grid_final.parquet
 

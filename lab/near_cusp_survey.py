@@ -4,9 +4,9 @@
 For each design: the first change of neg(K_T) after the volume limit, its relative distance from
 (V*, p*) ("gap", 0 in the fold's own step) and whether the tracker flagged a near-cusp.
 
-    .venv/bin/python scripts/near_cusp_survey.py named
-    .venv/bin/python scripts/near_cusp_survey.py grid --n 40 --aspect 3     # paper-grid designs (seeded draw)
-    .venv/bin/python scripts/near_cusp_survey.py points results/stress/extended_o2nt2a2_n1000_seed5.parquet \
+    .venv/bin/python lab/near_cusp_survey.py named
+    .venv/bin/python lab/near_cusp_survey.py grid --n 40 --aspect 3     # paper-grid designs (seeded draw)
+    .venv/bin/python lab/near_cusp_survey.py points results/stress/extended_o2nt2a2_n1000_seed5.parquet \
         --where "status == 'ok'" --n 40 --aspect 2                        # any list of designs (CSV/parquet)
 
 The ``points`` source is read like a sweep config's ``points:`` (a CSV or parquet file with the
