@@ -98,7 +98,8 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
 
 
 def main(argv: Sequence[str] | None = None, **inject: Any) -> int:
-    """Run the CLI; returns the exit code (0 ok, 1 failure, 2 bad input).
+    """Run the CLI; returns the exit code (0 ok, 1 failure, 2 bad input, including an output that
+    cannot be written: a full disk, an I/O error).
 
     ``inject`` passes Python objects to the commands (tests and notebooks), e.g.
     ``main(["sweep", ...], solve_fn=my_solver, warm_up_fn=None)``.
@@ -116,6 +117,11 @@ def main(argv: Sequence[str] | None = None, **inject: Any) -> int:
     except click.exceptions.Abort:
         click.echo("Aborted!", err=True)
         return 1
+    except OSError as e:  # a full disk, an I/O error, an output that may not be written: one line, exit 2
+        from snapjump_cli.files import describe_os_error
+
+        click.echo(f"Error: {describe_os_error(e)}", err=True)
+        return 2
     return 0
 
 

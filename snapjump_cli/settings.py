@@ -3,11 +3,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass, asdict, fields
 
-__all__ = ["MeshSettings", "SolverSettings", "SettingsError", "NT_MAX", "ASPECT_MAX"]
+__all__ = ["MeshSettings", "SolverSettings", "SettingsError", "NT_MAX", "ASPECT_MAX", "LIMIT_SETTINGS", "without_limits"]
 
 #: Bounds of the mesh density, the same for the YAML configs and the command-line options.
 NT_MAX = 64
 ASPECT_MAX = 100.0
+#: The solver settings that bound a design's resources (CPU time, mesh size) without changing its
+#: answer: left out of design keys, of a row's ``solver_settings`` and of the comparison of runs.
+LIMIT_SETTINGS: tuple[str, ...] = ("time_limit_s", "max_nodes")
+
+
+def without_limits(solver: object) -> object:
+    """A solver-settings mapping (e.g. read back from a file's metadata) without
+    :data:`LIMIT_SETTINGS`, for comparing runs; anything else is returned unchanged."""
+    if isinstance(solver, dict):
+        return {k: v for k, v in solver.items() if k not in LIMIT_SETTINGS}
+    return solver
 
 
 class SettingsError(ValueError):
@@ -97,6 +108,12 @@ class SolverSettings:
     margins : report the smallest eigenvalue of every harmonic's tangent ``n = 0..harmonics`` along
         the loading path (:mod:`snapjump_cli.fe.margins`; needs ``harmonics >= 1``; about one
         shift-invert eigenvalue solve per harmonic and path state: several times the solve)
+    time_limit_s : CPU seconds one design (or scene) may take, the mesh check's re-solve and the
+        harmonic check included; beyond it the solve stops with a failure saying so (the paper
+        grid's slowest design takes about 1.3 s)
+    max_nodes : largest mesh solved, in nodes; a larger one is refused before it is solved (and,
+        when the count is already clear from the element counts, before it is meshed), saying its
+        size (the paper grid's largest mesh has 333 nodes, 1707 at nt 4)
     """
 
     tol: float = 1e-8
@@ -113,6 +130,8 @@ class SolverSettings:
     follow: bool = False
     follow_N: int = 0
     margins: bool = False
+    time_limit_s: float = 300.0
+    max_nodes: int = 20_000
 
     def __post_init__(self) -> None:
         _check(self, {
@@ -132,10 +151,16 @@ class SolverSettings:
             "follow_N": (lambda v: _is_int(v) and 0 <= v <= 16, "an integer in [0, 16]"),
             "margins": (lambda v: isinstance(v, bool) and (not v or self.harmonics >= 1),
                         "true or false (true needs harmonics >= 1)"),
+            "time_limit_s": (lambda v: _is_num(v) and v > 0, "a number of seconds > 0"),
+            "max_nodes": (lambda v: _is_int(v) and 10 <= v <= 10_000_000, "an integer in [10, 10000000]"),
         })
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+    def numerics(self) -> dict:
+        """The settings that decide the answer: :meth:`as_dict` without :data:`LIMIT_SETTINGS`."""
+        return {k: v for k, v in asdict(self).items() if k not in LIMIT_SETTINGS}
 
     @classmethod
     def field_names(cls) -> tuple[str, ...]:

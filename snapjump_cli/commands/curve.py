@@ -37,6 +37,7 @@ import numpy as np
 
 from snapjump_cli.cli import verbosity_options
 from snapjump_cli.errors import BadInput
+from snapjump_cli.settings import SolverSettings
 from snapjump_cli.commands.options import (
     FiniteFloat,
     mesh_options,
@@ -50,6 +51,8 @@ from snapjump_cli.commands.options import (
 __all__ = ["command", "main", "to_jsonable"]
 
 log = logging.getLogger(__name__)
+
+_SOLVER_DEFAULTS = SolverSettings()
 
 
 def to_jsonable(metrics: dict) -> dict:
@@ -204,6 +207,12 @@ def _text(scene, m: dict) -> str:
               help="With --export: the solid of revolution in N sectors (N >= 3) instead of the section.")
 @click.option("--overwrite", is_flag=True,
               help="Replace existing --csv / --plot / --shapes / --animation / --export files (refused by default).")
+@click.option("--time-limit", "time_limit_s", type=click.FloatRange(min=0, min_open=True, max=1e9),
+              default=_SOLVER_DEFAULTS.time_limit_s, show_default=True, metavar="SECONDS",
+              help="CPU seconds the solve may take (the mesh check's re-solve included); beyond them it stops "
+                   "with an error saying so.")
+@click.option("--max-nodes", type=click.IntRange(10, 10_000_000), default=_SOLVER_DEFAULTS.max_nodes,
+              show_default=True, metavar="N", help="Refuse to solve a mesh of more than N nodes.")
 @click.option("--harmonics", type=click.IntRange(0, 64), default=0, show_default=True, metavar="N",
               help="Check every path state up to the snap and the lower state against non-axisymmetric "
                    "modes cos(n phi), n = 1..N (Fourier-harmonic tangents; 0 = off). Reports asym_first, "
@@ -229,7 +238,7 @@ def _text(scene, m: dict) -> str:
 def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, overwrite: bool, harmonics: int,
             shapes_path: Path | None, animation_path: Path | None, export_path: Path | None, revolve: int,
             air_ml: float | None, gamma: float | None, p0: float | None, follow: bool, follow_N: int, margins: bool,
-            **kw) -> None:
+            time_limit_s: float, max_nodes: int, **kw) -> None:
     """Trace one scene's pressure-volume path through its limit points and report the snap.
 
     \b
@@ -242,7 +251,6 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
       snapjump curve --design B --harmonics 4 --follow --plot b.png
       snapjump curve --design C --air-ml 45 --plot c_air.png
     """
-    from snapjump_cli.settings import SolverSettings
     from snapjump_cli.fe.solve import SolveFailed, solve_checked
 
     if follow and harmonics < 1:
@@ -259,7 +267,8 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
     check_outputs(outputs, revolve, overwrite)
     try:
         res = solve_checked(scene, ms, SolverSettings(full=full, harmonics=harmonics, follow=follow,
-                                                      follow_N=follow_N, margins=margins), fluid=fluid)
+                                                      follow_N=follow_N, margins=margins, time_limit_s=time_limit_s,
+                                                      max_nodes=max_nodes), fluid=fluid)
     except SolveFailed as exc:
         raise click.ClickException(f"solve failed: {exc}") from None
     m = to_jsonable(res.metrics)

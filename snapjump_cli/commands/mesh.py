@@ -20,6 +20,7 @@ import click
 
 from snapjump_cli.cli import verbosity_options
 from snapjump_cli.errors import BadInput
+from snapjump_cli.settings import SolverSettings
 from snapjump_cli.commands.options import (
     mesh_options,
     mesh_settings_from_options,
@@ -141,10 +142,13 @@ def _text(scene, s: dict) -> str:
                    "moulds (.step/.stp, .brep, .stl; separate solids inner_cap, ring, outer_cap; unit mm, axis z, "
                    "ground at z = 0).")
 @click.option("--overwrite", is_flag=True, help="Replace an existing --out file (refused by default).")
+@click.option("--max-nodes", type=click.IntRange(10, 10_000_000), default=SolverSettings().max_nodes,
+              show_default=True, metavar="N",
+              help="Refuse a mesh of more than N nodes (before meshing when the element counts already tell).")
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True,
               help="Output format.")
 @verbosity_options
-def command(out: Path | None, fmt: str, overwrite: bool, **kw) -> None:
+def command(out: Path | None, fmt: str, overwrite: bool, max_nodes: int, **kw) -> None:
     """Build and mesh one scene (design or single cap); print its geometry.
 
     Choose the scene with --design NAME, or --eta-i/--theta-i/--eta-o/--theta-o [--mu-ratio],
@@ -156,6 +160,7 @@ def command(out: Path | None, fmt: str, overwrite: bool, **kw) -> None:
       snapjump mesh --design D --out d.step         # the solids for CAD, in millimetres
       snapjump mesh --cap --theta 60 --eta 8.5 --bc ring-roller --out cap.stl
     """
+    from snapjump_cli.files import check_writable
     from snapjump_cli.mesh.build import MESH_SUFFIXES, mesh_scene, write_mesh
     from snapjump_cli.mesh.solids import SOLID_SUFFIXES, write_solids
 
@@ -167,12 +172,10 @@ def command(out: Path | None, fmt: str, overwrite: bool, **kw) -> None:
                            f"got {str(out)!r}")
         if not out.parent.is_dir():
             raise BadInput(f"--out folder does not exist: {str(out.parent)!r}")
-        from snapjump_cli.files import check_writable
-
         check_writable(out, BadInput, overwrite=overwrite)
     try:
-        mesh = mesh_scene(scene, settings)
-    except (RuntimeError, ValueError) as e:  # gmsh or mesh-validity failure: one line, exit 1
+        mesh = mesh_scene(scene, settings, max_nodes=max_nodes)
+    except (RuntimeError, ValueError) as e:  # gmsh or mesh-validity failure, too many nodes: one line, exit 1
         raise click.ClickException(f"meshing failed: {' '.join(str(e).split())}") from None
     s = summary(scene, mesh)
     if out is not None:
@@ -181,8 +184,10 @@ def command(out: Path | None, fmt: str, overwrite: bool, **kw) -> None:
                 write_solids(scene, out)
             else:
                 write_mesh(mesh, out)
-        except OSError as e:
-            raise click.ClickException(f"could not write {str(out)!r}: {e.strerror or e}") from None
+        except OSError as e:  # a full disk, an I/O error: one line naming the file, exit 2, nothing written
+            from snapjump_cli.files import describe_os_error
+
+            raise BadInput(describe_os_error(e, out)) from None
         s["out"] = str(out)
         log.info("wrote %s", out)
     if fmt == "json":

@@ -11,7 +11,7 @@ from typing import Any, Sequence
 
 import click
 
-from snapjump_cli.cli import is_quiet, verbosity_options
+from snapjump_cli.cli import injected, is_quiet, verbosity_options
 from snapjump_cli.commands._stop import sigterm_as_interrupt
 from snapjump_cli.errors import BadInput
 
@@ -38,7 +38,10 @@ geometry, no snap, a failed solve or the mesh_sensitive flag are never chosen.
 The best designs are then re-solved on a finer mesh (nt + 1, elements half as long along
 the arcs) into <OUTPUT stem>.confirm.parquet until one holds its objective within the
 tolerance (2 %). OUTPUT gets every evaluation (the sweep's columns plus iteration and
-stage); the plots <OUTPUT stem>.progress.png and .path.png go next to it.
+stage); the plots <OUTPUT stem>.progress.png and .path.png go next to it (the table and
+the plots are written together, all or none). OUTPUT is locked while the run lasts
+(OUTPUT.lock, as a sweep's); an existing OUTPUT is replaced only if it is a run of the same
+spec (its budget may differ), and so are the plots, unless --overwrite is given.
 
 Exit codes: 0 done, 1 no design could be confirmed (or none is feasible) or the run failed,
 2 bad input (spec errors name the file and the key path), 130 interrupted.
@@ -123,13 +126,17 @@ def _text(summary: dict, result: Any, output: Path, files: list[Path], from_path
               help="Write <OUTPUT stem>.progress.png and <OUTPUT stem>.path.png (needs matplotlib).")
 @click.option("--progress/--no-progress", default=True, show_default=True,
               help="Progress on stderr: a bar on a terminal, a plain line every 30 s otherwise. -q hides it.")
+@click.option("--overwrite", is_flag=True,
+              help="Replace an OUTPUT (and plots) that is not a run of this spec: another spec's run, a sweep's "
+                   "results, any other file (refused by default).")
 @verbosity_options
 def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | None, from_path: Path | None,
-            fmt: str, plots: bool, progress: bool) -> None:
+            fmt: str, plots: bool, progress: bool, overwrite: bool) -> None:
+    from snapjump_cli.files import check_writable, follow_links
+    from snapjump_cli.optimize import OptimizeInputError, cache_paths, check_output, load_spec, read_from
     from snapjump_cli.sweep.config import ConfigError
-    from snapjump_cli.optimize import (OptimizeInputError, cache_paths, load_spec, make_plots, read_from,
-                                       run_optimize, write_result)
-    from snapjump_cli.sweep.run import SweepError, SweepInputError
+    from snapjump_cli.sweep.run import SweepInputError
+    from snapjump_cli.sweep.storage import OutputLock
 
     try:
         sp = load_spec(spec)
@@ -140,6 +147,8 @@ def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | N
     out = output if output is not None else sp.output
     if out.exists() and out.is_dir():
         raise BadInput(f"-o/--output: {out} is a directory, expected a parquet file path")
+    check_writable(out, BadInput)  # not a FIFO, a device, a system folder, ...; a link: its target is written
+    out = follow_links(out)
     from_df = None
     if from_path is not None:
         if from_path.resolve() in {p.resolve() for p in (out, *cache_paths(out))}:
@@ -148,6 +157,22 @@ def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | N
             from_df = read_from(from_path)
         except OptimizeInputError as e:
             raise BadInput(str(e)) from None
+
+    with ExitStack() as lock:
+        try:
+            lock.enter_context(OutputLock(out, command="optimize"))
+            check_output(out, sp, overwrite)
+        except (SweepInputError, OptimizeInputError) as e:
+            raise BadInput(str(e)) from None
+        _run(sp, out, n_jobs, budget, from_path, from_df, fmt, plots, progress)
+
+
+def _run(sp: Any, out: Path, n_jobs: int | None, budget: int | None, from_path: Path | None, from_df: Any, fmt: str,
+         plots: bool, progress: bool) -> None:
+    """The run itself, under the output's lock: search, confirm, write the table and plots, report."""
+    from snapjump_cli.files import AtomicFiles, describe_os_error
+    from snapjump_cli.optimize import OptimizeInputError, cache_paths, make_plots, run_optimize, write_result
+    from snapjump_cli.sweep.run import SweepError, SweepInputError
 
     bar = None
     stack = ExitStack()
@@ -164,27 +189,40 @@ def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | N
             unit = " mm" if sp.objective == "y_jump_m" else " mJ"
             bar.set_postfix({"best": f"{best * 1e3:.1f}{unit}"}, refresh=False)
 
-    stopped = (f"interrupted: finished solves are kept in {cache_paths(out)[0]} (and its .parts); "
-               f"run the same command again to resume")
+    kept = f"finished solves are kept in {cache_paths(out)[0]} (and its .parts)"
+    stopped = f"interrupted: {kept}; run the same command again to resume"
     with sigterm_as_interrupt(stopped):  # SIGTERM -> same clean stop as Ctrl-C (finished solves kept)
         try:
-            result = run_optimize(sp, output=out, n_jobs=n_jobs, budget=budget, from_df=from_df, on_batch=on_batch)
+            result = run_optimize(sp, output=out, n_jobs=n_jobs, budget=budget, from_df=from_df, on_batch=on_batch,
+                                  solve_fn=injected("solve_fn"), warm_up_fn=injected("warm_up_fn"))
         except (SweepInputError, OptimizeInputError) as e:
             raise BadInput(str(e)) from None
         except SweepError as e:
             raise click.ClickException(str(e)) from None
+        except OSError as e:  # a full disk, an I/O error: one line, exit 2
+            raise BadInput(f"{describe_os_error(e)}; the {kept}: free some space and run the same command "
+                           f"again to resume") from None
         finally:
             if bar is not None:
                 bar.close()
             stack.close()
 
-    write_result(result, out, {"from": None if from_path is None else str(from_path), "output": str(out)})
     files: list[Path] = []
     if plots:
         try:
-            files = make_plots(result, out)
+            import matplotlib  # noqa: F401
         except ImportError as e:
             log.warning("no plots: they need matplotlib (pip install 'snapjump[plots]'): %s", e)
+            plots = False
+    try:
+        with AtomicFiles() as batch:  # the table and its plots, all or none
+            batch.add(out, lambda tmp: write_result(result, tmp, {"from": None if from_path is None else str(from_path),
+                                                                  "output": str(out)}))
+            if plots:
+                files = make_plots(result, out, batch=batch)
+    except OSError as e:
+        raise BadInput(f"{describe_os_error(e)}; nothing was written, the {kept}: run the same command again "
+                       f"to write the result") from None
     summary = result.summary()
     if fmt == "json":
         summary.update(output=str(out), plots=[str(f) for f in files])

@@ -24,7 +24,7 @@ from typing import Any, Callable
 import click
 
 from snapjump_cli.errors import BadInput
-from snapjump_cli.geometry.caps import BASE_CONDITIONS, CapScene, Design, InvalidDesign
+from snapjump_cli.geometry.caps import BASE_CONDITIONS, RADIUS_RANGE_M, CapScene, Design, InvalidDesign
 from snapjump_cli.settings import NT_MAX, MeshSettings, SettingsError
 
 __all__ = [
@@ -190,8 +190,9 @@ def scene_from_options(
     if len(chosen) > 1:
         raise BadInput(f"choose exactly one scene selector, got {' and '.join(chosen)}")
     radius_mm = _finite("--radius-mm", _DEFAULT_RADIUS_MM if radius_mm is None else radius_mm)
-    if radius_mm <= 0:
-        raise BadInput(f"--radius-mm must be > 0, got {radius_mm:g}")
+    lo, hi = (1e3 * r for r in RADIUS_RANGE_M)
+    if not lo <= radius_mm <= hi:
+        raise BadInput(f"--radius-mm must lie in [{lo:g}, {hi:g}], got {radius_mm:g}")
     R = radius_mm / 1000.0
     try:
         if design is not None:

@@ -42,7 +42,8 @@ command); nothing is written when any output place is unusable.
 @click.option("--top", "top", type=click.IntRange(min=0), default=10, show_default=True, metavar="N",
               help="Rows of the printed table.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Ranked parquet file. [default: <RESULTS stem>.ranked.parquet next to RESULTS]")
+              help="Ranked table: a .parquet file (every column, with provenance) or a .csv file. "
+                   "[default: <RESULTS stem>.ranked.parquet next to RESULTS]")
 @click.option("--plots", "plots_dir", type=click.Path(file_okay=False, path_type=Path), default=None, metavar="DIR",
               help="Write fig4a.png, fig4c.png and jump_vs_parameters.png into DIR (needs matplotlib).")
 @click.option("--rho", type=float, default=JUMP_RHO, show_default=True, help="Rubber density [kg/m^3].")
@@ -62,7 +63,7 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
             alpha: float, fmt: str, exclude_asymmetric: bool, overwrite: bool) -> None:
     import pyarrow as pa
 
-    from snapjump_cli.files import check_writable
+    from snapjump_cli.files import AtomicFiles, check_writable
     from snapjump_cli.sweep import results as res
     from snapjump_cli.jump import JumpParams
     from snapjump_cli.jump.rank import RankInputError, rank_results, settings_mix, top_frame, top_table
@@ -75,12 +76,16 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
         raise BadInput(f"{results}: file not found")
     if results.is_dir():
         raise BadInput(f"{results}: expected a parquet file, got a directory")
+    if not results.is_file():  # a FIFO or a device would block or never end
+        raise BadInput(f"{results}: expected a parquet file, got a special file")
     try:
         df = res.read_results(results)
         meta = res.read_metadata(results)
     except (pa.ArrowException, OSError) as e:
         raise BadInput(f"{results}: not a readable parquet file ({str(e).splitlines()[0]})") from None
     out = output if output is not None else results.with_name(results.name.removesuffix(".parquet") + ".ranked.parquet")
+    if out.suffix.lower() not in (".parquet", ".csv"):
+        raise BadInput(f"-o/--output: {out}: expected a .parquet or .csv file name")
     if out.resolve() == results.resolve():
         raise BadInput(f"-o/--output: {out} would overwrite the input results file")
     # every output place is checked before anything is written
@@ -110,15 +115,19 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
         "n_rows": int(len(ranked)),
         "n_ranked": int(ranked["rank"].notna().sum()),
     }
-    res.write_frame_atomic(ranked, out, meta)
+    files = [out]
+    with AtomicFiles() as written:  # the table and the plots, all or none
+        if out.suffix.lower() == ".csv":
+            written.add(out, lambda tmp: ranked.to_csv(tmp, index=False))
+        else:
+            written.add(out, lambda tmp: res.write_frame_atomic(ranked, tmp, meta))
+        if plots_dir is not None:
+            from snapjump_cli.viz.figures import make_plots
+
+            files += make_plots(ranked, plots_dir, batch=written)
 
     counts = {str(k): int(v) for k, v in ranked["status"].value_counts().items()}
     n_jumped = int(ranked["jumped"].fillna(False).astype(bool).sum())
-    files = [out]
-    if plots_dir is not None:
-        from snapjump_cli.viz.figures import make_plots
-
-        files += make_plots(ranked, plots_dir)
     say = (lambda line: click.echo(line, err=True)) if fmt != "text" else click.echo
     summary = (f"{results}: {len(ranked)} designs ({', '.join(f'{k} {v}' for k, v in sorted(counts.items()))}); "
                f"{n_jumped} jump")

@@ -68,19 +68,20 @@ Exit codes: 0 done (even if some designs failed), 1 the sweep could not run,
 def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str | None,
             chunk_size: int | None, retry_failed: bool, append: bool, max_designs: int | None,
             progress: bool) -> None:
+    from snapjump_cli.files import describe_os_error, follow_links
     from snapjump_cli.sweep.config import ConfigError, load_config
     from snapjump_cli.sweep.run import MAX_DESIGNS, SweepError, SweepInputError, parts_dir, run_sweep
 
     try:
-        config = load_config(grid)
+        config = load_config(grid, max_designs or MAX_DESIGNS)
     except ConfigError as e:
         raise BadInput(str(e)) from None
     if n_jobs == 0:
         raise BadInput("-j/--jobs: expected a non-zero integer (-1 = every core), got 0")
     out = output if output is not None else config.output
 
-    stopped = (f"interrupted: finished designs are kept in {parts_dir(out)}; "
-               f"run the same command again to resume")
+    parts = parts_dir(follow_links(out))
+    stopped = f"interrupted: finished designs are kept in {parts}; run the same command again to resume"
     with sigterm_as_interrupt(stopped):  # SIGTERM -> same clean stop as Ctrl-C (finished rows kept)
         try:
             quiet = is_quiet()
@@ -93,6 +94,9 @@ def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str 
             raise BadInput(str(e)) from None
         except SweepError as e:
             raise click.ClickException(str(e)) from None
+        except OSError as e:  # a full disk, an I/O error: one line, exit 2; what was written is kept
+            raise BadInput(f"{describe_os_error(e)}; the finished designs are kept (in {parts}); free some space "
+                           f"and run the same command again to resume") from None
     c = summary.counts
     click.echo(
         f"{summary.output}: {summary.n_designs} designs ({summary.n_resumed} resumed, {summary.n_solved} solved "

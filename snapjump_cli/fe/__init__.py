@@ -5,5 +5,6 @@ tangents, :mod:`.hermite` the cubic between path points), :mod:`.snap` (the stop
 the snap states), :mod:`.lower_state` (with :mod:`.descent`, its fallback), :mod:`.metrics`,
 :mod:`.harmonics` (the Fourier-harmonic stability check), :mod:`.multiharmonic` and
 :mod:`.follow` (the followed non-axisymmetric branch), :mod:`.fluid` and :mod:`.air_snap`
-(inflating with air) and :mod:`.solve` (mesh -> model -> trace -> lower state -> metrics);
+(inflating with air) and :mod:`.solve` (mesh -> model -> trace -> lower state -> metrics, within
+the design's CPU-time limit of :mod:`.limits`);
 :mod:`.precompile` builds the kernels ahead of time with the signatures a solve uses."""

@@ -420,9 +420,19 @@ def apply_followed(result, check: dict, N: int = 0) -> None:
     :data:`snapjump_cli.sweep.rows.FOLLOW_ROW_KEYS`; the replaced keys of a followed design describe the
     followed snap). A design that stays axisymmetric, or whose branch cannot be followed to a snap,
     keeps its axisymmetric answer (``followed`` False; ``follow_note`` says why)."""
+    from snapjump_cli.fe.limits import TimeLimitExceeded
+
     m = result.metrics
     t0 = time.perf_counter()
-    out, fr = followed_metrics(result, check, N=N or None)
+    try:
+        out, fr = followed_metrics(result, check, N=N or None)
+    except TimeLimitExceeded as exc:  # keep the axisymmetric answer, say why
+        out = {k: None for k in FOLLOW_KEYS}
+        for k in ("dE_J", "dy_pole_m", "h_imp_m", "V_star_m3", "p_star_Pa"):
+            out["axisym_" + k] = m.get(k)
+        out.update(followed=False, follow_n=check.get("asym_n"),
+                   follow_note=f"branch not followed to its snap: {exc}")
+        fr = None
     result.follow = fr
     m.update({k: out.get(k) for k in FOLLOW_KEYS})
     m["follow_amplitude_m"] = out.get("follow_amplitude_m")

@@ -30,6 +30,7 @@ import time
 
 import numpy as np
 
+from snapjump_cli.fe.limits import check_time
 from snapjump_cli.mesh.data import Mesh, cuthill_mckee, fixed_dofs, number_dofs
 from snapjump_kernels.calls import (
     assemble,
@@ -248,6 +249,7 @@ class Model:
         """One pass of :func:`snapjump_kernels.assembly.evaluate` (``want`` 0 energy, 1 residual,
         2 stiffness): ``(E, ok, R, g, V, data)`` with ``V`` including the offset; ``aux_arrays``:
         ``(p_geo, pb_out, H_out)`` of the mixed linearisation (default: none)."""
+        check_time()  # the design's CPU-time limit (snapjump_cli.fe.limits)
         t0 = time.perf_counter()
         data = np.zeros(self.ndata if want >= 2 else 1)
         R = np.zeros(self.n)
@@ -318,6 +320,7 @@ class Model:
         and the element pressures' change along it ``daux_x``) and the iterations, or ``None`` if
         Newton failed.
         """
+        check_time()
         t0 = time.perf_counter()
         if riks is not None:
             z0, t_z, t_u, u_ref, ds, alpha2 = riks

@@ -31,7 +31,9 @@ import time
 
 import numpy as np
 
+from snapjump_cli.fe.limits import check_time
 from snapjump_cli.mesh.data import number_dofs
+from snapjump_cli.fe.limits import check_time
 from snapjump_cli.fe.model import BorderedSolver, Linearization
 from snapjump_kernels.calls import bordered_factor, envelope_extents, scatter_band
 
@@ -208,6 +210,8 @@ class MultiHarmonicModel:
     def _evaluate(self, u: np.ndarray, p: float, want: int):
         from snapjump_kernels.multiharmonic import mh_cavity, mh_elements, scatter_vector
 
+        check_time()  # the design's CPU-time limit (snapjump_cli.fe.limits)
+        check_time()  # the design's CPU-time limit (snapjump_cli.fe.limits)
         t0 = time.perf_counter()
         M = self.base
         A = np.ascontiguousarray(self.amplitudes(u))

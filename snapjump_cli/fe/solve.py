@@ -19,6 +19,7 @@ import numpy as np
 from snapjump_cli.fe.air_snap import AirSnap, fluid_keys
 from snapjump_cli.fe.continuation import ContinuationFailed, ContinuationSettings, Path, Tracer, trace
 from snapjump_cli.fe.fluid import FluidSettings
+from snapjump_cli.fe.limits import TimeLimitExceeded, time_limit
 from snapjump_cli.geometry.caps import CapScene, Design
 from snapjump_cli.fe.lower_state import find_lower_state
 from snapjump_cli.mesh.data import Mesh
@@ -130,13 +131,19 @@ def solve_scene(
     Raises
     ------
     SolveFailed
-        when the continuation fails before the snap is characterised.
+        when the continuation fails before the snap is characterised, or the mesh has more than
+        ``solver.max_nodes`` nodes (then before it is solved).
     """
-    from snapjump_cli.mesh.build import mesh_scene  # lazily: gmsh
+    from snapjump_cli.mesh.build import MeshTooLarge, mesh_scene  # lazily: gmsh
 
     t0 = time.perf_counter()
-    if mesh is None:
-        mesh = mesh_scene(scene, mesh_settings)
+    try:
+        if mesh is None:
+            mesh = mesh_scene(scene, mesh_settings, max_nodes=solver.max_nodes)
+        elif mesh.n_nodes > solver.max_nodes:
+            raise MeshTooLarge(mesh.n_nodes, solver.max_nodes)
+    except MeshTooLarge as exc:
+        raise SolveFailed(f"not solved: {exc}") from None
     t_mesh = time.perf_counter() - t0
     sc = _scales(scene)
     scales = (sc["sV"], sc["sp"], sc["sw"])
@@ -259,9 +266,21 @@ def solve_checked(
     (:func:`snapjump_cli.fe.harmonics.check_harmonics`: ``asym_first``, ``asym_n``, ``asym_V_m3``,
     ``asym_p_Pa``, ``asym_lower_stable``; all None when it is off). ``fluid``: water (``None``) or
     air (:func:`solve_scene`; not with the harmonic check); ``fused`` as in :func:`solve_scene`.
+
+    All of it runs within ``solver.time_limit_s`` CPU seconds (:mod:`snapjump_cli.fe.limits`);
+    beyond them :class:`SolveFailed` says so.
     """
     if fluid is not None and fluid.is_air and solver.harmonics > 0:
         raise ValueError("the harmonic check is not available under air (fluid: air with solver.harmonics > 0)")
+    try:
+        with time_limit(solver.time_limit_s):
+            return _solve_and_check(scene, mesh, solver, check_mesh, fluid, fused)
+    except TimeLimitExceeded as exc:
+        raise SolveFailed(f"stopped: {exc}") from None
+
+
+def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool,
+                     fluid: FluidSettings | None, fused: bool) -> SceneResult:
     res = _solve_mesh_checked(scene, mesh, solver, check_mesh, fluid, fused)
     m = res.metrics
     m.update({k: None for k in ASYM_KEYS})

@@ -32,6 +32,9 @@ BASE_CONDITIONS: tuple[str, ...] = ("clamped", "roller", "roller-point", "ring-r
 
 MU_ELITE_DOUBLE_32 = 0.35e6  # Pa
 R_I_DEFAULT = 0.030  # m
+#: The radii (R_i of a design, R of a cap) the model accepts: a micrometre to a kilometre (the
+#: scaled model is size-free, but a radius far outside this range overflows the SI outputs).
+RADIUS_RANGE_M = (1e-6, 1e3)
 J_M_DEFAULT = 24.0
 
 
@@ -49,6 +52,13 @@ def _check_finite_positive(name: str, value: float) -> None:
         raise InvalidDesign(f"{name} must be finite, got {value}")
     if value <= 0.0:
         raise InvalidDesign(f"{name} must be > 0, got {value}")
+
+
+def _check_radius(name: str, value: float) -> None:
+    _check_finite_positive(name, value)
+    lo, hi = RADIUS_RANGE_M
+    if not lo <= value <= hi:
+        raise InvalidDesign(f"{name} must lie in [{lo:g}, {hi:g}] m, got {value:g}")
 
 
 def _check_angle(name: str, deg: float) -> None:
@@ -105,6 +115,7 @@ class Design:
         _check_angle("theta_o", self.theta_o_deg)
         for n in ("mu_ratio", "R_i", "mu_i", "J_m", "t_ring_frac", "w_ring_frac"):
             _check_finite_positive(n, getattr(self, n))
+        _check_radius("R_i", self.R_i)
         validate_design(self)
 
     # ---- derived quantities -------------------------------------------------
@@ -182,6 +193,7 @@ class CapScene:
         _check_angle("theta", self.theta_deg)
         for n in ("R", "mu", "J_m", "t_ring_frac", "w_ring_frac"):
             _check_finite_positive(n, getattr(self, n))
+        _check_radius("R", self.R)
         if self.kind not in ("inner", "outer"):
             raise InvalidDesign(f"cap kind must be 'inner' or 'outer', got {self.kind!r}")
         if self.kind == "inner" and self.bc not in BASE_CONDITIONS:

@@ -4,7 +4,9 @@ the designs.
 Per row:
 
 * ``ok``: masses ``m_i, m_o = rho * (V_inner_solid_m3, V_outer_solid_m3)``, then
-  :func:`snapjump_cli.jump.jump_height` with ``dE_J``, ``dy_pole_m`` and ``h_imp_m``;
+  :func:`snapjump_cli.jump.jump_height` with ``dE_J``, ``dy_pole_m`` and ``h_imp_m``; an ``ok`` row
+  whose metrics break the row contract (:func:`snapjump_cli.sweep.rows.ok_row_problems`: a file edited by
+  hand) is left unranked, its reason naming the values;
 * ``no_snap``: ``y_jump_m = 0``, ``jumped = False``, reason ``"no snap"``;
 * ``invalid_geometry`` / ``failed``: ``y_jump_m`` is NaN and the reason repeats the status and error.
 
@@ -132,15 +134,14 @@ def rank_results(
             jumps_fn = jump.jump_heights
         masses_fn = masses_fn or jump.masses
     rho = float(getattr(params, "rho", JUMP_RHO))
-    out = _jump_columns(df, params, jump_fn, masses_fn, rho, jumps_fn)
+    out = _jump_columns(df, params, jump_fn, masses_fn, rho, jumps_fn, _contract_breaches(df))
     followed = (df["followed"].astype("boolean").fillna(False).to_numpy(bool) if "followed" in df.columns
                 else np.zeros(len(df), bool))
     if exclude_asymmetric and "asym_first" in df.columns:
         n_first = df["asym_n"] if "asym_n" in df.columns else pd.Series(pd.NA, index=df.index)
         # a followed row's answer is the snap of the branch it follows: it happens, keep it
         for j in np.flatnonzero(df["asym_first"].astype("boolean").fillna(False).to_numpy(bool) & ~followed):
-            out["y_jump_m"][j] = math.nan
-            out["jump_reason"][j] = f"excluded: harmonic n = {n_first.iloc[j]} loses stability before V* (asymmetric mode)"
+            _unranked(out, j, f"excluded: harmonic n = {n_first.iloc[j]} loses stability before V* (asymmetric mode)")
     ranked = _ranked(df, out)
     if followed.any():
         ranked["y_jump_axisym_m"] = _axisym_jumps(ranked, params, jump_fn, masses_fn, rho, jumps_fn)
@@ -163,12 +164,48 @@ def _axisym_jumps(ranked: pd.DataFrame, params: Any, jump_fn, masses_fn, rho: fl
     return y
 
 
+def _unranked(out: dict[str, list[Any]], j: int, reason: str) -> None:
+    """Row ``j`` gets no jump: no height, no flags (it neither jumped nor failed to), ``reason``."""
+    for c in ("t_peak_s", "n_contacts", "jumped", "lift_off", "jump_complete", "k_s", "jump_rise_m"):
+        out[c][j] = None
+    out["y_jump_m"][j] = math.nan
+    out["jump_reason"][j] = reason
+
+
+def _contract_breaches(df: pd.DataFrame) -> dict[int, str]:
+    """Positions of the ``ok`` rows whose metrics break the row contract -> the reason (the values
+    at fault); logs a warning when there are any."""
+    from snapjump_cli.sweep.rows import FLOAT_RESULT_KEYS, INT_RESULT_KEYS, ok_range_wording, ok_row_problems
+
+    ok = (df["status"] == "ok").fillna(False).to_numpy(bool)
+    if not ok.any():
+        return {}
+    rows = np.flatnonzero(ok)
+    metrics = {c: pd.to_numeric(df[c], errors="coerce").to_numpy(dtype=float, na_value=np.nan)[rows]
+               for c in (*FLOAT_RESULT_KEYS, *INT_RESULT_KEYS) if c in df.columns}
+    problems = ok_row_problems(metrics, required=tuple(c for c in REQUIRED_COLUMNS if c not in ("status", "R_i")))
+    out: dict[int, str] = {}
+    for k, bad in problems.items():
+        for i in np.flatnonzero(bad):
+            j = int(rows[i])
+            what = f"{k}={metrics[k][i]:g} (expected {ok_range_wording(k)})"
+            out[j] = f"{out[j]}, {what}" if j in out else f"invalid ok row: {what}"
+    if out:
+        j = min(out)
+        log.warning("%d ok row(s) break the row contract and are left unranked (e.g. row %d: %s)", len(out),
+                    j, out[j].removeprefix("invalid ok row: "))
+    return out
+
+
 def _jump_columns(df: pd.DataFrame, params: Any, jump_fn: Callable[..., Any] | None,
                   masses_fn: Callable[..., tuple[float, float]], rho: float,
-                  jumps_fn: Callable[..., list[Any]] | None = None) -> dict[str, list[Any]]:
+                  jumps_fn: Callable[..., list[Any]] | None = None,
+                  invalid: dict[int, str] | None = None) -> dict[str, list[Any]]:
     """The added columns (all of :data:`RANK_COLUMNS` but ``rank``), one value per row of ``df``
     (``None`` where there is none). The jump model runs on the ``ok`` rows with ``jumps_fn``
-    (all at once) if given, else with ``jump_fn`` row by row."""
+    (all at once) if given, else with ``jump_fn`` row by row; ``invalid`` (position -> reason)
+    are ``ok`` rows left unranked."""
+    invalid = invalid or {}
     n = len(df)
     out: dict[str, list[Any]] = {c: [None] * n for c in RANK_COLUMNS if c != "rank"}
     ok_rows: list[tuple[int, dict]] = []
@@ -182,7 +219,9 @@ def _jump_columns(df: pd.DataFrame, params: Any, jump_fn: Callable[..., Any] | N
                 out["m_i_kg"][j], out["m_o_kg"][j] = masses_fn(float(vi), float(vo), rho)
             except (ValueError, TypeError):
                 pass
-        if status == "ok":
+        if status == "ok" and j in invalid:
+            _unranked(out, j, invalid[j])
+        elif status == "ok":
             ok_rows.append((j, r))
         elif status == "no_snap":
             _no_snap_row(out, j)

@@ -55,6 +55,8 @@ from snapjump_cli.settings import MeshSettings
 
 __all__ = [
     "mesh_scene",
+    "MeshTooLarge",
+    "cap_node_count",
     "meshed_design",
     "SNAP_TOL",
     "SNAP_FRAC",
@@ -85,6 +87,24 @@ def meshed_design(design: Design, mesh: Mesh) -> Design:
 # ------------------------------------------------------------------------------------------------
 # Geometry construction (built-in kernel; shared points and curves => conforming)
 # ------------------------------------------------------------------------------------------------
+class MeshTooLarge(ValueError):
+    """A mesh with more nodes than the limit (``SolverSettings.max_nodes``): ``n_nodes`` (the
+    exact count, or with ``estimated`` the count of its caps' nodes alone, known before meshing)
+    and ``limit``."""
+
+    def __init__(self, n_nodes: int, limit: int, estimated: bool = False) -> None:
+        self.n_nodes, self.limit, self.estimated = int(n_nodes), int(limit), estimated
+        size = f"at least {n_nodes} nodes (counted before meshing)" if estimated else f"{n_nodes} nodes"
+        super().__init__(f"the mesh has {size}, more than the limit of {limit} nodes (setting max_nodes)")
+
+
+def cap_node_count(info: dict, order: int) -> int:
+    """The nodes of the caps of a scene about to be meshed (``info`` of :func:`_build`): each cap is
+    one structured patch of ``n_arc`` by ``nt`` elements, and the caps share no node, so this is a
+    lower bound of the mesh's node count."""
+    return sum((order * int(na) + 1) * (order * int(info["nt"][region]) + 1) for region, na in info["n_arc"].items())
+
+
 def _count(length: float, size: float) -> int:
     """Number of elements so that each is at most ``size`` long (at least 1)."""
     return max(1, int(math.ceil(length / size - 1e-9)))
@@ -315,7 +335,8 @@ def _ring(b: _Builder, P: dict, first_top, more_top, p8: int, p11: int, p9: int,
     return ground
 
 
-def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings(), *, snap: float | None = None) -> Mesh:
+def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings(), *, snap: float | None = None,
+               max_nodes: int | None = None) -> Mesh:
     """Mesh a design (inner cap + ring + outer cap) or a single cap; see the module docstring.
 
     ``snap`` (default :data:`SNAP_FRAC`): when ``|x5 - x10|`` is below ``snap`` times the local
@@ -325,7 +346,8 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
     Returns a :class:`~snapjump_cli.mesh.data.Mesh` with compact, bandwidth-reduced node numbering
     (Cuthill-McKee from the lower pole, :func:`~snapjump_cli.mesh.data.node_order`),
     counter-clockwise elements and the node/edge sets of the scene.
-    Raises ``ValueError`` for bad mesh settings.
+    Raises ``ValueError`` for bad mesh settings and :class:`MeshTooLarge` for a mesh of more than
+    ``max_nodes`` nodes (before gmsh meshes it when its caps' element counts already tell).
     """
     if not isinstance(scene, (Design, CapScene)):
         raise TypeError(f"scene must be a Design or CapScene, got {type(scene).__name__}")
@@ -344,9 +366,12 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
     import gmsh as _gmsh  # noqa: F401
 
     t0 = time.perf_counter()
-    xy, elements, region, material, node_sets, edge_sets, bk, gmsh_version = _generate(scene, settings, snap)
+    xy, elements, region, material, node_sets, edge_sets, bk, gmsh_version = _generate(scene, settings, snap,
+                                                                                         max_nodes)
     t_gmsh = time.perf_counter() - t0
     nodes, elements, node_sets, edge_sets = compact(xy, elements, node_sets, edge_sets)
+    if max_nodes is not None and nodes.shape[0] > max_nodes:
+        raise MeshTooLarge(nodes.shape[0], max_nodes)
     nodes[node_sets["axis"], 0] = 0.0
     orient(nodes, elements, order)
     nodes, elements, region, material, node_sets, edge_sets = renumber(nodes, elements, region, material,
@@ -373,14 +398,16 @@ def mesh_scene(scene: Design | CapScene, settings: MeshSettings = MeshSettings()
     return mesh
 
 
-def _generate(scene: Design | CapScene, settings: MeshSettings, snap: float) -> tuple:
+def _generate(scene: Design | CapScene, settings: MeshSettings, snap: float, max_nodes: int | None = None) -> tuple:
     """Build and mesh the scene with gmsh; returns its node coordinates, connectivity, region and
     material per element, node and edge sets (in gmsh's node order), the builder's bookkeeping and
-    gmsh's version."""
+    gmsh's version. Raises :class:`MeshTooLarge` before meshing if the caps alone exceed ``max_nodes``."""
     order = settings.order
     with gmsh_session() as gmsh:
         b = _Builder(gmsh)
         bk = _build(b, scene, settings, snap)
+        if max_nodes is not None and (n := cap_node_count(bk["info"], order)) > max_nodes:
+            raise MeshTooLarge(n, max_nodes, estimated=True)
         gmsh.model.geo.synchronize()
         gmsh.option.setNumber("Mesh.RecombineAll", 1)
         gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 0)

@@ -5,7 +5,6 @@ and per edge set, ``.vtu`` the cell data ``region`` and ``material``.
 """
 from __future__ import annotations
 
-import contextlib
 import os
 from pathlib import Path
 
@@ -22,23 +21,15 @@ MESH_SUFFIXES = (".msh", ".vtu")
 
 def write_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
     """Write ``mesh`` to ``path``: ``.msh`` (gmsh 4.1, physical groups per region and edge set)
-    or ``.vtu`` (VTK XML, cell data ``region`` / ``material``). Written to a temporary file in the
-    same folder and renamed, so a failed write leaves nothing behind. Returns the path."""
+    or ``.vtu`` (VTK XML, cell data ``region`` / ``material``). Written atomically
+    (:func:`snapjump_cli.files.write_atomic`), so a failed write leaves nothing behind. Returns the path."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise ValueError(f"mesh file must end in {' or '.join(MESH_SUFFIXES)}, got {str(path)!r}")
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.partial{suffix}")
-    try:
-        if suffix == ".msh":
-            _write_msh(mesh, tmp)
-        else:
-            _write_vtu(mesh, tmp)
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-    return path
+    from snapjump_cli.files import write_atomic
+
+    return write_atomic(path, lambda tmp: (_write_msh if suffix == ".msh" else _write_vtu)(mesh, tmp))
 
 
 def _write_msh(mesh: Mesh, path: Path) -> None:

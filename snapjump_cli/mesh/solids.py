@@ -215,8 +215,8 @@ def _consistent_flips(tris: list[np.ndarray]) -> list[bool]:
 def write_solids(scene: Design | CapScene, path: str | os.PathLike) -> Path:
     """Write the scene's solids (module docstring) to ``path`` (``.step``/``.stp``, ``.brep`` or
     ``.stl``), atomically. Returns the path."""
+    from snapjump_cli.files import write_atomic
     from snapjump_cli.mesh.gmsh_session import gmsh_session
-    from snapjump_cli.files import replace_atomic
 
     path = Path(path)
     suffix = path.suffix.lower()
@@ -248,4 +248,4 @@ def write_solids(scene: Design | CapScene, path: str | os.PathLike) -> Path:
             finally:
                 scratch.unlink(missing_ok=True)
 
-    return replace_atomic(write, path)
+    return write_atomic(path, write)

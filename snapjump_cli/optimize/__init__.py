@@ -9,8 +9,8 @@ multi-start pattern search, differential evolution), :mod:`.plots` and :mod:`.ru
 """
 from __future__ import annotations
 
-from snapjump_cli.optimize.plots import make_plots, plot_path, plot_progress
-from snapjump_cli.optimize.run import OptimizeResult, run_optimize, write_result
+from snapjump_cli.optimize.plots import make_plots, plot_files, plot_path, plot_progress
+from snapjump_cli.optimize.run import SAME_SEARCH, OptimizeResult, check_output, run_optimize, write_result
 from snapjump_cli.optimize.spec import (
     COLUMNS,
     IMPROVE_REL,
@@ -34,4 +34,4 @@ from snapjump_cli.optimize.spec import (
 __all__ = ["PARAMETERS", "OBJECTIVES", "METHODS", "STAGES", "POLLS", "COLUMNS", "IMPROVE_REL", "OptimizeSpec",
            "SearchSettings", "ConfirmSettings", "OptimizeResult", "OptimizeInputError", "load_spec", "parse_spec",
            "finer_mesh", "read_from", "run_optimize", "cache_paths", "check_cache", "write_result",
-           "plot_progress", "plot_path", "make_plots"]
+           "plot_progress", "plot_path", "make_plots", "plot_files", "check_output", "SAME_SEARCH"]

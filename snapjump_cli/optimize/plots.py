@@ -26,11 +26,9 @@ def _pyplot() -> Any:
 
 def _save_atomic(fig: Any, path: Path) -> Path:
     """Write ``fig`` as a PNG atomically, with the mode the umask gives (as every output)."""
-    from snapjump_cli.files import replace_atomic
+    from snapjump_cli.files import write_atomic
 
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return replace_atomic(lambda tmp: fig.savefig(tmp, dpi=150, format="png"), path)
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=150, format="png"))
 
 
 _STAGE_COLOURS = {"start": "#1f77b4", "init": "#17becf", "poll": "#7f7f7f", "pattern": "#ff7f0e", "cross": "#bcbd22",
@@ -133,11 +131,18 @@ def plot_path(result: OptimizeResult, path: str | Path) -> Path:
         plt.close(fig)
 
 
-def make_plots(result: OptimizeResult, output: str | Path) -> list[Path]:
-    """Both plots next to ``output``: ``<stem>.progress.png`` and ``<stem>.path.png``."""
+def plot_files(output: str | Path) -> tuple[Path, Path]:
+    """The plots written next to ``output``: ``<stem>.progress.png`` and ``<stem>.path.png``."""
     output = Path(output)
     stem = output.name.removesuffix(".parquet")
-    files = [plot_progress(result, output.with_name(stem + ".progress.png"))]
-    if result.path:
-        files.append(plot_path(result, output.with_name(stem + ".path.png")))
-    return files
+    return output.with_name(stem + ".progress.png"), output.with_name(stem + ".path.png")
+
+
+def make_plots(result: OptimizeResult, output: str | Path, batch: Any = None) -> list[Path]:
+    """Both plots next to ``output``: ``<stem>.progress.png`` and ``<stem>.path.png``; with ``batch``
+    (a :class:`snapjump_cli.files.AtomicFiles`) added to it, written with the result, all or none."""
+    progress, path = plot_files(output)
+    todo = [(plot_progress, progress)] + ([(plot_path, path)] if result.path else [])
+    if batch is None:
+        return [fn(result, p) for fn, p in todo]
+    return [batch.add(p, lambda tmp, fn=fn: fn(result, tmp)) for fn, p in todo]

@@ -76,6 +76,7 @@ from snapjump_cli.optimize.evaluate import Evaluation, Evaluator, confirm
 from snapjump_cli.optimize.search import Box, candidates_from, differential_evolution, pattern_search
 from snapjump_cli.optimize.spec import (
     PARAMETERS,
+    OptimizeInputError,
     OptimizeSpec,
     cache_paths,
     check_cache,
@@ -83,7 +84,7 @@ from snapjump_cli.optimize.spec import (
 )
 from snapjump_cli.settings import MeshSettings
 
-__all__ = ["OptimizeResult", "run_optimize", "write_result"]
+__all__ = ["OptimizeResult", "run_optimize", "write_result", "check_output", "SAME_SEARCH"]
 
 log = logging.getLogger(__name__)
 
@@ -354,4 +355,60 @@ def write_result(result: OptimizeResult, output: str | Path, extra_meta: Mapping
 
     meta = res.provenance(result.spec.to_dict(), command="optimize", summary=result.summary(), **dict(extra_meta or {}))
     return res.write_frame_atomic(result.table, output, meta)
+
+
+#: The parts of a spec that make two runs the same search (its budget, jobs, chunk size, resource
+#: limits and file name may differ: a run with a larger budget continues the search).
+SAME_SEARCH = ("bounds", "objective", "seed", "method", "search", "confirm", "jump", "R_i", "materials", "ring",
+               "mesh", "solver")
+
+
+def _same_search(old: Mapping[str, Any], spec: OptimizeSpec) -> list[str]:
+    """The parts of :data:`SAME_SEARCH` in which the recorded spec ``old`` differs from ``spec``."""
+    import json
+
+    from snapjump_cli.settings import without_limits
+
+    new = json.loads(json.dumps(spec.to_dict(), default=str))
+    norm = {"solver": without_limits}
+    return [k for k in SAME_SEARCH if norm.get(k, lambda v: v)(old.get(k)) != norm.get(k, lambda v: v)(new.get(k))]
+
+
+def check_output(output: str | Path, spec: OptimizeSpec, overwrite: bool = False) -> None:
+    """Refuse to replace what is not a run of this search: an existing ``output`` must be the result
+    of ``snapjump optimize`` with the same spec (:data:`SAME_SEARCH`), and its plots
+    (:func:`plot_files`) may be replaced only then; ``overwrite`` allows both.
+
+    Raises
+    ------
+    OptimizeInputError
+        Naming the file and why it is not this run's (a sweep's results, another spec, ...).
+    """
+    from snapjump_cli.optimize.plots import plot_files
+    from snapjump_cli.sweep import results as res
+
+    output = Path(output)
+    own = False
+    if output.exists():
+        try:
+            meta = res.read_metadata(output)
+        except Exception:  # noqa: BLE001 - any unreadable file is simply not ours
+            meta = None
+        if meta is None:
+            why = "is not a result file"
+        elif meta.get("command") != "optimize":
+            what = f"snapjump {meta['command']}" if meta.get("command") else "another program"
+            why = f"holds the results of {what}, not of this optimize run"
+        elif diffs := _same_search(meta.get("config") or {}, spec):
+            why = f"holds an optimize run of another spec ({', '.join(diffs)} differ)"
+        else:
+            own = True
+        if not own and not overwrite:
+            raise OptimizeInputError(f"{output}: exists and {why}; choose another -o/--output, or pass --overwrite "
+                                     f"to replace it")
+    if not own and not overwrite:
+        for p in plot_files(output):
+            if p.exists():
+                raise OptimizeInputError(f"{p}: exists and {output} is not a run of this spec; choose another "
+                                         f"-o/--output, or pass --overwrite to replace it")
 

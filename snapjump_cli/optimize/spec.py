@@ -26,7 +26,7 @@ from snapjump_cli.sweep.config import (
     read_yaml,
 )
 from snapjump_cli.jump import JumpParams
-from snapjump_cli.settings import MeshSettings
+from snapjump_cli.settings import MeshSettings, without_limits
 
 log = logging.getLogger("snapjump_cli.optimize.run")
 
@@ -335,6 +335,11 @@ def cache_paths(output: str | Path) -> tuple[Path, Path]:
 _CACHE_SETTINGS = ("mesh", "solver", "materials", "ring", "R_i")
 
 
+def _comparable(key: str, value: Any) -> Any:
+    """A setting as compared between runs (the solver's resource limits never change an answer)."""
+    return without_limits(value) if key == "solver" else value
+
+
 def check_cache(path: str | Path, config: SweepConfig) -> None:
     """Refuse a cache file (or its part files) written with other mesh, solver, material or ring
     settings than ``config``'s (one cache holds one setting).
@@ -358,7 +363,8 @@ def check_cache(path: str | Path, config: SweepConfig) -> None:
         except Exception as e:  # noqa: BLE001 - not a parquet file
             raise OptimizeInputError(f"{f}: not a readable snapjump result file ({str(e).splitlines()[0]}); "
                                      f"remove it or choose another -o/--output") from None
-        diffs = [f"{k} {old.get(k)} -> {want.get(k)}" for k in _CACHE_SETTINGS if k in old and old.get(k) != want.get(k)]
+        diffs = [f"{k} {old.get(k)} -> {want.get(k)}" for k in _CACHE_SETTINGS
+                 if k in old and _comparable(k, old.get(k)) != _comparable(k, want.get(k))]
         if diffs:
             raise OptimizeInputError(f"{f}: holds evaluations computed with other settings ({'; '.join(diffs)}); "
                                      f"choose another -o/--output, or remove it to start afresh")
@@ -382,6 +388,8 @@ def read_from(path: str | Path) -> pd.DataFrame:
     if path.is_dir():
         files = part_files(path)
     elif path.exists():
+        if not path.is_file():  # a FIFO or a device would block or never end
+            raise OptimizeInputError(f"--from: {path}: expected a parquet file, got a special file")
         files = [path]
     else:
         files = part_files(parts_dir(path))

@@ -1,6 +1,7 @@
 """Sweep configuration: a YAML grid spec validated against a hand-written schema.
 
-The file is read with :func:`yaml.safe_load`. Only ``grid:`` is required; every other key has a
+The file is read with :func:`snapjump_cli.sweep.checks.read_yaml` (safe YAML; a key given twice,
+or a file over 4 MB, is an error). Only ``grid:`` is required; every other key has a
 default. Unknown keys are rejected. Every error is a :class:`ConfigError` whose message names the
 file, the key path (``grid.eta_i.num``) and what was expected, e.g.::
 
@@ -49,16 +50,16 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, Mapping
 
 import numpy as np
-import yaml
 
 from snapjump_cli.fe.fluid import FLUID_KEYS, WATER, FluidSettings, fluid_from_mapping
-from snapjump_cli.geometry.caps import J_M_DEFAULT, MU_ELITE_DOUBLE_32, R_I_DEFAULT
+from snapjump_cli.geometry.caps import J_M_DEFAULT, MU_ELITE_DOUBLE_32, R_I_DEFAULT, RADIUS_RANGE_M
 from snapjump_cli.settings import MeshSettings, SettingsError, SolverSettings
-from snapjump_cli.sweep.checks import ConfigError, CheckContext
+from snapjump_cli.sweep.checks import CheckContext, ConfigError, read_yaml
 
 __all__ = [
     "ConfigError",
     "GRID_AXES",
+    "MAX_DESIGNS",
     "SweepConfig",
     "DesignPoint",
     "load_config",
@@ -71,6 +72,10 @@ GRID_AXES: tuple[str, ...] = ("eta_i", "theta_i", "eta_o", "theta_o", "mu_ratio"
 
 _AXIS_EXPECTED = "a non-empty list of numbers or a mapping {start, stop, num}"
 _DEFAULT_CHUNK = 16
+#: Largest sweep run without being asked explicitly (``max_designs`` / ``--max-designs``): a grid's
+#: size is computed from its ``num`` values before any axis is built, a point list's before its
+#: points are checked.
+MAX_DESIGNS = 100_000
 
 
 @dataclass(frozen=True)
@@ -217,6 +222,18 @@ def axis_check(name: str) -> tuple[Callable[[float], bool], str]:
     return (lambda x: x > 0.0), "a finite number > 0"
 
 
+def _axis_size(ctx: CheckContext, name: str, value: Any) -> int:
+    """The number of values of a grid axis, read from ``num`` or the list's length (nothing built)."""
+    if isinstance(value, Mapping) and "num" in value:
+        return ctx.integer(f"grid.{name}.num", value["num"], minimum=1)
+    return len(value) if isinstance(value, (list, tuple)) else 1
+
+
+def _too_many(ctx: CheckContext, path: str, n: int, max_designs: int, what: str) -> ConfigError:
+    return ConfigError(ctx.source, path, f"{what}{n} designs exceed the limit of {max_designs}; check it, or raise "
+                                         f"the limit with --max-designs")
+
+
 def _parse_axis(ctx: CheckContext, name: str, value: Any) -> tuple[float, ...]:
     path = f"grid.{name}"
     ok, expected = axis_check(name)
@@ -255,8 +272,9 @@ _POINT_KEYS: dict[str, str] = {a: axis_check(a)[1] for a in GRID_AXES}
 _POINTS_EXPECTED = "a non-empty list of mappings {" + ", ".join(GRID_AXES) + "} or a CSV/parquet file path"
 
 
-def _read_points_file(ctx: CheckContext, value: str) -> list[dict]:
-    """Rows of a CSV or parquet file of designs as dicts keyed by :data:`GRID_AXES`."""
+def _read_points_file(ctx: CheckContext, value: str, max_designs: int = MAX_DESIGNS) -> list[dict]:
+    """Rows of a CSV or parquet file of designs as dicts keyed by :data:`GRID_AXES` (a file of more
+    than ``max_designs`` rows is refused before it is parsed)."""
     import pandas as pd
 
     path = Path(value)
@@ -264,8 +282,16 @@ def _read_points_file(ctx: CheckContext, value: str) -> list[dict]:
         path = Path(ctx.source).parent / path
     try:
         if path.suffix.lower() == ".csv":
+            with open(path, "rb") as fh:  # lines counted (fast) before the file is parsed
+                n = sum(block.count(b"\n") for block in iter(lambda: fh.read(1 << 20), b""))
+            if n - 1 > max_designs:
+                raise _too_many(ctx, "points", n - 1, max_designs, f"{path}: about ")
             df = pd.read_csv(path)
         elif path.suffix.lower() in (".parquet", ".pq"):
+            import pyarrow.parquet as pq
+
+            if (n := pq.ParquetFile(path).metadata.num_rows) > max_designs:
+                raise _too_many(ctx, "points", n, max_designs, f"{path}: ")
             df = pd.read_parquet(path)
         else:
             raise ctx.fail("points", "a .csv or .parquet file", value)
@@ -288,15 +314,17 @@ def _read_points_file(ctx: CheckContext, value: str) -> list[dict]:
     return [{a: row[cols[a]] for a in GRID_AXES} for row in df.to_dict("records")]
 
 
-def _parse_points(ctx: CheckContext, value: Any) -> tuple[tuple[float, ...], ...]:
+def _parse_points(ctx: CheckContext, value: Any, max_designs: int = MAX_DESIGNS) -> tuple[tuple[float, ...], ...]:
     if isinstance(value, str) and value.strip():
-        rows = _read_points_file(ctx, value.strip())
+        rows = _read_points_file(ctx, value.strip(), max_designs)
         where = lambda j: f"points (row {j} of {value})"  # noqa: E731
     elif isinstance(value, (list, tuple)) and value:
         rows = list(value)
         where = lambda j: f"points[{j}]"  # noqa: E731
     else:
         raise ctx.fail("points", _POINTS_EXPECTED, value)
+    if len(rows) > max_designs:
+        raise _too_many(ctx, "points", len(rows), max_designs, "")
     out = []
     for j, row in enumerate(rows):
         m = ctx.mapping(where(j), row, _POINT_KEYS, required=GRID_AXES)
@@ -350,7 +378,7 @@ def _parse_fluid(ctx: CheckContext, value: Any) -> FluidSettings:
         raise ctx.fail(where, e.expected, value.get(e.field, e.value) if isinstance(value, Mapping) else value) from None
 
 
-def parse_config(doc: Any, source: str = "<dict>") -> SweepConfig:
+def parse_config(doc: Any, source: str = "<dict>", max_designs: int = MAX_DESIGNS) -> SweepConfig:
     """Validate a loaded YAML document and apply the defaults.
 
     Parameters
@@ -359,6 +387,8 @@ def parse_config(doc: Any, source: str = "<dict>") -> SweepConfig:
         The object returned by :func:`yaml.safe_load`.
     source
         Name used in error messages (usually the file path).
+    max_designs
+        Refuse more designs than this, counted before the grid's axes or the points are built.
 
     Returns
     -------
@@ -377,16 +407,22 @@ def parse_config(doc: Any, source: str = "<dict>") -> SweepConfig:
         raise ConfigError(source, "points", "give either grid: or points:, not both")
     kw: dict[str, Any] = {"source": source, "raw": dict(top)}
     if "points" in top:
-        kw["points"] = _parse_points(ctx, top["points"])
+        kw["points"] = _parse_points(ctx, top["points"], max_designs)
         kw["grid"] = {a: () for a in GRID_AXES}
     elif "grid" not in top:
         raise ConfigError(source, "grid", "missing required key; expected " + _TOP_KEYS["grid"] + " (or points:)")
     else:
         g = ctx.mapping("grid", top["grid"], _GRID_KEYS, required=GRID_AXES)
+        sizes = [_axis_size(ctx, a, g[a]) for a in GRID_AXES]
+        if math.prod(sizes) > max_designs:
+            raise _too_many(ctx, "grid", math.prod(sizes), max_designs, " x ".join(map(str, sizes)) + " = ")
         kw["grid"] = {a: _parse_axis(ctx, a, g[a]) for a in GRID_AXES}
 
     if "R_i" in top:
         kw["R_i"] = ctx.positive("R_i", top["R_i"])
+        lo, hi = RADIUS_RANGE_M
+        if not lo <= kw["R_i"] <= hi:
+            raise ctx.fail("R_i", f"a radius in [{lo:g}, {hi:g}] m", top["R_i"])
     if top.get("materials") is not None:
         m = ctx.mapping("materials", top["materials"], {"mu_i": "the inner shear modulus [Pa]", "J_m": "the Gent parameter"})
         for k in m:
@@ -416,13 +452,15 @@ def parse_config(doc: Any, source: str = "<dict>") -> SweepConfig:
     return SweepConfig(**kw)
 
 
-def load_config(path: str | Path) -> SweepConfig:
+def load_config(path: str | Path, max_designs: int = MAX_DESIGNS) -> SweepConfig:
     """Read and validate a sweep config file.
 
     Parameters
     ----------
     path
         A YAML file (see the module docstring for the schema).
+    max_designs
+        See :func:`parse_config`.
 
     Returns
     -------
@@ -434,40 +472,4 @@ def load_config(path: str | Path) -> SweepConfig:
         The file is missing or unreadable, is not valid YAML, or does not match the schema.
     """
     source = str(path)
-    return parse_config(read_yaml(path), source)
-
-
-def read_yaml(path: str | Path) -> Any:
-    """Read a YAML file (a sweep config or an optimisation spec) into plain data.
-
-    Parameters
-    ----------
-    path
-        The file; its name (``str(path)``) is the source named in error messages.
-
-    Returns
-    -------
-    Any
-        The object returned by :func:`yaml.safe_load` (``None`` for an empty file).
-
-    Raises
-    ------
-    ConfigError
-        The file is missing, a directory or unreadable, or not valid YAML.
-    """
-    source = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(source, "", "file not found") from None
-    except IsADirectoryError:
-        raise ConfigError(source, "", "expected a YAML file, got a directory") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise ConfigError(source, "", f"cannot read the file ({e})") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(e, "problem", None) or str(e).splitlines()[0]
-        raise ConfigError(source, "", f"YAML syntax error{where}: {problem}") from None
+    return parse_config(read_yaml(path), source, max_designs)

@@ -15,6 +15,7 @@ import logging
 import os
 import socket
 import sys
+import threading
 import time
 from contextlib import ExitStack
 from pathlib import Path
@@ -26,7 +27,7 @@ from snapjump_cli.sweep.rows import fill_row
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.sweep.storage import now_utc
 
-__all__ = ["SolveFn", "default_solver", "solve_task", "execute", "connect"]
+__all__ = ["SolveFn", "default_solver", "die_with_parent", "solve_task", "execute", "connect"]
 
 log = logging.getLogger(__name__)
 
@@ -61,6 +62,27 @@ def limit_threads_in_worker() -> None:
     except ImportError:
         return
     threadpool_limits(1)
+
+def die_with_parent(parent_pid: int, interval_s: float = 0.5) -> None:
+    """Worker initializer: end this worker process as soon as its parent, the sweep, is gone.
+
+    A sweep killed with SIGKILL cannot stop its loky workers, which would otherwise live on until
+    their idle timeout (minutes), holding the terminal and joblib's shared-memory folders. A daemon
+    thread polls the parent's pid every ``interval_s`` seconds and exits the process when the
+    worker has been re-parented. (``prctl(PR_SET_PDEATHSIG)`` is not used: it fires when the
+    *thread* that started the worker ends, and loky may start workers from a passing thread.)
+    """
+    if os.getppid() != parent_pid:
+        os._exit(1)
+
+    def watch() -> None:
+        while True:
+            time.sleep(interval_s)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="snapjump-parent-watch", daemon=True).start()
+
 
 def solve_task(task: dict[str, Any], solve_fn: SolveFn, marker_dir: str | None) -> dict[str, Any]:
     """Worker: solve one design and return its row (never raises for a design's failure)."""
@@ -98,7 +120,7 @@ def _parallel_rows(tasks: list[dict[str, Any]], solve_fn: SolveFn, n_jobs: int, 
 
     kwargs: dict[str, Any] = {}
     if backend == "loky":
-        kwargs["inner_max_num_threads"] = 1
+        kwargs.update(inner_max_num_threads=1, initializer=die_with_parent, initargs=(os.getpid(),))
     with parallel_config(backend=backend, **kwargs) if backend == "loky" else ExitStack():
         par = Parallel(n_jobs=n_jobs, return_as="generator_unordered", pre_dispatch="2*n_jobs")
         yield from par(delayed(solve_task)(t, solve_fn, marker_dir) for t in tasks)

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import platform
 import subprocess
 import sys
@@ -20,7 +19,7 @@ from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping
 
-from snapjump_cli.files import replace_atomic
+from snapjump_cli.files import write_atomic
 from snapjump_cli.sweep.rows import (  # the row contract, re-exported for readers of result files
     BOOL_RESULT_KEYS,
     FLOAT_RESULT_KEYS,
@@ -97,20 +96,14 @@ def rows_to_table(rows: Iterable[Mapping[str, Any]], meta: Mapping[str, Any] | N
 
 
 def write_table_atomic(table: pa.Table, path: str | Path) -> Path:
-    """Write a parquet file atomically: a temporary file in the same folder, then ``os.replace``.
+    """Write a parquet file atomically (:func:`snapjump_cli.files.write_atomic`: a temporary file
+    in the target's folder, then a rename; links followed, devices and FIFOs refused).
 
     A reader (or a resumed sweep) therefore sees either the complete file or none.
     """
     import pyarrow.parquet as pq
 
-    def write(tmp: Path) -> None:
-        pq.write_table(table, tmp)
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return replace_atomic(write, path)
+    return write_atomic(path, lambda tmp: pq.write_table(table, tmp))
 
 
 def write_frame_atomic(df: pd.DataFrame, path: str | Path, meta: Mapping[str, Any] | None = None) -> Path:

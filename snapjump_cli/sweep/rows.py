@@ -262,3 +262,41 @@ def fill_row(row: dict[str, Any], result: Any) -> None:
         values[k] = None
     row.update(values)
     row.update(status=status, error=error)
+
+
+def ok_row_problems(metrics: Mapping[str, Any], required: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Check the metrics of rows read back as ``ok`` against the row contract's ranges (a file
+    edited by hand, or written by other code, may hold anything).
+
+    Parameters
+    ----------
+    metrics
+        Metric name -> numpy array of float values (NaN for null), one entry per row; the names
+        absent from it are not checked.
+    required
+        Metrics that must be present (not null) in an ``ok`` row; a null elsewhere is not checked.
+
+    Returns
+    -------
+    dict
+        Metric name -> boolean array, true where the value breaks the contract (out of range,
+        infinite, or null where it is required), for the metrics with at least one such row.
+    """
+    import numpy as np
+
+    out: dict[str, Any] = {}
+    for k, x in metrics.items():
+        x = np.asarray(x, dtype=float)
+        good = _OK_RANGES[k][0] if k in _OK_RANGES else (lambda v: np.ones(v.shape, bool))
+        with np.errstate(invalid="ignore"):
+            bad = np.isinf(x) | (np.isfinite(x) & ~good(x))
+        if k in required:
+            bad |= np.isnan(x)
+        if bad.any():
+            out[k] = bad
+    return out
+
+
+def ok_range_wording(key: str) -> str:
+    """The range an ``ok`` row's metric ``key`` must lie in (e.g. ``"> 0"``), or ``"finite"``."""
+    return _OK_RANGES[key][1] if key in _OK_RANGES else "finite"

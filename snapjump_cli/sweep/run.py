@@ -35,12 +35,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from snapjump_cli.files import check_writable
-from snapjump_cli.sweep import results as res
-from snapjump_cli.sweep.config import DesignPoint, SweepConfig
 from snapjump_cli.errors import SweepError, SweepInputError
-from snapjump_cli.sweep.execution import SolveFn, connect, default_solver, execute
+from snapjump_cli.files import check_writable, follow_links
 from snapjump_cli.geometry.caps import Design, InvalidDesign, centre_offset, outer_radius
+from snapjump_cli.sweep import results as res
+from snapjump_cli.sweep.config import MAX_DESIGNS, DesignPoint, SweepConfig
+from snapjump_cli.sweep.execution import SolveFn, connect, default_solver, execute
 from snapjump_cli.sweep.rows import settings_json
 from snapjump_cli.settings import MeshSettings
 from snapjump_cli.sweep.storage import (
@@ -73,8 +73,6 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: Largest sweep run without being asked explicitly (``max_designs`` / ``--max-designs``).
-MAX_DESIGNS = 100_000
 #: CPU seconds per solved design on the paper grid's mesh (order 2, nt 2, aspect 3), the basis of
 #: the time estimate printed before a sweep: the mean over the full paper grid (``make run``) was
 #: 0.117 s on a 2-core Xeon with AVX-512 and 0.35 s on a slower 2-core Xeon (docs/performance.md);
@@ -262,10 +260,13 @@ def run_sweep(
             f"(~{_fmt_duration(estimate_seconds(config.n_designs, config.mesh, os.cpu_count() or 1))} on this "
             f"machine); check the grid, or raise the limit with --max-designs")
     chunk = int(chunk_size if chunk_size is not None else config.chunk_size)
-    parts = parts_dir(output)
     if output.exists() and output.is_dir():
         raise SweepInputError(f"{output}: is a directory, expected a parquet file path")
     check_writable(output, SweepInputError)
+    if follow_links(output) != output:  # a link: the shared file it points to is the output
+        log.info("%s is a link to %s: writing that file (its lock and parts beside it)", output, follow_links(output))
+        output = follow_links(output)
+    parts = parts_dir(output)
     output.parent.mkdir(parents=True, exist_ok=True)  # the lock and the parts live beside the output
 
     with OutputLock(output):
@@ -320,9 +321,10 @@ def _stamp(config: SweepConfig) -> dict[str, Any]:
 
 
 def _row_settings(config: SweepConfig) -> dict[str, Any]:
-    """The settings a row records: the solver's, and the fluid when it is air (a water row's are as
-    they were before the setting existed, so that ``rank`` sees water and air rows as mixed)."""
-    out = config.solver.as_dict()
+    """The settings a row records: the solver's (without its resource limits), and the fluid when
+    it is air (a water row's are as they were before the setting existed, so that ``rank`` sees
+    water and air rows as mixed)."""
+    out = config.solver.numerics()
     if config.fluid.is_air:
         out["fluid"] = config.fluid.as_dict()
     return out
@@ -418,13 +420,23 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
                 bar.update(1)
 
     clients: list[Any] = []
+    stopped_by: BaseException | None = None
     try:
         for row in invalid_rows:
             record(row, advance=False)
         if tasks:
             _solve_all(tasks, solve_fn, warm_up_fn, n_jobs, scheduler, marker_dir, record, clients)
+    except BaseException as exc:
+        stopped_by = exc
+        raise
     finally:
-        writer.flush()  # keep every finished row, also on Ctrl-C or errors
+        try:
+            writer.flush()  # keep every finished row, also on Ctrl-C or errors
+        except OSError as e:  # after another error: that one is reported (once, if it is this one)
+            if stopped_by is None:
+                raise
+            if not isinstance(stopped_by, OSError):
+                log.warning("could not write the last %d finished rows: %s", len(writer.buffer), e)
         stack.close()
         if bar is not None:
             bar.close()
@@ -434,6 +446,8 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
             for p in marker_dir.iterdir():
                 p.unlink(missing_ok=True)
             marker_dir.rmdir()
+        if stopped_by is not None and not any(parts.iterdir()):  # stopped before any row (an unreachable scheduler)
+            parts.rmdir()
 
     if consolidate_output and (tasks or invalid_rows or part_files(parts) or not output.exists()):
         counts = consolidate(output, meta, order)

@@ -28,9 +28,10 @@ from typing import Any, Mapping
 from snapjump_cli.sweep import results as res
 from snapjump_cli.sweep.config import DesignPoint
 from snapjump_cli.errors import SweepInputError
-from snapjump_cli.geometry.caps import Design
 from snapjump_cli.fe.fluid import FluidSettings
-from snapjump_cli.settings import MeshSettings, SolverSettings
+from snapjump_cli.files import os_error_reason
+from snapjump_cli.geometry.caps import Design
+from snapjump_cli.settings import MeshSettings, SolverSettings, without_limits
 
 __all__ = [
     "KEY_VERSION",
@@ -100,7 +101,7 @@ _NEUTRAL_SETTINGS = {"harmonics": 0, "follow": False, "follow_N": 0, "margins": 
 
 
 def _key_settings(solver: SolverSettings) -> dict[str, Any]:
-    return {k: v for k, v in solver.as_dict().items() if not (k in _NEUTRAL_SETTINGS and v == _NEUTRAL_SETTINGS[k])}
+    return {k: v for k, v in solver.numerics().items() if not (k in _NEUTRAL_SETTINGS and v == _NEUTRAL_SETTINGS[k])}
 
 
 def _typed(d: Mapping[str, Any]) -> dict[str, Any]:
@@ -140,7 +141,12 @@ def _read_keys(path: Path) -> Any:
     try:
         t = pq.read_table(path, columns=["key", "status"])
     except (pa.ArrowInvalid, KeyError, OSError) as e:
-        raise SweepInputError(f"{path}: not a readable snapjump result file ({e})") from None
+        why = " ".join(str(e).split())
+        if path.parent.name.endswith(".parts"):  # a part of an interrupted run: its rows are solved again
+            raise SweepInputError(f"{path}: damaged part file ({why}); delete this file and run the same command "
+                                  f"again (its designs are solved again, the other parts are kept)") from None
+        raise SweepInputError(f"{path}: not a readable snapjump result file ({why}); move it away or choose "
+                              f"another output") from None
     return t
 
 
@@ -181,7 +187,8 @@ def _pid_alive(pid: int) -> bool:
 
 
 class OutputLock:
-    """Exclusive right to write into one output (``<output>.lock``, created with ``O_EXCL``).
+    """Exclusive right to write into one output (``<output>.lock``, created with ``O_EXCL``), taken
+    by ``sweep`` and ``optimize`` (``command``, recorded in the lock).
 
     A second sweep into the same output is refused (:class:`SweepInputError` naming the holder's
     pid, host and start time). A lock left by a process that no longer runs on this host is taken
@@ -189,8 +196,9 @@ class OutputLock:
     be checked from here): the message says which file to remove.
     """
 
-    def __init__(self, output: str | Path) -> None:
+    def __init__(self, output: str | Path, command: str = "sweep") -> None:
         self.path = lock_path(output)
+        self.command = command  # recorded in the lock, named to whoever finds it taken
         self.held = False
 
     def _holder(self) -> dict[str, Any]:
@@ -200,7 +208,7 @@ class OutputLock:
             return {}
 
     def acquire(self) -> "OutputLock":
-        me = {"pid": os.getpid(), "host": socket.gethostname(), "started_utc": now_utc()}
+        me = {"pid": os.getpid(), "host": socket.gethostname(), "started_utc": now_utc(), "command": self.command}
         for _ in range(3):
             try:
                 fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
@@ -217,12 +225,17 @@ class OutputLock:
                 else:
                     holder = f"pid {pid} on {host}, started {h.get('started_utc')}"
                 raise SweepInputError(
-                    f"{self.path.with_suffix('')}: another sweep is writing into this output ({holder}); "
+                    f"{self.path.with_suffix('')}: another {h.get('command', 'sweep')} is writing into this output "
+                    f"({holder}); "
                     f"wait for it to finish, or remove {self.path} if that process is gone")
             except OSError as e:
                 raise SweepInputError(f"{self.path}: cannot create the lock file ({e.strerror})") from None
-            with os.fdopen(fd, "w") as fh:
-                json.dump(me, fh)
+            try:
+                with os.fdopen(fd, "w") as fh:
+                    json.dump(me, fh)
+            except OSError as e:  # a full disk: leave no empty lock behind (it would block every rerun)
+                self.path.unlink(missing_ok=True)
+                raise SweepInputError(f"{self.path}: cannot write the lock file ({os_error_reason(e)})") from None
             self.held = True
             return self
         raise SweepInputError(f"{self.path}: cannot take the lock")
@@ -262,8 +275,9 @@ def check_compatible(output: str | Path, keys: set[str], config: Mapping[str, An
             break
     diffs = []
     for k in ("mesh", "solver", "materials", "ring", "R_i", "fluid"):
-        if k in old and old.get(k) != config.get(k):
-            diffs.append(f"{k} {old.get(k)} -> {config.get(k)}")
+        a, b = (without_limits(old.get(k)), without_limits(config.get(k))) if k == "solver" else (old.get(k), config.get(k))
+        if k in old and a != b:
+            diffs.append(f"{k} {a} -> {b}")
     grid_old = old.get("points", old.get("grid"))
     grid_new = config.get("points", config.get("grid"))
     if grid_old is not None and grid_old != grid_new:

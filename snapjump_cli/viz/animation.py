@@ -63,7 +63,7 @@ def write_animation(mesh, steps, path: str | Path, *, title: str = "", volume_sy
     from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.colors import Normalize
 
-    from snapjump_cli.files import replace_atomic
+    from snapjump_cli.files import write_atomic
 
     plt = _pyplot()
     draw = SectionDrawing(mesh, subdivision=2)  # 4 sub-cells an element: the frames draw ~2x faster
@@ -132,6 +132,6 @@ def write_animation(mesh, steps, path: str | Path, *, title: str = "", volume_sy
                     update(k)
                     writer.grab_frame()
 
-        return replace_atomic(write, path)
+        return write_atomic(path, write)
     finally:
         plt.close(fig)

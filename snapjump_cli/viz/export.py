@@ -192,8 +192,8 @@ def export_steps(res, steps, path: str | Path, revolve: int = 0, stage=None) -> 
     steps : its :class:`~snapjump_cli.viz.states.Steps`
     path : ``.pvd`` or ``.xdmf`` file (an existing one, and a ``.pvd``'s step folder, are replaced)
     revolve : 0 for the section, else the number of sectors of the solid of revolution
-    stage : a :class:`~snapjump_cli.viz.outputs.Stage` to write into (its ``commit`` puts the
-        files in place, with the command's other outputs); default: a stage of its own, committed
+    stage : a :class:`~snapjump_cli.files.AtomicFiles` to write into (its ``commit`` puts the
+        files in place, with the command's other outputs); default: one of its own, committed
 
     Returns
     -------
@@ -202,7 +202,7 @@ def export_steps(res, steps, path: str | Path, revolve: int = 0, stage=None) -> 
     """
     import meshio  # noqa: F401  (a regular dependency; imported here to keep start-up light)
 
-    from snapjump_cli.viz.outputs import Stage
+    from snapjump_cli.files import AtomicFiles
     from snapjump_cli.viz.states import step_fields
 
     path = Path(path)
@@ -213,7 +213,7 @@ def export_steps(res, steps, path: str | Path, revolve: int = 0, stage=None) -> 
     geom = revolve_section(mesh.nodes, mesh.elements, mesh.order, revolve) if revolve else _section(mesh)
     data = [_step_data(geom, steps.U[k], step_fields(res, steps, k), mesh) for k in range(len(steps))]
     own = stage is None
-    stage = stage or Stage()
+    stage = stage or AtomicFiles()
     try:
         if suffix == ".pvd":
             folder = steps_folder(path)

@@ -40,11 +40,11 @@ def _pyplot() -> Any:
 
 
 def _save(fig: Any, path: str | Path, dpi: int) -> Path:
-    """Write a figure atomically (a temporary file in the same folder, then a rename)."""
-    from snapjump_cli.files import replace_atomic
+    """Write a figure atomically (:func:`snapjump_cli.files.write_atomic`)."""
+    from snapjump_cli.files import write_atomic
 
     fmt = Path(path).suffix.lstrip(".").lower() or "png"
-    return replace_atomic(lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt), path)
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt))
 
 
 def _ok(df: pd.DataFrame) -> pd.DataFrame:
@@ -276,8 +276,11 @@ def _mark_best_label(best: pd.Series) -> str:
 PLOT_FILES: tuple[str, ...] = ("fig4a.png", "fig4c.png", "jump_vs_parameters.png")
 
 
-def make_plots(ranked: pd.DataFrame, out_dir: str | Path) -> list[Path]:
+def make_plots(ranked: pd.DataFrame, out_dir: str | Path, batch: Any = None) -> list[Path]:
     """Write ``fig4a.png``, ``fig4c.png`` and ``jump_vs_parameters.png`` into ``out_dir``.
+
+    ``batch``: a :class:`snapjump_cli.files.AtomicFiles` to add them to (written with the other
+    outputs of a command, all or none); without it each is written atomically at once.
 
     Returns
     -------
@@ -286,11 +289,11 @@ def make_plots(ranked: pd.DataFrame, out_dir: str | Path) -> list[Path]:
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    files = [
-        plot_fig4a(ranked, out_dir / "fig4a.png"),
-        plot_fig4c(ranked, out_dir / "fig4c.png"),
-        plot_jump_vs_parameters(ranked, out_dir / "jump_vs_parameters.png"),
-    ]
+    plots = ((plot_fig4a, "fig4a.png"), (plot_fig4c, "fig4c.png"), (plot_jump_vs_parameters, "jump_vs_parameters.png"))
+    if batch is None:
+        files = [fn(ranked, out_dir / name) for fn, name in plots]
+    else:
+        files = [batch.add(out_dir / name, lambda tmp, fn=fn: fn(ranked, tmp)) for fn, name in plots]
     for f in files:
         log.info("wrote %s", f)
     return files

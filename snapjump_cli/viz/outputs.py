@@ -3,15 +3,13 @@
 
 :func:`check_outputs` refuses bad places before anything is solved (exit code 2, one line);
 :func:`write_outputs` renders every file into a temporary name beside its target and renames them
-only when all are complete, so a failure leaves the old files (or none) in place.
+only when all are complete (:class:`snapjump_cli.files.AtomicFiles`), so a failure leaves the old
+files (or none) in place.
 """
 from __future__ import annotations
 
 import csv
 import logging
-import os
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Callable
 
@@ -19,7 +17,7 @@ import numpy as np
 
 from snapjump_cli.errors import BadInput
 
-__all__ = ["OUTPUT_SUFFIXES", "check_outputs", "write_outputs", "Stage"]
+__all__ = ["OUTPUT_SUFFIXES", "check_outputs", "write_outputs"]
 
 log = logging.getLogger(__name__)
 
@@ -67,50 +65,6 @@ def _require(module: str, opt: str) -> None:
         importlib.import_module(module)
     except ImportError:
         raise BadInput(f"{opt} needs {module}, which is not installed ({_EXTRA[module]})") from None
-
-
-class Stage:
-    """Temporary files and folders beside their targets, renamed onto them by :meth:`commit`
-    (mode from the umask), or removed by :meth:`discard`."""
-
-    def __init__(self) -> None:
-        self.moves: list[tuple[Path, Path]] = []
-
-    def file(self, final: Path) -> Path:
-        """A temporary file for ``final`` (same folder and suffix)."""
-        from snapjump_cli.files import current_umask
-
-        fd, name = tempfile.mkstemp(prefix=f".{final.stem}.", suffix=f".tmp{final.suffix}", dir=final.parent)
-        os.close(fd)
-        os.chmod(name, 0o666 & ~current_umask())
-        self.moves.append((Path(name), final))
-        return Path(name)
-
-    def folder(self, final: Path) -> Path:
-        """A temporary folder for ``final`` (replaced whole on commit)."""
-        from snapjump_cli.files import current_umask
-
-        name = tempfile.mkdtemp(prefix=f".{final.name}.", dir=final.parent)
-        os.chmod(name, 0o777 & ~current_umask())
-        self.moves.insert(0, (Path(name), final))  # folders first: a file that refers to one comes after
-        return Path(name)
-
-    def commit(self) -> list[Path]:
-        for tmp, final in self.moves:
-            if tmp.is_dir() and final.is_dir():
-                shutil.rmtree(final)
-            os.replace(tmp, final)
-        done = [final for _, final in self.moves]
-        self.moves = []
-        return done
-
-    def discard(self) -> None:
-        for tmp, _ in self.moves:
-            if tmp.is_dir():
-                shutil.rmtree(tmp, ignore_errors=True)
-            else:
-                tmp.unlink(missing_ok=True)
-        self.moves = []
 
 
 def _write_csv(columns: dict[str, list], path: Path) -> None:
@@ -207,24 +161,24 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
 
         jobs.append(("--animation", wanted["--animation"],
                      lambda t: write_animation(mesh, steps, t, title=title, volume_symbol=vsym)))
-    stage = Stage()
-    current = ""
+    from snapjump_cli.files import AtomicFiles, OutputError, os_error_reason
+
+    stage = AtomicFiles()  # a full disk or an I/O error: OutputError, one line naming the file (exit 2)
     try:
         for opt, final, job in jobs:
-            current = f"{opt} {final}"
-            job(stage.file(final))
+            stage.add(final, job)
         if "--export" in wanted:
             from snapjump_cli.viz.export import export_steps
 
-            current = f"--export {wanted['--export']}"
-            export_steps(res, steps, wanted["--export"], revolve=revolve, stage=stage)
-        current = "the outputs"
+            try:
+                export_steps(res, steps, wanted["--export"], revolve=revolve, stage=stage)
+            except OSError as e:
+                if isinstance(e, OutputError):
+                    raise
+                why = os_error_reason(e)
+                raise OutputError(f"{wanted['--export']}: cannot write it ({why}); nothing written", e.errno,
+                                  why) from None
         written = stage.commit()
-    except OSError as e:
-        stage.discard()
-        import click
-
-        raise click.ClickException(f"could not write {current}: {e.strerror or e}; nothing written") from None
     except BaseException:
         stage.discard()
         raise

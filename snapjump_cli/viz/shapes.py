@@ -235,7 +235,7 @@ def plot_shapes(mesh, states: Sequence[ShapeState], path: str | Path, *, title: 
     from matplotlib.collections import LineCollection, PolyCollection
     from matplotlib.colors import Normalize
 
-    from snapjump_cli.files import replace_atomic
+    from snapjump_cli.files import write_atomic
 
     plt = _pyplot()
     draw = SectionDrawing(mesh)
@@ -289,7 +289,7 @@ def plot_shapes(mesh, states: Sequence[ShapeState], path: str | Path, *, title: 
         if title:
             fig.suptitle(title, fontsize=10)
         fmt = Path(path).suffix.lstrip(".").lower() or "png"
-        return replace_atomic(lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt), path)
+        return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt))
     finally:
         plt.close(fig)
 

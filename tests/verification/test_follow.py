@@ -117,3 +117,16 @@ def test_design_B_snaps_at_its_subcritical_bifurcation():
     assert m["dE_rel_diff"] < 1e-3  # energy difference against the path integral
     assert 0 < m["dE_J"] < 0.5 * m["axisym_dE_J"]  # the paper's Fig. S16: less energy on the asymmetric path
     assert 0 < m["dy_pole_m"] < m["axisym_dy_pole_m"]
+
+
+def test_a_branch_over_the_time_limit_keeps_the_axisymmetric_answer(cap):
+    from snapjump_cli.fe.follow import apply_followed
+    from snapjump_cli.fe.limits import time_limit
+
+    res, chk = cap
+    before = dict(res.metrics)
+    with time_limit(1e-6):
+        apply_followed(res, chk)
+    m = res.metrics
+    assert m["followed"] is False and "time limit" in m["follow_note"]
+    assert m["dE_J"] == before["dE_J"] and m["axisym_dE_J"] == before["dE_J"]
