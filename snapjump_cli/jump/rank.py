@@ -350,9 +350,12 @@ def top_frame(ranked: pd.DataFrame, n: int = 10) -> pd.DataFrame:
     head = ranked.head(max(0, int(n)))
     checked = "asym_first" in ranked.columns and bool(ranked["asym_first"].notna().any())
     air = "fluid" in ranked.columns and bool((ranked["fluid"] == "air").any())
+    followed = "followed" in ranked.columns and bool(ranked["followed"].notna().any())
     cols = {}
     for name, (src, scale) in TOP_COLUMNS.items():
         if src not in head.columns or (name == "asym_n" and not checked):  # asym_n: only after the check
+            continue
+        if name in ("followed", "axisym_y_mm") and not followed:  # only when branches were followed
             continue
         if name == "fluid" and not air:  # fluid: only when a row was inflated with air
             continue

@@ -224,6 +224,7 @@ def test_asymmetric_designs_are_flagged_or_excluded(tmp_path, capsys, results_fi
     assert cells.count("2") == 1 and set(cells) <= {"2", "-"}
     code, out, _ = _run(capsys, str(results_file), "-o", str(tmp_path / "c.parquet"))
     assert "asym_n" not in out  # no harmonic check in the file: no column
+    assert "followed" not in out and "axisym_y_mm" not in out  # no branch followed: no columns
 
 
 def test_followed_rows_rank_by_the_followed_answer_and_show_the_axisymmetric_one(tmp_path, capsys, results_file):
