@@ -157,6 +157,8 @@ def build_status(folder: Path = HERE, cpuinfo: str | Path = CPUINFO) -> str:
         return why
     if not stamp.get("built"):
         return f"its build failed ({stamp.get('reason', '?')})"
+    if not any(folder.glob(f"{MODULE}*.so")):
+        return f"built, but its extension file ({MODULE}*.so) is missing"
     return ""
 
 
