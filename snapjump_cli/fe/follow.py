@@ -46,6 +46,7 @@ from snapjump_cli.fe.continuation import (
 )
 from snapjump_cli.fe.harmonics import HarmonicOperator, harmonic_operator
 from snapjump_cli.fe.lower_state import find_lower_state
+from snapjump_cli.fe.margins import eig_near
 from snapjump_cli.fe.metrics import path_p_dV, snap_sequence
 from snapjump_cli.fe.multiharmonic import MultiHarmonicModel
 from snapjump_cli.fe.snap import SnapStates, SnapTracker, root_on_step
@@ -80,23 +81,11 @@ def lowest_eigen(op: HarmonicOperator, u: np.ndarray, p: float, shift: float = 2
     domain. In units of ``mu_min / L^2`` of the scaled model (the harmonic check's measure).
     Shift-invert about ``-shift mu_min``: exact for the smallest eigenvalue while it lies above
     that (near a bifurcation it is close to 0; physical eigenvalues are of order 0.1-10)."""
-    import scipy.sparse.linalg as spla
-
-    K = op.matrix(u, p)
-    if K is None:
-        return None
-    M = op.mass()
-    keep = np.setdiff1d(np.arange(op.ndof), op.gauge_dofs(u))
-    K = K[keep][:, keep].tocsc()
-    M = M[keep][:, keep].tocsc()
     mu = float(np.min(op.model.mu))
-    vals, vecs = spla.eigsh(K, k=2, M=M, sigma=-shift * mu, which="LM")
-    i = int(np.argmin(vals))
-    x = np.zeros(op.ndof)
-    x[keep] = vecs[:, i]
-    A = op.to_nodal(x)
-    A /= A.ravel()[np.argmax(np.abs(A))]
-    return float(vals[i]) / mu, A
+    found = eig_near(op, u, p, -shift * mu, mode=True)
+    if found is None:
+        return None
+    return found[0] / mu, found[1]
 
 
 @dataclass
@@ -369,6 +358,14 @@ def _branch_metrics(fr: FollowResult, sc: np.ndarray) -> dict:
     return out
 
 
+def _axisym_answer(m: dict, note: str = "") -> dict:
+    """The follow keys of a design that keeps its axisymmetric answer (``m``: its metrics)."""
+    out = {k: None for k in FOLLOW_KEYS}
+    out.update({"axisym_" + k: m.get(k) for k in ("dE_J", "dy_pole_m", "h_imp_m", "V_star_m3", "p_star_Pa")})
+    out.update(followed=False, follow_note=note)
+    return out
+
+
 def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | None = None) -> tuple[dict, FollowResult | None]:
     """The design's answer with the followed branch (the keys of :data:`FOLLOW_KEYS` and the
     followed ``dE_J``, ``dy_pole_m``, ``h_imp_m``, ``V_star_m3``, ``p_star_Pa``), given the
@@ -380,11 +377,7 @@ def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | Non
     ``follow_note`` says why.
     """
     m = result.metrics
-    out = {k: None for k in FOLLOW_KEYS}
-    for k in ("dE_J", "dy_pole_m", "h_imp_m", "V_star_m3", "p_star_Pa"):
-        out["axisym_" + k] = m.get(k)
-    out["followed"] = False
-    out["follow_note"] = ""
+    out = _axisym_answer(m)
     if not check.get("asym_first") or result.states is None or result.states.upper is None:
         return out, None
     t0 = time.perf_counter()
@@ -427,11 +420,8 @@ def apply_followed(result, check: dict, N: int = 0) -> None:
     try:
         out, fr = followed_metrics(result, check, N=N or None)
     except TimeLimitExceeded as exc:  # keep the axisymmetric answer, say why
-        out = {k: None for k in FOLLOW_KEYS}
-        for k in ("dE_J", "dy_pole_m", "h_imp_m", "V_star_m3", "p_star_Pa"):
-            out["axisym_" + k] = m.get(k)
-        out.update(followed=False, follow_n=check.get("asym_n"),
-                   follow_note=f"branch not followed to its snap: {exc}")
+        out = _axisym_answer(m, f"branch not followed to its snap: {exc}")
+        out["follow_n"] = check.get("asym_n")
         fr = None
     result.follow = fr
     m.update({k: out.get(k) for k in FOLLOW_KEYS})

@@ -22,13 +22,16 @@ from snapjump_cli.fe.harmonics import HarmonicOperator, harmonic_operator
 
 log = logging.getLogger(__name__)
 
-__all__ = ["smallest_eigenvalue", "state_margins", "path_margins", "MARGIN_KEYS"]
+__all__ = ["eig_near", "smallest_eigenvalue", "state_margins", "path_margins", "MARGIN_KEYS"]
 
 #: The row keys of :func:`path_margins` (null unless ``solver: {margins: true}``).
 MARGIN_KEYS: tuple[str, ...] = ("asym_margin", "asym_margin_n", "asym_margin_V_m3")
 
 
-def _eig_near(op: HarmonicOperator, u: np.ndarray, p: float, sigma: float):
+def eig_near(op: HarmonicOperator, u: np.ndarray, p: float, sigma: float, mode: bool = False):
+    """The smallest of the two eigenvalues of ``(K_n, M_n)`` nearest ``sigma`` (rigid modes gauged
+    out; scaled units), with (``mode``) its eigenvector as nodal amplitudes ``(nn, 3)``, largest
+    entry 1; ``None`` outside the Gent domain."""
     import scipy.sparse.linalg as spla
 
     K = op.matrix(u, p)
@@ -37,8 +40,14 @@ def _eig_near(op: HarmonicOperator, u: np.ndarray, p: float, sigma: float):
     keep = np.setdiff1d(np.arange(op.ndof), op.gauge_dofs(u))
     K = K[keep][:, keep].tocsc()
     M = op.mass()[keep][:, keep].tocsc()
-    vals = spla.eigsh(K, k=2, M=M, sigma=sigma, which="LM", return_eigenvectors=False)
-    return float(np.min(vals))
+    if not mode:
+        return float(np.min(spla.eigsh(K, k=2, M=M, sigma=sigma, which="LM", return_eigenvectors=False)))
+    vals, vecs = spla.eigsh(K, k=2, M=M, sigma=sigma, which="LM")
+    i = int(np.argmin(vals))
+    x = np.zeros(op.ndof)
+    x[keep] = vecs[:, i]
+    A = op.to_nodal(x)
+    return float(vals[i]), A / A.ravel()[np.argmax(np.abs(A))]
 
 
 def smallest_eigenvalue(op: HarmonicOperator, u: np.ndarray, p: float, shift: float = 2.0,
@@ -48,7 +57,7 @@ def smallest_eigenvalue(op: HarmonicOperator, u: np.ndarray, p: float, shift: fl
     mu = float(np.min(op.model.mu))
     sigma = -shift * mu
     for _ in range(6):
-        lam = _eig_near(op, u, p, sigma)
+        lam = eig_near(op, u, p, sigma)
         if lam is None:
             return None
         delta = rel * max(abs(lam), mu)

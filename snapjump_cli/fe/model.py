@@ -383,20 +383,7 @@ class Model:
         return np.array([V, p, u[self.pole_dof]]), dz, np.array([0.0, 1.0, 0.0])
 
     def _factor(self, data, b, c_u, c_p) -> BorderedSolver | None:
-        t0 = time.perf_counter()
-        n = self.n
-        try:
-            K = data.reshape(n, self.kl + 1)
-            ok, nneg, fac, Kib, schur = bordered_factor(K, self.band_ext, b, c_u, float(c_p))
-            if not ok or not np.isfinite(schur) or schur == 0.0:
-                return None
-            s = BorderedSolver(fac, K, b, c_u, float(c_p), n, nneg, self.band_ext, Kib, schur)
-        except RuntimeError:  # exactly singular
-            return None
-        finally:
-            self.t_factor += time.perf_counter() - t0
-        self.n_factorizations += 1
-        return s
+        return factor_bordered(self, data, b, c_u, c_p)
 
     def stiffness_matrix(self, u: np.ndarray, p: float) -> "scipy.sparse.csr_matrix":
         """``K_T`` alone (n x n, CSR), for stability checks and tests."""
@@ -415,3 +402,24 @@ class Model:
     def jacobians(self, u: np.ndarray) -> np.ndarray:
         """``J`` at every quadrature point (volume preservation diagnostic)."""
         return quadrature_jacobians(self.full_displacement(u), self.conn, self.dNdX, self.N_ref, self.Rq)
+
+
+def factor_bordered(owner, data: np.ndarray, b: np.ndarray, c_u: np.ndarray, c_p: float) -> BorderedSolver | None:
+    """The bordered band factorisation of a problem's tangent ``data`` (lower band, ``owner.n`` x
+    ``owner.kl + 1``, envelope ``owner.band_ext``), counted and timed in ``owner.n_factorizations``
+    and ``owner.t_factor``; ``None`` if it is singular. Shared by :class:`Model` and
+    :class:`snapjump_cli.fe.multiharmonic.MultiHarmonicModel`."""
+    t0 = time.perf_counter()
+    n = owner.n
+    try:
+        K = data.reshape(n, owner.kl + 1)
+        ok, nneg, fac, Kib, schur = bordered_factor(K, owner.band_ext, b, c_u, float(c_p))
+        if not ok or not np.isfinite(schur) or schur == 0.0:
+            return None
+        s = BorderedSolver(fac, K, b, c_u, float(c_p), n, nneg, owner.band_ext, Kib, schur)
+    except RuntimeError:  # exactly singular
+        return None
+    finally:
+        owner.t_factor += time.perf_counter() - t0
+    owner.n_factorizations += 1
+    return s

@@ -33,9 +33,8 @@ import numpy as np
 
 from snapjump_cli.fe.limits import check_time
 from snapjump_cli.mesh.data import number_dofs
-from snapjump_cli.fe.limits import check_time
-from snapjump_cli.fe.model import BorderedSolver, Linearization
-from snapjump_kernels.calls import bordered_factor, envelope_extents, scatter_band
+from snapjump_cli.fe.model import BorderedSolver, Linearization, factor_bordered
+from snapjump_kernels.calls import envelope_extents, scatter_band
 
 log = logging.getLogger(__name__)
 
@@ -211,7 +210,6 @@ class MultiHarmonicModel:
         from snapjump_kernels.multiharmonic import mh_cavity, mh_elements, scatter_vector
 
         check_time()  # the design's CPU-time limit (snapjump_cli.fe.limits)
-        check_time()  # the design's CPU-time limit (snapjump_cli.fe.limits)
         t0 = time.perf_counter()
         M = self.base
         A = np.ascontiguousarray(self.amplitudes(u))
@@ -288,20 +286,8 @@ class MultiHarmonicModel:
         return np.array([V, p, u[self.pole_dof]]), dz, np.array([0.0, 1.0, 0.0])
 
     def _factor(self, data, b, c_u, c_p) -> BorderedSolver | None:
-        """The bordered band factorisation (as the axisymmetric model's)."""
-        t0 = time.perf_counter()
-        n = self.n
-        K = data.reshape(n, self.kl + 1)
-        try:
-            ok, nneg, fac, Kib, schur = bordered_factor(K, self.band_ext, b, c_u, float(c_p))
-        except RuntimeError:
-            return None
-        finally:
-            self.t_factor += time.perf_counter() - t0
-        if not ok or not np.isfinite(schur) or schur == 0.0:
-            return None
-        self.n_factorizations += 1
-        return BorderedSolver(fac, K, b, c_u, float(c_p), n, nneg, self.band_ext, Kib, schur)
+        """The bordered band factorisation (:func:`snapjump_cli.fe.model.factor_bordered`)."""
+        return factor_bordered(self, data, b, c_u, c_p)
 
     def stiffness_matrix(self, u: np.ndarray, p: float):
         """The tangent alone (scipy CSR), for tests and eigenvalues."""
