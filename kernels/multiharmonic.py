@@ -42,6 +42,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from snapjump_kernels.gent import gent_scalars
 from snapjump_kernels.cavity import edge_shape
 
 _GP = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
@@ -158,14 +159,10 @@ def gent3(v: np.ndarray, mu: float, jm: float, want: int, dpsi: np.ndarray, d2ps
     I1 = 0.0
     for c in range(9):
         I1 += v[c] * v[c]
-    cc = J ** (-2.0 / 3.0)
-    arg = 1.0 - (cc * I1 - 3.0) / jm
-    if arg <= 0.0:
+    ok, psi, cc, a, b = gent_scalars(J, I1, mu, jm)
+    if not ok:
         return False, 0.0, J
-    psi = -0.5 * mu * jm * np.log(arg)
     if want >= 1:
-        a = 0.5 * mu / arg
-        b = 0.5 * mu / (jm * arg * arg)
         cJ = (2.0 / 3.0) * cc / J
         dI = np.empty(9)
         for c in range(9):
