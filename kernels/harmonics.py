@@ -25,6 +25,10 @@ to the amplitudes::
 (the pressure/dilatation fields of the element are ``Np(R, Z)`` times any function of phi, so the
 elimination holds at every phi; only their ``cos n phi`` part couples to harmonic ``n``).
 ``H_V`` is the Hessian of the cavity volume for harmonic ``n`` (:func:`harmonic_cavity_matrices`).
+Only ``B_f``'s ``c`` column and ``B_h``'s ``a`` and ``b`` columns carry ``n``, so the strain-energy
+part is a quadratic polynomial in ``n`` (for fixed ``wc, ws``): :func:`harmonic_element_parts`
+returns its three coefficients from one element pass, which serves every harmonic ``n >= 1``, and
+:func:`scatter_harmonic` combines them for one ``n`` while scattering.
 
 Arrays in, arrays out; no Python objects.
 """
@@ -81,64 +85,42 @@ def shear_hessians(f: np.ndarray, mu: float, jm: float, psi_hh: np.ndarray, J_hh
 
 
 @njit(cache=True)
-def _node_b(dNdX_eq, N_q, R_q, n, bf):
-    """The non-zero entries of ``B_f`` (5 x 3) and ``B_h`` (4 x 3) of every node at one point,
-    ``bf[a] = [bx, by, bn, n bn]`` with ``bx, by = dN/dR, dN/dZ`` and ``bn = N / R``. Columns
-    (a, b, c) of node a::
+def harmonic_element_parts(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, jm: np.ndarray,
+                           kappa: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray, Wq: np.ndarray,
+                           Np: np.ndarray, Minv: np.ndarray, wc: float, ws: float):
+    """Element matrices of the strain-energy part of ``K_n`` (without the cavity load stiffness)
+    as a polynomial in the harmonic number: ``Ke_n = Kp[0] + n Kp[1] + n^2 Kp[2]`` for every ``n``
+    with these phi-averages (``wc = ws = 1/2`` for all ``n >= 1``), so one pass serves every
+    harmonic (:func:`scatter_harmonic` combines and scatters them).
 
-        B_f: a -> (bx, by, 0, 0, bn),  b -> (0, 0, bx, by, 0),  c -> (0, 0, 0, 0, n bn)
-        B_h: a -> (-n bn, 0, 0, 0),    b -> (0, 0, 0, -n bn),   c -> (-bn, bx, by, 0)
-    """
-    for a in range(dNdX_eq.shape[0]):
-        bf[a, 0] = dNdX_eq[a, 0]
-        bf[a, 1] = dNdX_eq[a, 1]
-        bf[a, 2] = N_q[a] / R_q
-        bf[a, 3] = n * bf[a, 2]
+    ``B_f = B_f0 + n B_f1`` and ``B_h = B_h0 + n B_h1`` with, for node ``a`` (``bx, by = dN/dR,
+    dN/dZ``, ``bn = N / R``; columns ``a, b, c``)::
 
+        B_f0: a -> (bx, by, 0, 0, bn),  b -> (0, 0, bx, by, 0),   B_f1: c -> (0, 0, 0, 0, bn)
+        B_h0: c -> (-bn, bx, by, 0),                              B_h1: a -> (-bn, 0, 0, 0),  b -> (0, 0, 0, -bn)
 
-@njit(cache=True)
-def _db_f(D, bx, by, bn, nbn, out):
-    """``out (5, 3) = D (5x5) @ B_f`` of one node."""
-    for k in range(5):
-        out[k, 0] = D[k, 0] * bx + D[k, 1] * by + D[k, 4] * bn
-        out[k, 1] = D[k, 2] * bx + D[k, 3] * by
-        out[k, 2] = D[k, 4] * nbn
-
-
-@njit(cache=True)
-def _db_h(D, bx, by, bn, nbn, out):
-    """``out (4, 3) = D (4x4) @ B_h`` of one node."""
-    for k in range(4):
-        out[k, 0] = -D[k, 0] * nbn
-        out[k, 1] = -D[k, 3] * nbn
-        out[k, 2] = -D[k, 0] * bn + D[k, 1] * bx + D[k, 2] * by
-
-
-@njit(cache=True)
-def harmonic_element_matrices(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, jm: np.ndarray,
-                              kappa: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray, Wq: np.ndarray,
-                              Np: np.ndarray, Minv: np.ndarray, n: int, wc: float, ws: float):
-    """Element matrices of the strain-energy part of ``K_n`` (without the cavity load stiffness).
+    so that (``D_f``, ``D_h`` symmetric) the ``(a, b) x (a, b)`` and ``c x c`` entries of ``K_n``
+    are ``n^0 + n^2`` terms and the ``(a, b) x c`` entries ``n^1`` terms; the dilatation row
+    ``G = G_0 + n G_1`` (``G_1`` on the ``c`` columns) splits the same way.
 
     Parameters
     ----------
     U : (nn, 2) nodal displacements of the axisymmetric state (scaled)
     conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv : as in
         :func:`snapjump_kernels.assembly.assemble`
-    n : harmonic number (>= 0)
-    wc, ws : phi-averages of ``cos^2 n phi`` and ``sin^2 n phi`` (1/2, 1/2 for ``n >= 1``)
+    wc, ws : phi-averages of ``cos^2 n phi`` and ``sin^2 n phi`` (1/2, 1/2 for ``n >= 1``; 1, 1 for
+        ``n = 0``)
 
     Returns
     -------
-    (Ke, ok) : (ne, 3 nen, 3 nen) symmetric element matrices; ``ok`` False if a quadrature point
-        lies outside the Gent domain
+    (Kp, ok) : (3, ne, 3 nen, 3 nen) symmetric coefficient matrices of ``n^0, n^1, n^2``; ``ok``
+        False if a quadrature point lies outside the Gent domain
     """
     ne, nen = conn.shape
     nq = Wq.shape[1]
     npr = Np.shape[1]
     nd = 3 * nen
-    fn = float(n)
-    Ke = np.zeros((ne, nd, nd))
+    Kp = np.zeros((3, ne, nd, nd))
     f = np.empty(5)
     dpsi = np.zeros((nq, 5))
     d2psi = np.zeros((nq, 5, 5))
@@ -147,16 +129,18 @@ def harmonic_element_matrices(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, 
     fq = np.zeros((nq, 5))
     psi_hh = np.empty((4, 4))
     J_hh = np.empty((4, 4))
-    bf = np.empty((nen, 4))
-    DBf = np.empty((nen, 5, 3))
-    DBh = np.empty((nen, 4, 3))
+    DfU = np.empty((nen, 5))
+    DfV = np.empty((nen, 5))
+    DhS = np.empty((nen, 4))
     G = np.empty((npr, nd))
     H = np.empty((npr, nd))
     g = np.empty(npr)
     pb = np.empty(npr)
     Df = np.empty((5, 5))
     Dh = np.empty((4, 4))
-    K = np.empty((nd, nd))
+    K0 = np.empty((nd, nd))
+    K1 = np.empty((nd, nd))
+    K2 = np.empty((nd, nd))
     for e in range(ne):
         m_ = mat[e]
         mu_e = mu[m_]
@@ -170,7 +154,7 @@ def harmonic_element_matrices(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, 
                 fq[q, k] = f[k]
             ok, psi, J = gent_iso(f, mu_e, jm_e, 2, dpsi[q], d2psi[q], dJq[q], d2Jq[q])
             if not ok:
-                return Ke, False
+                return Kp, False
             for k in range(npr):
                 g[k] += Wq[e, q] * Np[q, k] * (J - 1.0)
         for k in range(npr):
@@ -179,7 +163,9 @@ def harmonic_element_matrices(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, 
                 s += Minv[e, k, m] * g[m]
             pb[k] = ka * s
         G[:, :] = 0.0
-        K[:, :] = 0.0
+        K0[:, :] = 0.0
+        K1[:, :] = 0.0
+        K2[:, :] = 0.0
         for q in range(nq):
             W = Wq[e, q]
             pq = 0.0
@@ -191,40 +177,65 @@ def harmonic_element_matrices(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, 
                 for m in range(5):
                     Df[k, m] = wc * W * (d2psi[q, k, m] + pq * d2Jq[q, k, m])
             if not shear_hessians(fq[q], mu_e, jm_e, psi_hh, J_hh):
-                return Ke, False
+                return Kp, False
             for k in range(4):
                 for m in range(4):
                     Dh[k, m] = ws * W * (psi_hh[k, m] + pq * J_hh[k, m])
-            _node_b(dNdX[e, q], N_ref[q], Rq[e, q], fn, bf)
+            R = Rq[e, q]
+            dN = dNdX[e, q]
+            # D B_0 of every node: D_f times the a and b columns of B_f0, D_h times the c column of B_h0
             for b in range(nen):
-                _db_f(Df, bf[b, 0], bf[b, 1], bf[b, 2], bf[b, 3], DBf[b])
-                _db_h(Dh, bf[b, 0], bf[b, 1], bf[b, 2], bf[b, 3], DBh[b])
-            # lower node blocks: K_ab += B_f,a^T (D_f B_f,b) + B_h,a^T (D_h B_h,b)
+                bx = dN[b, 0]
+                by = dN[b, 1]
+                bn = N_ref[q, b] / R
+                for k in range(5):
+                    DfU[b, k] = Df[k, 0] * bx + Df[k, 1] * by + Df[k, 4] * bn
+                    DfV[b, k] = Df[k, 2] * bx + Df[k, 3] * by
+                for k in range(4):
+                    DhS[b, k] = -Dh[k, 0] * bn + Dh[k, 1] * bx + Dh[k, 2] * by
+            f44 = Df[4, 4]
+            h00 = Dh[0, 0]
+            h03 = Dh[0, 3]
+            h33 = Dh[3, 3]
+            # lower node blocks (b <= a) of the three coefficient matrices
             for a in range(nen):
-                bx = bf[a, 0]
-                by = bf[a, 1]
-                bn = bf[a, 2]
-                nbn = bf[a, 3]
+                bxa = dN[a, 0]
+                bya = dN[a, 1]
+                bna = N_ref[q, a] / R
                 ia = 3 * a
                 for b in range(a + 1):
                     jb = 3 * b
-                    for c in range(3):
-                        K[ia, jb + c] += bx * DBf[b, 0, c] + by * DBf[b, 1, c] + bn * DBf[b, 4, c] - nbn * DBh[b, 0, c]
-                        K[ia + 1, jb + c] += bx * DBf[b, 2, c] + by * DBf[b, 3, c] - nbn * DBh[b, 3, c]
-                        K[ia + 2, jb + c] += (nbn * DBf[b, 4, c] - bn * DBh[b, 0, c] + bx * DBh[b, 1, c]
-                                              + by * DBh[b, 2, c])
-            # dilatation constraint: G_k = sum_q W Np_qk dJ/df B_f
+                    bnb = N_ref[q, b] / R
+                    K0[ia, jb] += bxa * DfU[b, 0] + bya * DfU[b, 1] + bna * DfU[b, 4]
+                    K0[ia, jb + 1] += bxa * DfV[b, 0] + bya * DfV[b, 1] + bna * DfV[b, 4]
+                    K0[ia + 1, jb] += bxa * DfU[b, 2] + bya * DfU[b, 3]
+                    K0[ia + 1, jb + 1] += bxa * DfV[b, 2] + bya * DfV[b, 3]
+                    K0[ia + 2, jb + 2] += -bna * DhS[b, 0] + bxa * DhS[b, 1] + bya * DhS[b, 2]
+                    K1[ia, jb + 2] += bnb * DfU[a, 4] - bna * DhS[b, 0]
+                    K1[ia + 1, jb + 2] += bnb * DfV[a, 4] - bna * DhS[b, 3]
+                    K1[ia + 2, jb] += bna * DfU[b, 4] - bnb * DhS[a, 0]
+                    K1[ia + 2, jb + 1] += bna * DfV[b, 4] - bnb * DhS[a, 3]
+                    nn_ = bna * bnb
+                    K2[ia, jb] += nn_ * h00
+                    K2[ia, jb + 1] += nn_ * h03
+                    K2[ia + 1, jb] += nn_ * h03
+                    K2[ia + 1, jb + 1] += nn_ * h33
+                    K2[ia + 2, jb + 2] += nn_ * f44
+            # dilatation constraint: G_k = sum_q W Np_qk dJ/df B_f (the c columns: G_1)
             dJ = dJq[q]
             for a in range(nen):
-                ga = dJ[0] * bf[a, 0] + dJ[1] * bf[a, 1] + dJ[4] * bf[a, 2]
-                gb = dJ[2] * bf[a, 0] + dJ[3] * bf[a, 1]
-                gc = dJ[4] * bf[a, 3]
+                bx = dN[a, 0]
+                by = dN[a, 1]
+                bn = N_ref[q, a] / R
+                ga = dJ[0] * bx + dJ[1] * by + dJ[4] * bn
+                gb = dJ[2] * bx + dJ[3] * by
+                gc = dJ[4] * bn
                 for k in range(npr):
                     wk = W * Np[q, k]
                     G[k, 3 * a] += wk * ga
                     G[k, 3 * a + 1] += wk * gb
                     G[k, 3 * a + 2] += wk * gc
-        # wc kappa G^T M^-1 G
+        # wc kappa G^T M^-1 G: (a, b) x (a, b) -> n^0, (a, b) x c -> n^1, c x c -> n^2
         for k in range(npr):
             for j in range(nd):
                 s = 0.0
@@ -232,17 +243,28 @@ def harmonic_element_matrices(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, 
                     s += Minv[e, k, m] * G[m, j]
                 H[k, j] = wc * ka * s
         for i in range(nd):
+            ci = i % 3 == 2
             for j in range(3 * (i // 3 + 1)):
                 s = 0.0
                 for k in range(npr):
                     s += G[k, i] * H[k, j]
-                K[i, j] += s
+                cj = j % 3 == 2
+                if ci and cj:
+                    K2[i, j] += s
+                elif ci or cj:
+                    K1[i, j] += s
+                else:
+                    K0[i, j] += s
         # mirror the lower node blocks (the diagonal blocks are full: symmetric already)
         for i in range(nd):
             for j in range(3 * (i // 3 + 1)):
-                Ke[e, i, j] = K[i, j]
-                Ke[e, j, i] = K[i, j]
-    return Ke, True
+                Kp[0, e, i, j] = K0[i, j]
+                Kp[0, e, j, i] = K0[i, j]
+                Kp[1, e, i, j] = K1[i, j]
+                Kp[1, e, j, i] = K1[i, j]
+                Kp[2, e, i, j] = K2[i, j]
+                Kp[2, e, j, i] = K2[i, j]
+    return Kp, True
 
 
 @njit(cache=True)
@@ -261,7 +283,7 @@ def harmonic_cavity_matrices(x: np.ndarray, edges: np.ndarray, n: float, wc: flo
     Parameters
     ----------
     x : (nn, 2) current node positions (scaled); edges : (m, 2|3) oriented cavity edges
-    n, wc, ws : harmonic and phi-averages, as in :func:`harmonic_element_matrices`
+    n, wc, ws : harmonic and phi-averages, as in :func:`harmonic_element_parts`
 
     Returns
     -------
@@ -333,4 +355,25 @@ def scatter_band(Me: np.ndarray, dofs: np.ndarray, coef: np.ndarray, factor: flo
                 if dj < 0 or dj > di:
                     continue
                 ab[dj, di - dj] += ci * coef[e, j] * Me[e, i, j]
+    return ab
+
+
+@njit(cache=True)
+def scatter_harmonic(Kp: np.ndarray, n: float, dofs: np.ndarray, coef: np.ndarray, ab: np.ndarray) -> np.ndarray:
+    """``ab += sum_e P_e^T (Kp[0, e] + n Kp[1, e] + n^2 Kp[2, e]) P_e``: the element matrices of
+    harmonic ``n`` (:func:`harmonic_element_parts`), combined and scattered as :func:`scatter_band`
+    scatters (the same dof maps, coefficients and band storage)."""
+    ne, nd = dofs.shape
+    n2 = n * n
+    for e in range(ne):
+        for i in range(nd):
+            di = dofs[e, i]
+            if di < 0:
+                continue
+            ci = coef[e, i]
+            for j in range(nd):
+                dj = dofs[e, j]
+                if dj < 0 or dj > di:
+                    continue
+                ab[dj, di - dj] += ci * coef[e, j] * (Kp[0, e, i, j] + n * Kp[1, e, i, j] + n2 * Kp[2, e, i, j])
     return ab

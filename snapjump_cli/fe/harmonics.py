@@ -53,8 +53,9 @@ from snapjump_kernels.calls import (
     band_ldlt,
     envelope_extents,
     harmonic_cavity_matrices,
-    harmonic_element_matrices,
+    harmonic_element_parts,
     scatter_band,
+    scatter_harmonic,
 )
 
 log = logging.getLogger(__name__)
@@ -219,27 +220,34 @@ class HarmonicOperator:
         return A
 
     # ---- assembly ------------------------------------------------------------------------------
-    def _matrices(self, u: np.ndarray):
-        M = self.model
-        U = M.full_displacement(u)
-        Ke, ok = harmonic_element_matrices(U, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq,
-                                           M.Np, M.Minv, self.n, self.wc, self.ws)
-        if not ok:
-            return None
-        He = harmonic_cavity_matrices(M.X + U, M.edges, float(self.n), self.wc, self.ws)
-        return Ke, He
+    def parts(self, u: np.ndarray) -> StateParts | None:
+        """The harmonic-independent part of ``K_n`` at ``u`` (:func:`state_parts`, shared by the
+        harmonics with this operator's phi-averages); ``None`` outside the Gent domain."""
+        return state_parts(self.model, u, self.wc, self.ws)
 
-    def band(self, u: np.ndarray, p: float) -> np.ndarray | None:
-        """Lower band ``(ndof, kl + 1)`` of ``K_n`` at ``(u, p)``; ``None`` outside the Gent domain."""
-        mats = self._matrices(u)
-        if mats is None:
+    def _matrices(self, u: np.ndarray, parts: StateParts | None = None):
+        parts = self.parts(u) if parts is None else parts
+        if parts is None:
             return None
-        Ke, He = mats
+        n = float(self.n)
+        Ke = parts.Kp[0] + n * parts.Kp[1] + (n * n) * parts.Kp[2]
+        return Ke, harmonic_cavity_matrices(parts.x, self.model.edges, n, self.wc, self.ws)
+
+    def _scatter(self, parts: StateParts, p: float, ab: np.ndarray) -> np.ndarray:
         L = self.layout
-        ab = np.zeros((L.ndof, L.kl + 1))
-        scatter_band(Ke, L.edofs, L.ecoef, 1.0, ab)
+        scatter_harmonic(parts.Kp, float(self.n), L.edofs, L.ecoef, ab)
+        He = harmonic_cavity_matrices(parts.x, self.model.edges, float(self.n), self.wc, self.ws)
         scatter_band(He, L.gdofs, L.gcoef, -float(p), ab)
         return ab
+
+    def band(self, u: np.ndarray, p: float, parts: StateParts | None = None) -> np.ndarray | None:
+        """Lower band ``(ndof, kl + 1)`` of ``K_n`` at ``(u, p)``; ``None`` outside the Gent domain.
+        ``parts``: :meth:`parts` at ``u`` when already computed (for another harmonic)."""
+        parts = self.parts(u) if parts is None else parts
+        if parts is None:
+            return None
+        L = self.layout
+        return self._scatter(parts, p, np.zeros((L.ndof, L.kl + 1)))
 
     def matrix(self, u: np.ndarray, p: float):
         """``K_n`` at ``(u, p)`` as a scipy CSR matrix (``None`` outside the Gent domain)."""
@@ -286,25 +294,61 @@ class HarmonicOperator:
 
     # ---- zero modes and inertia ----------------------------------------------------------------
     def gauge_dofs(self, u: np.ndarray) -> np.ndarray:
-        """Dofs fixed to remove the admissible rigid modes (harmonic 1 only; empty otherwise)."""
+        """Dofs fixed to remove the admissible rigid modes (harmonic 1 only; empty otherwise).
+
+        The rigid modes (:func:`rigid_modes`, each scaled to a largest entry of 1) are combined
+        into those that vanish on every fixed amplitude (the null space of their values there);
+        one dof per combination is fixed, the pivot columns of the combinations
+        (:func:`pivot_columns`). Where the modes are, and what the dofs are, is set up once.
+        """
         if self.n != 1:
             return np.zeros(0, np.int64)
-        modes = rigid_modes(self.model, u)
-        modes /= np.abs(modes).reshape(2, -1).max(axis=1)[:, None, None]
+        g = self._gauge_setup()
+        x = self.model.positions(u)
+        r, z = x[:, 0], x[:, 1]
+        s = max(float(np.abs(z).max()), float(np.abs(r).max()))  # the tilt's largest entry (|a| = |c| = |z|, |b| = r)
+        tilt = np.empty((x.shape[0], 3))
+        tilt[:, 0] = z
+        tilt[:, 1] = -r
+        tilt[:, 2] = -z
+        tilt /= s
+        tilt = tilt.reshape(-1)
         # admissible combinations: those vanishing on every fixed amplitude (the axis ties hold)
-        fixed = self.fixed.copy()
-        fixed[self.tied, 2] = False
-        C = modes[:, fixed].T  # (n_fixed, 2)
-        if C.shape[0]:
-            _, s, vt = np.linalg.svd(C, full_matrices=True)
-            rank = int(np.sum(s > 1e-8 * max(1.0, s[0] if len(s) else 1.0)))
+        C = np.stack([g.trans_fixed, tilt[g.fixed_flat]], axis=1)  # (n_fixed, 2)
+        if C.shape[0] and C.any():
+            _, sv, vt = np.linalg.svd(C, full_matrices=True)
+            rank = int(np.sum(sv > 1e-8 * max(1.0, sv[0] if len(sv) else 1.0)))
             null = vt[rank:].T  # (2, k)
-        else:
-            null = np.eye(2)
-        if null.shape[1] == 0:
+        else:  # no constraint on the modes (the SVD of a zero C would give the identity too)
+            null = None
+        modes = np.stack([g.trans_vec, tilt[g.dof_flat]])  # (2, ndof): the modes as dof vectors
+        if null is None:
+            A = modes
+        elif null.shape[1] == 0:
             return np.zeros(0, np.int64)
-        A = np.stack([self.to_vector(np.tensordot(null[:, j], modes, axes=1)) for j in range(null.shape[1])])
+        else:
+            A = null.T @ modes
         return np.sort(pivot_columns(A))
+
+    def _gauge_setup(self) -> "_GaugeSetup":
+        """Where the rigid modes of harmonic 1 live: the translation's entries on the fixed
+        amplitudes and as a dof vector, and the flat (node, amplitude) index of each fixed amplitude
+        and of each dof (cached)."""
+        g = getattr(self, "_gauge", None)
+        if g is None:
+            L = self.layout
+            trans = np.zeros(L.dofmap.shape)
+            trans[:, 0] = 1.0
+            trans[:, 2] = -1.0
+            fixed = self.fixed.copy()
+            fixed[self.tied, 2] = False
+            m = L.dofmap >= 0
+            m[:, 2] &= ~self.tied  # every dof once: its own amplitude (coefficient 1)
+            dof_flat = np.zeros(L.ndof, np.int64)
+            dof_flat[L.dofmap[m]] = np.flatnonzero(m.reshape(-1))
+            g = self._gauge = _GaugeSetup(fixed_flat=np.flatnonzero(fixed.reshape(-1)), trans_fixed=trans[fixed],
+                                          dof_flat=dof_flat, trans_vec=trans.reshape(-1)[dof_flat])
+        return g
 
     def mass_band(self) -> np.ndarray:
         """:meth:`mass` in the lower band storage of ``K_n`` (cached)."""
@@ -316,43 +360,86 @@ class HarmonicOperator:
             self._mass_band = ab
         return self._mass_band
 
-    def inertia(self, u: np.ndarray, p: float, tol: float = ZERO_TOL) -> int:
+    def _shift_band(self, tol: float) -> np.ndarray:
+        """``tol * mu_min * M_n`` in band storage (cached for the last ``tol``)."""
+        c = getattr(self, "_shift", None)
+        if c is None or c[0] != tol:
+            c = self._shift = (tol, (tol * float(np.min(self.model.mu))) * self.mass_band())
+        return c[1]
+
+    def inertia(self, u: np.ndarray, p: float, tol: float = ZERO_TOL, parts: StateParts | None = None) -> int:
         """Number of eigenvalues of the pencil ``(K_n, M_n)`` below ``-tol * mu_min`` (scaled
         units) after removing the admissible rigid modes (:meth:`gauge_dofs`); -1 outside the
-        Gent domain.
+        Gent domain. ``parts``: :meth:`parts` at ``u`` when already computed.
 
         One band ``LDL^T`` of ``K_n + tol mu_min M_n`` (:func:`snapjump_kernels.banded.band_ldlt`;
         Sylvester's law of inertia); should it meet a zero pivot, the eigenvalues of the dense
         matrix are computed instead.
         """
-        ab = self.band(u, p)
-        if ab is None:
+        parts = self.parts(u) if parts is None else parts
+        if parts is None:
             return -1
-        kl = self.layout.kl
-        ab += (tol * float(np.min(self.model.mu))) * self.mass_band()
-        gauge = self.gauge_dofs(u)
-        if len(gauge):
-            scale = float(np.abs(ab[:, 0]).max())
-            for d in gauge:
-                ab[d, :] = 0.0
-                j = np.arange(max(0, d - kl), d)
-                ab[j, d - j] = 0.0
-                ab[d, 0] = scale
-        fac = ab.copy()
-        ok, nneg = band_ldlt(fac, self.layout.ext)
+        if (parts.wc, parts.ws) != (self.wc, self.ws):
+            raise ValueError(f"harmonic {self.n}: the parts were computed for other phi-averages")
+        ab = self._gauged(u, p, tol, parts)
+        ok, nneg = band_ldlt(ab, self.layout.ext)  # in place
         if ok:
             return int(nneg)
-        del fac
         log.warning("harmonic %d: zero pivot in the band LDL^T; using dense eigenvalues", self.n)
         import scipy.linalg as sl
 
-        n = ab.shape[0]
+        ab = self._gauged(u, p, tol, parts)
+        n, kl = ab.shape[0], self.layout.kl
         Kd = np.zeros((n, n))
         for k in range(kl + 1):
             i = np.arange(n - k)
             Kd[i + k, i] = ab[i, k]
             Kd[i, i + k] = ab[i, k]
         return int(np.sum(sl.eigvalsh(Kd) < 0.0))
+
+    def _gauged(self, u: np.ndarray, p: float, tol: float, parts: StateParts) -> np.ndarray:
+        """The band of ``K_n + tol mu_min M_n`` with the gauge dofs' rows and columns replaced by
+        a unit pivot (times the largest diagonal entry)."""
+        ab = self._scatter(parts, p, self._shift_band(tol).copy())
+        gauge = self.gauge_dofs(u)
+        if len(gauge):
+            kl = self.layout.kl
+            scale = float(np.abs(ab[:, 0]).max())
+            for d in gauge:
+                ab[d, :] = 0.0
+                j = np.arange(max(0, d - kl), d)
+                ab[j, d - j] = 0.0
+                ab[d, 0] = scale
+        return ab
+
+
+@dataclass
+class _GaugeSetup:
+    fixed_flat: np.ndarray  # flat (node, amplitude) index of each fixed amplitude (the axis ties excepted)
+    trans_fixed: np.ndarray  # the translation's entries there
+    dof_flat: np.ndarray  # flat (node, amplitude) index of each dof
+    trans_vec: np.ndarray  # the translation as a dof vector
+
+
+@dataclass
+class StateParts:
+    """What every harmonic's ``K_n`` at one state shares (:func:`state_parts`)."""
+
+    Kp: np.ndarray  # (3, ne, nd, nd): element matrices of the strain energy, coefficients of n^0, n^1, n^2
+    x: np.ndarray  # (nn, 2) current node positions (scaled)
+    wc: float
+    ws: float
+
+
+def state_parts(model, u: np.ndarray, wc: float = 0.5, ws: float = 0.5) -> StateParts | None:
+    """The element matrices of ``K_n`` at ``u`` as a polynomial in ``n``
+    (:func:`snapjump_kernels.harmonics.harmonic_element_parts`), for the phi-averages ``wc, ws``
+    (1/2, 1/2: every ``n >= 1``), with the current positions; ``None`` outside the Gent domain."""
+    M = model
+    U = M.full_displacement(u)
+    Kp, ok = harmonic_element_parts(U, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq,
+                                    M.Np, M.Minv, wc, ws)
+    return StateParts(Kp, M.X + U, wc, ws) if ok else None
 
 
 def pivot_columns(A: np.ndarray) -> np.ndarray:
@@ -362,14 +449,17 @@ def pivot_columns(A: np.ndarray) -> np.ndarray:
     R = np.array(A, dtype=float)
     k = R.shape[0]
     norms = np.einsum("ij,ij->j", R, R)
-    piv = []
-    for _ in range(k):
+    piv: list[int] = []
+    for step in range(k):
         if piv:
             norms[piv] = -1.0
         j = int(np.argmax(norms))
         piv.append(j)
-        q = R[:, j] / np.linalg.norm(R[:, j])
-        R -= np.outer(q, q @ R)  # remove that direction from every column
+        if step == k - 1:
+            break
+        c = R[:, j]
+        q = c / np.sqrt(c @ c)
+        R -= q[:, None] * (q @ R)[None, :]  # remove that direction from every column
         norms = np.einsum("ij,ij->j", R, R)
     return np.array(piv, dtype=np.int64)
 
@@ -407,9 +497,15 @@ def harmonic_inertia(model, u: np.ndarray, p: float, n: int, tol: float = ZERO_T
 
 
 def _unstable_harmonics(ops, u, p, tol, first_only: bool) -> list[int]:
+    """The harmonics of ``ops`` unstable at ``(u, p)`` (the first only, with ``first_only``); the
+    element pass at ``u`` is made once for all of them (:func:`state_parts`)."""
     out = []
+    parts: dict = {}
     for op in ops:
-        k = op.inertia(u, p, tol)
+        key = (op.wc, op.ws)
+        if key not in parts:
+            parts[key] = op.parts(u)
+        k = op.inertia(u, p, tol, parts[key]) if parts[key] is not None else -1
         if k != 0:  # -1 (outside the material domain) cannot be certified stable either
             if k < 0:
                 log.warning("harmonic %d: state outside the Gent domain, counted as unstable", op.n)

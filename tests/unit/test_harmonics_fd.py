@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.harmonics import harmonic_operator
+from snapjump_cli.fe.harmonics import HarmonicOperator, harmonic_operator, pivot_columns, rigid_modes
 from snapjump_cli.fe.model import Model
 from tests.sphere import sphere_mesh
 from snapjump_kernels.elements import element_tables
@@ -131,7 +131,7 @@ def test_axisymmetric_evaluator_matches_the_model(order):
 
 
 @pytest.mark.parametrize("order", [1, 2])
-@pytest.mark.parametrize("n", [0, 1, 2, 3])
+@pytest.mark.parametrize("n", [0, 1, 2, 3, 4])
 def test_K_n_is_the_second_variation_of_the_3d_potential(order, n):
     M = _model(order)
     u = _state(M, 10 + n)
@@ -235,3 +235,48 @@ def test_axis_conditions():
     v = np.random.default_rng(0).standard_normal(op1.ndof)
     A = op1.to_nodal(v)
     assert np.allclose(A[ax, 2], -A[ax, 0]) and np.allclose(op1.to_vector(A), v)
+
+
+def test_one_element_pass_serves_every_harmonic_n_ge_1():
+    """The check assembles the element matrices once per state (``parts``, a polynomial in n) for
+    all harmonics; an operator refuses parts made for other phi-averages (n = 0)."""
+    M = _model(2)
+    u = _state(M, 3)
+    parts = harmonic_operator(M, 1).parts(u)
+    for n in (1, 2, 4):
+        op = harmonic_operator(M, n)
+        assert np.array_equal(op.band(u, 0.4, parts), op.band(u, 0.4))
+        assert op.inertia(u, 0.4, parts=parts) == op.inertia(u, 0.4)
+    with pytest.raises(ValueError, match="phi-averages"):
+        harmonic_operator(M, 0).inertia(u, 0.4, parts=parts)
+
+
+def _reference_gauge(op: HarmonicOperator, u: np.ndarray) -> np.ndarray:
+    """The gauge by its definition: the rigid modes scaled to a largest entry of 1, combined into
+    those vanishing on the fixed amplitudes, their pivot columns as dof vectors."""
+    modes = rigid_modes(op.model, u)
+    modes /= np.abs(modes).reshape(2, -1).max(axis=1)[:, None, None]
+    fixed = op.fixed.copy()
+    fixed[op.tied, 2] = False
+    C = modes[:, fixed].T
+    _, s, vt = np.linalg.svd(C, full_matrices=True)
+    null = vt[int(np.sum(s > 1e-8 * max(1.0, s[0]))):].T
+    if null.shape[1] == 0:
+        return np.zeros(0, np.int64)
+    A = np.stack([op.to_vector(np.tensordot(null[:, j], modes, axes=1)) for j in range(null.shape[1])])
+    return np.sort(pivot_columns(A))
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_gauge_dofs_are_the_pivots_of_the_admissible_rigid_modes(order):
+    M = _model(order)
+    seen = set()
+    for free_body in (True, False):
+        op = HarmonicOperator(M, 1, free_body)
+        for seed in range(5):
+            u = _state(M, 40 + seed)
+            g = op.gauge_dofs(u)
+            assert np.array_equal(g, _reference_gauge(op, u))
+            seen.add(len(g))
+    assert len(harmonic_operator(M, 2).gauge_dofs(u)) == 0
+    assert 2 in seen
