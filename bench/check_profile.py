@@ -12,8 +12,10 @@ CPU time (``time.process_time``; one process, one BLAS thread, as a sweep worker
 figures do not depend much on other jobs on the machine. The phases of the check are timed by
 wrapping the functions it calls (exclusive times: a phase's callees are counted in theirs):
 
-* ``K_n elements``: the element matrices of ``K_n`` (``harmonic_element_matrices``);
-* ``cavity + scatter``: the cavity load stiffness and the scatter into the band;
+* ``K_n elements``: the element matrices of ``K_n`` (``harmonic_element_matrices``, one call
+  per harmonic; since 2026-11-27 ``harmonic_element_parts``, one call per state for every harmonic);
+* ``band``: the scatter into the band with the cavity load stiffness (``scatter_band``,
+  ``harmonic_cavity_matrices``; now ``harmonic_band``, with the shift and the gauge rows);
 * ``LDL^T``: the band factorisations (``band_ldlt``);
 * ``gauge``: the choice of the rigid-mode gauge dofs of ``n = 1`` (``gauge_dofs``);
 * ``refine Newton``: the Newton solves of the onset's bisection (``tracer.correct``);
@@ -50,10 +52,10 @@ CLOSE = ("asym_V_m3", "asym_p_Pa")
 #: phase of a name that exists wins, so that older and newer versions of the module both profile.
 PHASES: dict[str, tuple[str, ...]] = {
     "K_n elements": ("harmonic_element_matrices", "harmonic_element_parts"),
-    "cavity + scatter": ("harmonic_cavity_matrices", "scatter_band", "scatter_harmonic"),
+    "band": ("harmonic_cavity_matrices", "scatter_band", "harmonic_band"),
     "LDL^T": ("band_ldlt",),
 }
-ORDER = ("K_n elements", "cavity + scatter", "LDL^T", "gauge", "refine Newton", "Python glue")
+ORDER = ("K_n elements", "band", "LDL^T", "gauge", "refine Newton", "Python glue")
 
 
 class PhaseTimer:

@@ -13,7 +13,7 @@ KERNELS: dict[str, tuple[str, ...]] = {
     "banded": ("band_ldlt", "band_ldlt_solve", "bordered_factor", "bordered_solve", "sym_band_matvec"),
     "cavity": ("cavity_assemble", "cavity_volume"),
     "corrector": ("newton_correct",),
-    "harmonics": ("harmonic_cavity_matrices", "harmonic_element_parts", "scatter_band", "scatter_harmonic"),
+    "harmonics": ("harmonic_band", "harmonic_cavity_matrices", "harmonic_element_parts", "scatter_band"),
 }
 
 # each name of KERNELS, as the solver calls it (``from snapjump_kernels.calls import evaluate``)

@@ -84,6 +84,13 @@ def shear_hessians(f: np.ndarray, mu: float, jm: float, psi_hh: np.ndarray, J_hh
     return True
 
 
+@njit(cache=True, inline="always")
+def _put(Kp, k, e, i, j, v):
+    """``Kp[k, e, i, j] = Kp[k, e, j, i] = v``."""
+    Kp[k, e, i, j] = v
+    Kp[k, e, j, i] = v
+
+
 @njit(cache=True)
 def harmonic_element_parts(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, jm: np.ndarray,
                            kappa: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray, Wq: np.ndarray,
@@ -129,18 +136,21 @@ def harmonic_element_parts(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu:
     fq = np.zeros((nq, 5))
     psi_hh = np.empty((4, 4))
     J_hh = np.empty((4, 4))
-    DfU = np.empty((nen, 5))
-    DfV = np.empty((nen, 5))
-    DhS = np.empty((nen, 4))
-    G = np.empty((npr, nd))
-    H = np.empty((npr, nd))
+    bx = np.empty(nen)
+    by = np.empty(nen)
+    bn = np.empty(nen)
+    DfU = np.empty((5, nen))  # D_f times the a column of B_f0, per node
+    DfV = np.empty((5, nen))  # D_f times the b column of B_f0
+    DhS = np.empty((4, nen))  # D_h times the c column of B_h0
+    Gc = np.empty((3, npr, nen))  # G's a, b and c columns (the c column: G_1)
+    Hc = np.empty((3, npr, nen))  # wc kappa M^-1 G
     g = np.empty(npr)
     pb = np.empty(npr)
     Df = np.empty((5, 5))
     Dh = np.empty((4, 4))
-    K0 = np.empty((nd, nd))
-    K1 = np.empty((nd, nd))
-    K2 = np.empty((nd, nd))
+    # the blocks (node x node) of the three coefficient matrices: n^0: aa, ab, bb, cc; n^1: ac, bc;
+    # n^2: aa, ab, bb, cc (the blocks ba, ca, cb are transposes: D_f, D_h and M^-1 are symmetric)
+    acc = np.empty((10, nen, nen))
     for e in range(ne):
         m_ = mat[e]
         mu_e = mu[m_]
@@ -162,10 +172,8 @@ def harmonic_element_parts(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu:
             for m in range(npr):
                 s += Minv[e, k, m] * g[m]
             pb[k] = ka * s
-        G[:, :] = 0.0
-        K0[:, :] = 0.0
-        K1[:, :] = 0.0
-        K2[:, :] = 0.0
+        Gc[:, :, :] = 0.0
+        acc[:, :, :] = 0.0
         for q in range(nq):
             W = Wq[e, q]
             pq = 0.0
@@ -182,88 +190,86 @@ def harmonic_element_parts(U: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu:
                 for m in range(4):
                     Dh[k, m] = ws * W * (psi_hh[k, m] + pq * J_hh[k, m])
             R = Rq[e, q]
-            dN = dNdX[e, q]
-            # D B_0 of every node: D_f times the a and b columns of B_f0, D_h times the c column of B_h0
             for b in range(nen):
-                bx = dN[b, 0]
-                by = dN[b, 1]
-                bn = N_ref[q, b] / R
-                for k in range(5):
-                    DfU[b, k] = Df[k, 0] * bx + Df[k, 1] * by + Df[k, 4] * bn
-                    DfV[b, k] = Df[k, 2] * bx + Df[k, 3] * by
-                for k in range(4):
-                    DhS[b, k] = -Dh[k, 0] * bn + Dh[k, 1] * bx + Dh[k, 2] * by
+                bx[b] = dNdX[e, q, b, 0]
+                by[b] = dNdX[e, q, b, 1]
+                bn[b] = N_ref[q, b] / R
+            for k in range(5):
+                for b in range(nen):
+                    DfU[k, b] = Df[k, 0] * bx[b] + Df[k, 1] * by[b] + Df[k, 4] * bn[b]
+                    DfV[k, b] = Df[k, 2] * bx[b] + Df[k, 3] * by[b]
+            for k in range(4):
+                for b in range(nen):
+                    DhS[k, b] = -Dh[k, 0] * bn[b] + Dh[k, 1] * bx[b] + Dh[k, 2] * by[b]
             f44 = Df[4, 4]
             h00 = Dh[0, 0]
             h03 = Dh[0, 3]
             h33 = Dh[3, 3]
-            # lower node blocks (b <= a) of the three coefficient matrices
             for a in range(nen):
-                bxa = dN[a, 0]
-                bya = dN[a, 1]
-                bna = N_ref[q, a] / R
-                ia = 3 * a
-                for b in range(a + 1):
-                    jb = 3 * b
-                    bnb = N_ref[q, b] / R
-                    K0[ia, jb] += bxa * DfU[b, 0] + bya * DfU[b, 1] + bna * DfU[b, 4]
-                    K0[ia, jb + 1] += bxa * DfV[b, 0] + bya * DfV[b, 1] + bna * DfV[b, 4]
-                    K0[ia + 1, jb] += bxa * DfU[b, 2] + bya * DfU[b, 3]
-                    K0[ia + 1, jb + 1] += bxa * DfV[b, 2] + bya * DfV[b, 3]
-                    K0[ia + 2, jb + 2] += -bna * DhS[b, 0] + bxa * DhS[b, 1] + bya * DhS[b, 2]
-                    K1[ia, jb + 2] += bnb * DfU[a, 4] - bna * DhS[b, 0]
-                    K1[ia + 1, jb + 2] += bnb * DfV[a, 4] - bna * DhS[b, 3]
-                    K1[ia + 2, jb] += bna * DfU[b, 4] - bnb * DhS[a, 0]
-                    K1[ia + 2, jb + 1] += bna * DfV[b, 4] - bnb * DhS[a, 3]
-                    nn_ = bna * bnb
-                    K2[ia, jb] += nn_ * h00
-                    K2[ia, jb + 1] += nn_ * h03
-                    K2[ia + 1, jb] += nn_ * h03
-                    K2[ia + 1, jb + 1] += nn_ * h33
-                    K2[ia + 2, jb + 2] += nn_ * f44
-            # dilatation constraint: G_k = sum_q W Np_qk dJ/df B_f (the c columns: G_1)
+                bxa = bx[a]
+                bya = by[a]
+                bna = bn[a]
+                ua4 = DfU[4, a]
+                va4 = DfV[4, a]
+                for b in range(nen):  # contiguous: vectorised
+                    acc[0, a, b] += bxa * DfU[0, b] + bya * DfU[1, b] + bna * DfU[4, b]
+                    acc[1, a, b] += bxa * DfV[0, b] + bya * DfV[1, b] + bna * DfV[4, b]
+                    acc[2, a, b] += bxa * DfV[2, b] + bya * DfV[3, b]
+                    acc[3, a, b] += -bna * DhS[0, b] + bxa * DhS[1, b] + bya * DhS[2, b]
+                    acc[4, a, b] += bn[b] * ua4 - bna * DhS[0, b]
+                    acc[5, a, b] += bn[b] * va4 - bna * DhS[3, b]
+                    t = bna * bn[b]
+                    acc[6, a, b] += t * h00
+                    acc[7, a, b] += t * h03
+                    acc[8, a, b] += t * h33
+                    acc[9, a, b] += t * f44
+            # dilatation constraint: G_k = sum_q W Np_qk dJ/df B_f
             dJ = dJq[q]
-            for a in range(nen):
-                bx = dN[a, 0]
-                by = dN[a, 1]
-                bn = N_ref[q, a] / R
-                ga = dJ[0] * bx + dJ[1] * by + dJ[4] * bn
-                gb = dJ[2] * bx + dJ[3] * by
-                gc = dJ[4] * bn
-                for k in range(npr):
-                    wk = W * Np[q, k]
-                    G[k, 3 * a] += wk * ga
-                    G[k, 3 * a + 1] += wk * gb
-                    G[k, 3 * a + 2] += wk * gc
+            for k in range(npr):
+                wk = W * Np[q, k]
+                for a in range(nen):
+                    Gc[0, k, a] += wk * (dJ[0] * bx[a] + dJ[1] * by[a] + dJ[4] * bn[a])
+                    Gc[1, k, a] += wk * (dJ[2] * bx[a] + dJ[3] * by[a])
+                    Gc[2, k, a] += wk * (dJ[4] * bn[a])
         # wc kappa G^T M^-1 G: (a, b) x (a, b) -> n^0, (a, b) x c -> n^1, c x c -> n^2
+        for c in range(3):
+            for k in range(npr):
+                for a in range(nen):
+                    s = 0.0
+                    for m in range(npr):
+                        s += Minv[e, k, m] * Gc[c, m, a]
+                    Hc[c, k, a] = wc * ka * s
         for k in range(npr):
-            for j in range(nd):
-                s = 0.0
-                for m in range(npr):
-                    s += Minv[e, k, m] * G[m, j]
-                H[k, j] = wc * ka * s
-        for i in range(nd):
-            ci = i % 3 == 2
-            for j in range(3 * (i // 3 + 1)):
-                s = 0.0
-                for k in range(npr):
-                    s += G[k, i] * H[k, j]
-                cj = j % 3 == 2
-                if ci and cj:
-                    K2[i, j] += s
-                elif ci or cj:
-                    K1[i, j] += s
-                else:
-                    K0[i, j] += s
-        # mirror the lower node blocks (the diagonal blocks are full: symmetric already)
-        for i in range(nd):
-            for j in range(3 * (i // 3 + 1)):
-                Kp[0, e, i, j] = K0[i, j]
-                Kp[0, e, j, i] = K0[i, j]
-                Kp[1, e, i, j] = K1[i, j]
-                Kp[1, e, j, i] = K1[i, j]
-                Kp[2, e, i, j] = K2[i, j]
-                Kp[2, e, j, i] = K2[i, j]
+            for a in range(nen):
+                ga = Gc[0, k, a]
+                gb = Gc[1, k, a]
+                gc = Gc[2, k, a]
+                for b in range(nen):
+                    acc[0, a, b] += ga * Hc[0, k, b]
+                    acc[1, a, b] += ga * Hc[1, k, b]
+                    acc[2, a, b] += gb * Hc[1, k, b]
+                    acc[4, a, b] += ga * Hc[2, k, b]
+                    acc[5, a, b] += gb * Hc[2, k, b]
+                    acc[9, a, b] += gc * Hc[2, k, b]
+        # the lower node blocks (b <= a) in the element's dof order, mirrored
+        for a in range(nen):
+            i = 3 * a
+            for b in range(a + 1):
+                j = 3 * b
+                _put(Kp, 0, e, i, j, acc[0, a, b])
+                _put(Kp, 0, e, i, j + 1, acc[1, a, b])
+                _put(Kp, 0, e, i + 1, j, acc[1, b, a])
+                _put(Kp, 0, e, i + 1, j + 1, acc[2, a, b])
+                _put(Kp, 0, e, i + 2, j + 2, acc[3, a, b])
+                _put(Kp, 1, e, i, j + 2, acc[4, a, b])
+                _put(Kp, 1, e, i + 1, j + 2, acc[5, a, b])
+                _put(Kp, 1, e, i + 2, j, acc[4, b, a])
+                _put(Kp, 1, e, i + 2, j + 1, acc[5, b, a])
+                _put(Kp, 2, e, i, j, acc[6, a, b])
+                _put(Kp, 2, e, i, j + 1, acc[7, a, b])
+                _put(Kp, 2, e, i + 1, j, acc[7, a, b])
+                _put(Kp, 2, e, i + 1, j + 1, acc[8, a, b])
+                _put(Kp, 2, e, i + 2, j + 2, acc[9, a, b])
     return Kp, True
 
 
@@ -376,4 +382,44 @@ def scatter_harmonic(Kp: np.ndarray, n: float, dofs: np.ndarray, coef: np.ndarra
                 if dj < 0 or dj > di:
                     continue
                 ab[dj, di - dj] += ci * coef[e, j] * (Kp[0, e, i, j] + n * Kp[1, e, i, j] + n2 * Kp[2, e, i, j])
+    return ab
+
+
+@njit(cache=True)
+def harmonic_band(Kp: np.ndarray, n: float, edofs: np.ndarray, ecoef: np.ndarray, x: np.ndarray, edges: np.ndarray,
+                  gdofs: np.ndarray, gcoef: np.ndarray, wc: float, ws: float, p: float, base: np.ndarray,
+                  gauge: np.ndarray) -> np.ndarray:
+    """The lower band of ``base + K_n`` at a state: the element matrices of harmonic ``n``
+    (:func:`scatter_harmonic` of the parts ``Kp``) and the cavity's load stiffness ``-p H_V``
+    (:func:`harmonic_cavity_matrices` at the current positions ``x``) scattered into a copy of
+    ``base`` (the band's zeros, or the zero-tolerance shift). Then the rows and columns of the
+    ``gauge`` dofs are replaced by a pivot equal to the largest diagonal entry (the rigid modes of
+    ``n = 1`` removed exactly: docs/harmonics.md section 5).
+
+    Parameters
+    ----------
+    Kp : (3, ne, nd, nd) from :func:`harmonic_element_parts`; n : the harmonic
+    edofs, ecoef, gdofs, gcoef : dof maps and coefficients of the elements and cavity edges
+        (:func:`scatter_band`)
+    x : (nn, 2) current positions; edges : cavity edges; wc, ws : the phi-averages; p : pressure
+    base : (ndof, kl + 1) band added to (not modified); gauge : (k,) dofs to fix (int64)
+
+    Returns
+    -------
+    ab : (ndof, kl + 1) a new band
+    """
+    ab = base.copy()
+    scatter_harmonic(Kp, n, edofs, ecoef, ab)
+    He = harmonic_cavity_matrices(x, edges, n, wc, ws)
+    scatter_band(He, gdofs, gcoef, -p, ab)
+    if gauge.size:
+        kl = ab.shape[1] - 1
+        scale = 0.0
+        for i in range(ab.shape[0]):
+            scale = max(scale, abs(ab[i, 0]))
+        for d in gauge:
+            ab[d, :] = 0.0
+            for j in range(max(0, d - kl), d):
+                ab[j, d - j] = 0.0
+            ab[d, 0] = scale
     return ab

@@ -52,10 +52,10 @@ from snapjump_cli.mesh.data import number_dofs
 from snapjump_kernels.calls import (
     band_ldlt,
     envelope_extents,
+    harmonic_band,
     harmonic_cavity_matrices,
     harmonic_element_parts,
     scatter_band,
-    scatter_harmonic,
 )
 
 log = logging.getLogger(__name__)
@@ -117,6 +117,38 @@ class _Layout:
     gcoef: np.ndarray
 
 
+def _layout(model, fixed: np.ndarray, tied: np.ndarray) -> _Layout:
+    """Number the amplitudes node by node, in the order of the model's free dofs (banded), skipping
+    the ``fixed`` ones; a ``tied`` axis node's ``c`` is its ``a`` with coefficient -1."""
+    nn = fixed.shape[0]
+    key = np.where(model.dofmap >= 0, model.dofmap, np.iinfo(np.int64).max).min(axis=1)
+    order = np.argsort(key, kind="stable")
+    dofmap, ndof = number_dofs(order, fixed)
+    coef = np.ones((nn, 3))
+    dofmap[tied, 2] = dofmap[tied, 0]  # n = 1 on the axis: c = -a, one dof
+    coef[tied, 2] = -1.0
+    conn, edges = model.conn, model.edges
+    edofs = np.ascontiguousarray(dofmap[conn].reshape(conn.shape[0], -1))
+    ecoef = np.ascontiguousarray(coef[conn].reshape(conn.shape[0], -1))
+    gdofs = np.ascontiguousarray(dofmap[edges].reshape(edges.shape[0], -1))
+    gcoef = np.ascontiguousarray(coef[edges].reshape(edges.shape[0], -1))
+    rows, cols = [], []
+    for d in (edofs, gdofs):
+        nd = d.shape[1]
+        r, c = np.repeat(d, nd, axis=1).ravel(), np.tile(d, (1, nd)).ravel()
+        ok = (r >= 0) & (c >= 0)
+        rows.append(r[ok])
+        cols.append(c[ok])
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    kl = int(np.abs(rows - cols).max()) if len(rows) else 0
+    ext = envelope_extents(rows, cols, ndof, kl)
+    return _Layout(dofmap, coef, ndof, kl, ext, edofs, ecoef, gdofs, gcoef)
+
+
+#: model -> {constraints: (layout, cache shared by the operators with that layout)}
+_LAYOUTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
 class HarmonicOperator:
     """``K_n`` of one model and harmonic: dof layout (built once) and assembly at any state.
 
@@ -162,30 +194,12 @@ class HarmonicOperator:
                 fixed[axis, :] = True
         self.fixed = fixed
         self.tied = tied
-        # number the amplitudes node by node, in the order of the model's free dofs (banded)
-        key = np.where(model.dofmap >= 0, model.dofmap, np.iinfo(np.int64).max).min(axis=1)
-        order = np.argsort(key, kind="stable")
-        dofmap, k = number_dofs(order, fixed)
-        coef = np.ones((nn, 3))
-        dofmap[tied, 2] = dofmap[tied, 0]  # n = 1 on the axis: c = -a, one dof
-        coef[tied, 2] = -1.0
-        ndof = k
-        conn, edges = model.conn, model.edges
-        edofs = np.ascontiguousarray(dofmap[conn].reshape(conn.shape[0], -1))
-        ecoef = np.ascontiguousarray(coef[conn].reshape(conn.shape[0], -1))
-        gdofs = np.ascontiguousarray(dofmap[edges].reshape(edges.shape[0], -1))
-        gcoef = np.ascontiguousarray(coef[edges].reshape(edges.shape[0], -1))
-        rows, cols = [], []
-        for d in (edofs, gdofs):
-            nd = d.shape[1]
-            r, c = np.repeat(d, nd, axis=1).ravel(), np.tile(d, (1, nd)).ravel()
-            ok = (r >= 0) & (c >= 0)
-            rows.append(r[ok])
-            cols.append(c[ok])
-        rows, cols = np.concatenate(rows), np.concatenate(cols)
-        kl = int(np.abs(rows - cols).max()) if len(rows) else 0
-        ext = envelope_extents(rows, cols, ndof, kl)
-        self.layout = _Layout(dofmap, coef, ndof, kl, ext, edofs, ecoef, gdofs, gcoef)
+        # the layout depends only on the constraints: harmonics 2, 3, ... share theirs (and its cache)
+        per_model = _LAYOUTS.setdefault(model, {})
+        key = (fixed.tobytes(), tied.tobytes())
+        if key not in per_model:
+            per_model[key] = (_layout(model, fixed, tied), {})
+        self.layout, self._shared = per_model[key]
 
     @property
     def model(self):
@@ -233,12 +247,11 @@ class HarmonicOperator:
         Ke = parts.Kp[0] + n * parts.Kp[1] + (n * n) * parts.Kp[2]
         return Ke, harmonic_cavity_matrices(parts.x, self.model.edges, n, self.wc, self.ws)
 
-    def _scatter(self, parts: StateParts, p: float, ab: np.ndarray) -> np.ndarray:
+    def _band(self, parts: StateParts, p: float, base: np.ndarray, gauge: np.ndarray) -> np.ndarray:
+        """``base + K_n`` in band storage, the ``gauge`` dofs fixed (:func:`snapjump_kernels.harmonics.harmonic_band`)."""
         L = self.layout
-        scatter_harmonic(parts.Kp, float(self.n), L.edofs, L.ecoef, ab)
-        He = harmonic_cavity_matrices(parts.x, self.model.edges, float(self.n), self.wc, self.ws)
-        scatter_band(He, L.gdofs, L.gcoef, -float(p), ab)
-        return ab
+        return harmonic_band(parts.Kp, float(self.n), L.edofs, L.ecoef, parts.x, self.model.edges, L.gdofs,
+                             L.gcoef, self.wc, self.ws, float(p), base, gauge)
 
     def band(self, u: np.ndarray, p: float, parts: StateParts | None = None) -> np.ndarray | None:
         """Lower band ``(ndof, kl + 1)`` of ``K_n`` at ``(u, p)``; ``None`` outside the Gent domain.
@@ -247,7 +260,7 @@ class HarmonicOperator:
         if parts is None:
             return None
         L = self.layout
-        return self._scatter(parts, p, np.zeros((L.ndof, L.kl + 1)))
+        return self._band(parts, p, np.zeros((L.ndof, L.kl + 1)), np.zeros(0, np.int64))
 
     def matrix(self, u: np.ndarray, p: float):
         """``K_n`` at ``(u, p)`` as a scipy CSR matrix (``None`` outside the Gent domain)."""
@@ -351,21 +364,27 @@ class HarmonicOperator:
         return g
 
     def mass_band(self) -> np.ndarray:
-        """:meth:`mass` in the lower band storage of ``K_n`` (cached)."""
-        if getattr(self, "_mass_band", None) is None:
-            Mm = self.mass().tocoo()
-            keep = Mm.row >= Mm.col
-            ab = np.zeros((self.layout.ndof, self.layout.kl + 1))
-            np.add.at(ab, (Mm.col[keep], Mm.row[keep] - Mm.col[keep]), Mm.data[keep])
-            self._mass_band = ab
-        return self._mass_band
+        """:meth:`mass` in the lower band storage of ``K_n`` (cached; shared by the harmonics with
+        this layout and phi-averages)."""
+        key = ("mass", self.wc, self.ws)
+        if key not in self._shared:
+            M, L = self.model, self.layout
+            Me = np.einsum("eq,qa,qb->eab", M.Wq, M.N_ref, M.N_ref)
+            ne, nen = Me.shape[0], Me.shape[1]
+            Me3 = np.zeros((ne, nen, 3, nen, 3))
+            for comp, w in ((0, self.wc), (1, self.wc), (2, self.ws)):
+                Me3[:, :, comp, :, comp] = w * Me
+            ab = np.zeros((L.ndof, L.kl + 1))
+            scatter_band(Me3.reshape(ne, 3 * nen, 3 * nen), L.edofs, L.ecoef, 1.0, ab)
+            self._shared[key] = ab
+        return self._shared[key]
 
     def _shift_band(self, tol: float) -> np.ndarray:
-        """``tol * mu_min * M_n`` in band storage (cached for the last ``tol``)."""
-        c = getattr(self, "_shift", None)
-        if c is None or c[0] != tol:
-            c = self._shift = (tol, (tol * float(np.min(self.model.mu))) * self.mass_band())
-        return c[1]
+        """``tol * mu_min * M_n`` in band storage (cached)."""
+        key = ("shift", self.wc, self.ws, tol)
+        if key not in self._shared:
+            self._shared[key] = (tol * float(np.min(self.model.mu))) * self.mass_band()
+        return self._shared[key]
 
     def inertia(self, u: np.ndarray, p: float, tol: float = ZERO_TOL, parts: StateParts | None = None) -> int:
         """Number of eigenvalues of the pencil ``(K_n, M_n)`` below ``-tol * mu_min`` (scaled
@@ -400,17 +419,7 @@ class HarmonicOperator:
     def _gauged(self, u: np.ndarray, p: float, tol: float, parts: StateParts) -> np.ndarray:
         """The band of ``K_n + tol mu_min M_n`` with the gauge dofs' rows and columns replaced by
         a unit pivot (times the largest diagonal entry)."""
-        ab = self._scatter(parts, p, self._shift_band(tol).copy())
-        gauge = self.gauge_dofs(u)
-        if len(gauge):
-            kl = self.layout.kl
-            scale = float(np.abs(ab[:, 0]).max())
-            for d in gauge:
-                ab[d, :] = 0.0
-                j = np.arange(max(0, d - kl), d)
-                ab[j, d - j] = 0.0
-                ab[d, 0] = scale
-        return ab
+        return self._band(parts, p, self._shift_band(tol), self.gauge_dofs(u))
 
 
 @dataclass

@@ -209,14 +209,10 @@ def number_dofs(order: np.ndarray, fixed: np.ndarray) -> tuple[np.ndarray, int]:
     (dofmap, n)
         dofmap (n_nodes, n_components): the dof number, -1 where fixed; n the number of free dofs.
     """
-    dofmap = -np.ones(fixed.shape, np.int64)
-    k = 0
-    for v in order:
-        for c in range(fixed.shape[1]):
-            if not fixed[v, c]:
-                dofmap[v, c] = k
-                k += 1
-    return dofmap, k
+    free = ~np.asarray(fixed, bool)[order]
+    dofmap = np.full(free.shape, -1, np.int64)
+    dofmap[order] = np.where(free, np.cumsum(free.ravel()).reshape(free.shape) - 1, -1)
+    return dofmap, int(free.sum())
 
 
 def envelope_cost(order: np.ndarray, conn: np.ndarray, fixed: np.ndarray) -> float:
