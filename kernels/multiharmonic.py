@@ -50,6 +50,8 @@ _GW = np.array([5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0])
 # (row, column) of each of the 9 components in the 3x3 matrix
 _ROW = np.array([0, 0, 2, 2, 1, 0, 1, 1, 2])
 _COL = np.array([0, 2, 0, 2, 1, 1, 0, 2, 1])
+# component of each (row, column) of the 3x3 matrix
+_IDX = np.array([[0, 5, 1], [6, 4, 7], [2, 8, 3]])
 
 
 @njit(cache=True)
@@ -182,10 +184,126 @@ def gent3(v: np.ndarray, mu: float, jm: float, want: int, dpsi: np.ndarray, d2ps
 
 
 @njit(cache=True)
+def imperfect_point(v: np.ndarray, Fi: np.ndarray, Jimp: float, mu: float, jm: float, want: int, dpsi: np.ndarray,
+                    d2psi: np.ndarray, dJ: np.ndarray, d2J: np.ndarray, ve: np.ndarray, dpe: np.ndarray,
+                    d2pe: np.ndarray, dJe: np.ndarray, d2Je: np.ndarray) -> tuple:
+    """:func:`gent3` of an imperfect body, in the total gradient ``v`` (from the perfect reference).
+
+    The imperfect body is stress-free in the configuration ``F0`` of the perfect reference; with
+    ``Fi = F0^-1`` and ``Jimp = det F0`` its elastic gradient is ``Fe = F Fi``, its energy per unit
+    perfect-reference volume ``Jimp psi(Fe)``. Returns ``(ok, Jimp psi, det Fe)`` with the
+    derivatives in ``v``: ``dpsi = Jimp T^T dpsi_e``, ``d2psi = Jimp T^T d2psi_e T``,
+    ``dJ = Jimp T^T dJ_e``, ``d2J = Jimp T^T d2J_e T`` (``T`` the linear map ``v -> ve``, i.e.
+    ``Fe[i, B] = sum_A F[i, A] Fi[A, B]``), so that the caller's volume integrals of ``psi`` and of
+    ``J - 1`` (weighted by ``Jimp``) are those over the imperfect body. ``ve, dpe, d2pe, dJe, d2Je``
+    are work arrays.
+    """
+    for c in range(9):
+        i = _ROW[c]
+        B = _COL[c]
+        s = 0.0
+        for A in range(3):
+            s += v[_IDX[i, A]] * Fi[A, B]
+        ve[c] = s
+    ok, psi, J = gent3(ve, mu, jm, want, dpe, d2pe, dJe, d2Je)
+    if not ok or Jimp <= 0.0:
+        return False, 0.0, J
+    # T[c, d] = delta(row c, row d) Fi[col d, col c]
+    if want >= 1:
+        for d in range(9):
+            j = _ROW[d]
+            A = _COL[d]
+            s1 = 0.0
+            s2 = 0.0
+            for B in range(3):
+                c = _IDX[j, B]
+                s1 += dpe[c] * Fi[A, B]
+                s2 += dJe[c] * Fi[A, B]
+            dpsi[d] = Jimp * s1
+            dJ[d] = Jimp * s2
+    else:
+        for d in range(9):
+            j = _ROW[d]
+            A = _COL[d]
+            s2 = 0.0
+            for B in range(3):
+                s2 += dJe[_IDX[j, B]] * Fi[A, B]
+            dJ[d] = Jimp * s2
+    if want >= 2:
+        for d in range(9):
+            j = _ROW[d]
+            A = _COL[d]
+            for d2 in range(9):
+                j2 = _ROW[d2]
+                A2 = _COL[d2]
+                s1 = 0.0
+                s2 = 0.0
+                for B in range(3):
+                    c = _IDX[j, B]
+                    fa = Fi[A, B]
+                    for B2 in range(3):
+                        c2 = _IDX[j2, B2]
+                        f = fa * Fi[A2, B2]
+                        s1 += d2pe[c, c2] * f
+                        s2 += d2Je[c, c2] * f
+                d2psi[d, d2] = Jimp * s1
+                d2J[d, d2] = Jimp * s2
+    return True, Jimp * psi, J
+
+
+@njit(cache=True)
+def point_gradients(A: np.ndarray, conn: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray,
+                    hn: np.ndarray, phis: np.ndarray) -> np.ndarray:
+    """The 3x3 gradient ``I + grad u`` of the amplitudes ``A`` at every quadrature and phi point,
+    ``(ne, nq, nphi, 3, 3)`` (rows r, phi, z; columns R, Phi, Z), as :func:`mh_elements` forms it."""
+    ne, nen = conn.shape
+    nq = Rq.shape[1]
+    K = hn.shape[0]
+    nphi = phis.shape[0]
+    out = np.zeros((ne, nq, nphi, 3, 3))
+    Gk = np.empty((K, 9))
+    for e in range(ne):
+        for q in range(nq):
+            R = Rq[e, q]
+            Gk[:, :] = 0.0
+            for a in range(nen):
+                node = conn[e, a]
+                bx = dNdX[e, q, a, 0]
+                by = dNdX[e, q, a, 1]
+                bn = N_ref[q, a] / R
+                for k in range(K):
+                    n = float(hn[k])
+                    o = _offset(k)
+                    ua = A[node, o]
+                    ub = A[node, o + 1]
+                    uc = A[node, o + 2] if k > 0 else 0.0
+                    Gk[k, 0] += bx * ua
+                    Gk[k, 1] += by * ua
+                    Gk[k, 2] += bx * ub
+                    Gk[k, 3] += by * ub
+                    Gk[k, 4] += bn * (ua + n * uc)
+                    Gk[k, 5] += -bn * (n * ua + uc)
+                    Gk[k, 6] += bx * uc
+                    Gk[k, 7] += by * uc
+                    Gk[k, 8] += -n * bn * ub
+            for j in range(nphi):
+                for c in range(9):
+                    s = 0.0
+                    for k in range(K):
+                        n = float(hn[k])
+                        s += (np.cos(n * phis[j]) if c < 5 else np.sin(n * phis[j])) * Gk[k, c]
+                    out[e, q, j, _ROW[c], _COL[c]] = s
+                out[e, q, j, 0, 0] += 1.0
+                out[e, q, j, 1, 1] += 1.0
+                out[e, q, j, 2, 2] += 1.0
+    return out
+
+
+@njit(cache=True)
 def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, jm: np.ndarray,
                 kappa: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray, Wq: np.ndarray,
                 Np: np.ndarray, Minv: np.ndarray, hn: np.ndarray, phis: np.ndarray, wphi: np.ndarray,
-                want: int):
+                want: int, Fi: np.ndarray, Jimp: np.ndarray, Minvp: np.ndarray):
     """Energy, element residuals and element tangents of the multi-harmonic solid.
 
     Parameters
@@ -196,6 +314,13 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
     hn : (K,) harmonic numbers, ``hn[0] = 0``
     phis, wphi : the phi rule (:func:`phi_rule`)
     want : 0 energy, 1 and residuals, 2 and tangents
+    Fi, Jimp : an initial geometric imperfection (empty arrays: none). ``Fi (ne, nq, nphi, 3, 3)``
+        is the inverse of the imperfection's deformation gradient ``F0`` (perfect reference ->
+        stress-free imperfect body) at every point and ``Jimp = det F0``. ``A`` is then the total
+        displacement from the perfect reference (imperfection included); the elastic gradient is
+        ``F F0^-1`` and every volume integral carries ``Jimp`` (:func:`imperfect_point`)
+    Minvp : ``(ne, nphi, np, np)`` with an imperfection: the inverse pressure mass matrices of the
+        imperfect body at every phi point (``sum_q W_q Jimp Np Np^T``), used instead of ``Minv``
 
     Returns
     -------
@@ -242,6 +367,12 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
     Hv = np.empty((npr, nd))
     bq = np.empty((nen, 3))
     hk = np.empty(nd, np.int64)  # harmonic index of each element dof
+    imperfect = Fi.shape[0] > 0
+    ve = np.empty(9)
+    dpe = np.zeros(9)
+    d2pe = np.zeros((9, 9))
+    dJe = np.zeros(9)
+    d2Je = np.zeros((9, 9))
     for a in range(nen):
         for k in range(K):
             for dof in range(_ndof_k(k)):
@@ -286,10 +417,12 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
                 v[0] += 1.0
                 v[3] += 1.0
                 v[4] += 1.0
-                if want >= 2:
-                    ok, psi, J = gent3(v, mu_e, jm_e, 2, dpsi, d2psi, dJ, d2J)
+                wa = want if want < 2 else 2
+                if imperfect:
+                    ok, psi, J = imperfect_point(v, Fi[e, q, j], Jimp[e, q, j], mu_e, jm_e, wa, dpsi, d2psi, dJ,
+                                                 d2J, ve, dpe, d2pe, dJe, d2Je)
                 else:
-                    ok, psi, J = gent3(v, mu_e, jm_e, want, dpsi, d2psi, dJ, d2J)
+                    ok, psi, J = gent3(v, mu_e, jm_e, wa, dpsi, d2psi, dJ, d2J)
                 if not ok:
                     return E, False, re, Ke
                 E += wphi[j] * W * psi
@@ -302,15 +435,17 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
                         for d in range(9):
                             Dq[q, j, c, d] = W * d2psi[c, d]
                             d2Jq[q, j, c, d] = d2J[c, d]
+                jw = Jimp[e, q, j] if imperfect else 1.0
                 for k2 in range(npr):
-                    g[j, k2] += W * Np[q, k2] * (J - 1.0)
+                    g[j, k2] += W * jw * Np[q, k2] * (J - 1.0)
         # element pressures at every phi point, the volumetric energy
         for j in range(nphi):
+            Mi = Minvp[e, j] if imperfect else Minv[e]
             ev = 0.0
             for k2 in range(npr):
                 s = 0.0
                 for l2 in range(npr):
-                    s += Minv[e, k2, l2] * g[j, l2]
+                    s += Mi[k2, l2] * g[j, l2]
                 pel[j, k2] = ka * s
                 ev += 0.5 * g[j, k2] * pel[j, k2]
             E += wphi[j] * ev
@@ -418,11 +553,12 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
                                 s += dJq[q, j, c] * t[j, k, c] * Bn[a, k, c, dof]
                             for k2 in range(npr):
                                 Gv[k2, o + dof] += W * Np[q, k2] * s
+            Mi = Minvp[e, j] if imperfect else Minv[e]
             for k2 in range(npr):
                 for i in range(nd):
                     s = 0.0
                     for l2 in range(npr):
-                        s += Minv[e, k2, l2] * Gv[l2, i]
+                        s += Mi[k2, l2] * Gv[l2, i]
                     Hv[k2, i] = wphi[j] * ka * s
             for i in range(nd):
                 for jj in range(i, nd):

@@ -54,7 +54,8 @@ from snapjump_cli.fe.snap import SnapStates, SnapTracker, root_on_step
 log = logging.getLogger(__name__)
 
 __all__ = ["Bifurcation", "FollowResult", "locate_bifurcation", "follow_branch", "default_harmonics",
-           "FOLLOW_KEYS", "followed_metrics", "apply_followed", "lowest_eigen", "ground_height", "branch_curve"]
+           "FOLLOW_KEYS", "multiharmonic_snap_metrics", "BranchTracker", "followed_metrics", "apply_followed",
+           "lowest_eigen", "ground_height", "branch_curve"]
 
 #: Keys :func:`followed_metrics` adds to a design's metrics (SI units).
 FOLLOW_KEYS: tuple[str, ...] = (
@@ -176,7 +177,7 @@ def branch_curve(fr: FollowResult) -> dict:
 
 
 @dataclass
-class _BranchTracker(SnapTracker):
+class BranchTracker(SnapTracker):
     """The snap tracker on a branch that starts at its bifurcation point: after the first step it
     tells a subcritical branch (the volume falls at once: the start is the volume limit) from a
     supercritical one (it rises, and the tracker finds the branch's own limit).
@@ -270,7 +271,7 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     p_stop = tracker0["p_stop"] if tracker0 else 1.5 * max(pt.p for pt in result.path.points)
     V_stop = tracker0["V_stop"] if tracker0 else 30.0 * max(pt.zeta[0] for pt in result.path.points)
     post = tracker0["post_snap_steps"] if tracker0 else 1500
-    tracker = _BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post)
+    tracker = BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post)
     st0 = result.states
     if st0 is not None and st0.upper is not None and st0.lower is not None:
         tracker.micro_dE = micro * (base.energy(st0.upper.u) - base.energy(st0.lower.u))
@@ -301,7 +302,7 @@ def ground_height(mh: MultiHarmonicModel, u: np.ndarray, nodes: np.ndarray, n_ph
     """Lowest height of ``nodes`` over all phi (scaled): ``z + sum_k b_k cos n_k phi``."""
     from snapjump_cli.fe.multiharmonic import component_index
 
-    A = mh.amplitudes(u)
+    A = mh.total_amplitudes(u)
     phi = np.linspace(0.0, 2.0 * np.pi, n_phi, endpoint=False)
     z = np.repeat(mh.X[nodes, 1][:, None], n_phi, axis=1)
     for k, n in enumerate(mh.hn):
@@ -313,7 +314,6 @@ def _branch_metrics(fr: FollowResult, sc: np.ndarray) -> dict:
     """The followed snap's metrics (SI)."""
     mh, st = fr.model, fr.states
     L, S = mh.L, mh.S
-    E_unit = S * L**3
     out = {"follow_kind": fr.kind or None, "follow_N": int(mh.hn[-1]), "follow_n": fr.bif.n,
            "follow_V_bif_m3": float(fr.bif.zeta[0] * sc[0] * L**3), "follow_p_bif_Pa": float(fr.bif.p * S),
            "follow_lower_method": fr.lower_method or None,
@@ -321,12 +321,25 @@ def _branch_metrics(fr: FollowResult, sc: np.ndarray) -> dict:
                f"{len(fr.micro_folds)} fold(s) releasing < {MICRO_FOLD_DE:g} of the axisymmetric dE traced through"
                if fr.micro_folds else "")) if x),
            "snaps": st.upper is not None and st.lower is not None, "follow_micro_folds": len(fr.micro_folds)}
+    out.update(multiharmonic_snap_metrics(mh, fr.path, st, sc))
+    return out
+
+
+def multiharmonic_snap_metrics(mh: MultiHarmonicModel, path: Path, st: SnapStates, sc: np.ndarray) -> dict:
+    """The snap metrics (SI) of a path of the multi-harmonic model with its upper and lower states
+    (``{}`` without both): ``dE_J`` two ways, ``V_star_m3``, ``p_star_Pa``, ``dy_pole_m`` (the
+    pole's travel along the axis), ``h_imp_m`` (the pole above the lowest point of the ground ring
+    over all phi), ``L0_m``, and ``follow_amplitude_m`` (the largest harmonic amplitude ``n >= 1``
+    at the upper state). Definitions: docs/harmonics.md section 10.2."""
     if st.upper is None or st.lower is None:
-        return out
+        return {}
+    L, S = mh.L, mh.S
+    E_unit = S * L**3
+    out: dict = {}
     up, lo = st.upper, st.lower
     W_up, W_lo = mh.energy(up.u), mh.energy(lo.u)
     dE = W_up - W_lo
-    dE_path = -path_p_dV(snap_sequence(fr.path, st), sc[0], sc[1]) if st.lower_method == "path" else math.nan
+    dE_path = -path_p_dV(snap_sequence(path, st), sc[0], sc[1]) if st.lower_method == "path" else math.nan
     mesh = mh.mesh
     pole1 = int(mesh.node_sets["pole_lower"][0])
     out.update(

@@ -62,13 +62,17 @@ class MultiHarmonicModel:
         the highest harmonic in units of ``hn[1]``: exact for the quadratic terms and the cavity)
     free_body : as in :class:`snapjump_cli.fe.harmonics.HarmonicOperator` (default: a full actuator)
     gauge : ``(node, comp)`` amplitudes of harmonic 1 fixed to zero (removing the rigid modes)
+    imperfection : ``(nn, nc)`` nodal amplitudes of an initial geometric imperfection (default
+        none): the stress-free body is the perfect one displaced by them, and ``u`` is measured
+        from it (:func:`snapjump_kernels.multiharmonic.imperfect_point`). They must satisfy the
+        axis conditions of their harmonics (a mode of :class:`~snapjump_cli.fe.harmonics.HarmonicOperator` does).
     """
 
     solver = "banded"
 
     def __init__(self, model, hn, n_phi: int | None = None, free_body: bool | None = None,
-                 gauge: list[tuple[int, int]] = ()) -> None:
-        from snapjump_kernels.multiharmonic import phi_rule  # numba: only where the model is used
+                 gauge: list[tuple[int, int]] = (), imperfection: np.ndarray | None = None) -> None:
+        from snapjump_kernels.multiharmonic import phi_rule, point_gradients  # numba: only where used
 
         hn = np.asarray(hn, np.int64)
         if hn.ndim != 1 or hn[0] != 0 or np.any(np.diff(hn) <= 0):
@@ -146,6 +150,23 @@ class MultiHarmonicModel:
         self.pole_node = model.pole_node
         self.pole_dof = int(dofmap[model.pole_node, 1])
         self.V_offset = model.V_offset
+        self.A_imp = np.zeros((nn, self.nc))
+        self.Fi = np.zeros((0, 1, 1, 3, 3))
+        self.Jimp = np.zeros((0, 1, 1))
+        self.Minvp = np.zeros((0, 1, 1, 1))
+        if imperfection is not None:
+            A_imp = np.asarray(imperfection, float)
+            if A_imp.shape != (nn, self.nc):
+                raise ValueError(f"imperfection must have shape {(nn, self.nc)}, got {A_imp.shape}")
+            self.A_imp = np.ascontiguousarray(A_imp)
+            F0 = point_gradients(self.A_imp, model.conn, model.dNdX, model.N_ref, model.Rq, hn, self.phis)
+            self.Jimp = np.ascontiguousarray(np.linalg.det(F0))
+            if np.any(self.Jimp <= 0.0):
+                raise ValueError("the imperfection folds the body (det F0 <= 0 somewhere): lower its amplitude")
+            self.Fi = np.ascontiguousarray(np.linalg.inv(F0))
+            # the imperfect body's pressure mass per element and phi point: sum_q W_q Jimp Np Np^T
+            Mp = np.einsum("eq,eqj,qk,ql->ejkl", model.Wq, self.Jimp, model.Np, model.Np)
+            self.Minvp = np.ascontiguousarray(np.linalg.inv(Mp))
         self.n_assemblies = self.n_residuals = self.n_factorizations = 0
         self.t_assembly = self.t_factor = 0.0
 
@@ -156,6 +177,11 @@ class MultiHarmonicModel:
         m = self.dofmap >= 0
         A[m] = u[self.dofmap[m]] * self.coef[m]
         return A
+
+    def total_amplitudes(self, u: np.ndarray) -> np.ndarray:
+        """Nodal amplitudes of the displacement from the *perfect* reference (the imperfection
+        plus :meth:`amplitudes`)."""
+        return self.amplitudes(u) + self.A_imp
 
     def free_vector(self, A: np.ndarray) -> np.ndarray:
         """Nodal amplitudes ``(nn, nc)`` -> free-dof vector (fixed entries dropped; a tied ``c``
@@ -192,8 +218,8 @@ class MultiHarmonicModel:
     def section(self, u: np.ndarray, phi: float) -> np.ndarray:
         """Current ``(r, z)`` of every node in the meridian section at ``phi`` (scaled; ``r`` the
         radial coordinate of the material point's ring, i.e. ``R + u_r(phi)``; ``u_phi`` moves
-        the point out of the section and is not shown)."""
-        A = self.amplitudes(u)
+        the point out of the section and is not shown; the imperfection is included)."""
+        A = self.total_amplitudes(u)
         x = self.X.copy()
         for k, n in enumerate(self.hn):
             o = component_index(k, 0)
@@ -212,9 +238,10 @@ class MultiHarmonicModel:
         check_time()  # the design's CPU-time limit (snapjump_cli.fe.limits)
         t0 = time.perf_counter()
         M = self.base
-        A = np.ascontiguousarray(self.amplitudes(u))
+        A = np.ascontiguousarray(self.total_amplitudes(u))
         E, ok, re, Ke = mh_elements(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
-                                    M.Minv, self.hn, self.phis, self.wphi, max(want, 0))
+                                    M.Minv, self.hn, self.phis, self.wphi, max(want, 0), self.Fi, self.Jimp,
+                                    self.Minvp)
         if not ok:
             return None
         Vf, ge, He = mh_cavity(M.X, A, M.edges, self.hn, self.phis, self.wphi, want)
@@ -251,7 +278,7 @@ class MultiHarmonicModel:
         from snapjump_kernels.multiharmonic import mh_cavity
 
         M = self.base
-        V, _, _ = mh_cavity(M.X, np.ascontiguousarray(self.amplitudes(u)), M.edges, self.hn, self.phis, self.wphi, 0)
+        V, _, _ = mh_cavity(M.X, np.ascontiguousarray(self.total_amplitudes(u)), M.edges, self.hn, self.phis, self.wphi, 0)
         return V + self.V_offset
 
     def residual(self, u: np.ndarray, p: float) -> np.ndarray | None:
@@ -278,7 +305,7 @@ class MultiHarmonicModel:
             from snapjump_kernels.multiharmonic import mh_cavity, scatter_vector
 
             M = self.base
-            V, ge, _ = mh_cavity(M.X, np.ascontiguousarray(self.amplitudes(u)), M.edges, self.hn, self.phis,
+            V, ge, _ = mh_cavity(M.X, np.ascontiguousarray(self.total_amplitudes(u)), M.edges, self.hn, self.phis,
                                  self.wphi, 1)
             V += self.V_offset
             scatter_vector(ge, self.gdofs, self.gcoef, 1.0, dz[0])
