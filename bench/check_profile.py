@@ -2,6 +2,7 @@
 sample, and the check's answers for an exact before/after comparison.
 
     .venv/bin/python -m bench.check_profile [--limit N] [--n-max 4] [--out rows.json]
+    .venv/bin/python -m bench.check_profile --design D [--design C] [--repeat 5]
     .venv/bin/python -m bench.check_profile compare OLD.json NEW.json
 
 Each design of the sample (default: the 480 seeded paper-grid points of
@@ -20,6 +21,10 @@ wrapping the functions it calls (exclusive times: a phase's callees are counted 
 * ``gauge``: the choice of the rigid-mode gauge dofs of ``n = 1`` (``gauge_dofs``);
 * ``refine Newton``: the Newton solves of the onset's bisection (``tracer.correct``);
 * ``Python glue``: the rest of the check.
+
+``--design NAME`` profiles named designs instead, at the default mesh (as ``snapjump curve``
+solves them); ``--repeat R`` runs the check R times on each solved design (the CPU figures are
+the totals over the repeats).
 
 ``--out`` writes each design's ``asym_*`` answers with its CPU times; ``compare`` counts the
 designs whose answers differ between two such files (the flags and harmonics exactly, the onset's
@@ -120,7 +125,7 @@ def _clean(v):
     return v
 
 
-def run(limit: int | None, n_max: int, out: Path | None) -> int:
+def run(limit: int | None, n_max: int, out: Path | None, designs: list[str] | None = None, repeat: int = 1) -> int:
     from snapjump_cli.fe.harmonics import check_harmonics
     from snapjump_cli.fe.solve import SolveFailed, solve_checked, warm_up
     from snapjump_cli.geometry.caps import Design, InvalidDesign
@@ -131,20 +136,28 @@ def run(limit: int | None, n_max: int, out: Path | None) -> int:
     warm_up()
     timer = PhaseTimer()
     install(timer)
-    items = sample(limit)
+    items = sample(limit) if not designs else [{"id": name, "name": name} for name in designs]
+    if designs:
+        from snapjump_cli.geometry.designs import get_design
+        from snapjump_cli.settings import MeshSettings
+
+        cfg = cfg.replace(mesh=MeshSettings())
+
+    def design(it):
+        return get_design(it["name"]) if "name" in it else Design(**it["params"])
     # compile (or load) the check's kernels outside the timings
     for it in items:
         try:
-            check_harmonics(solve_checked(Design(**it["params"]), cfg.mesh, solver), n_max)
+            check_harmonics(solve_checked(design(it), cfg.mesh, solver), n_max)
             break
         except (InvalidDesign, SolveFailed):
             continue
     timer.__init__()
     rows, t_solve, t_check, n_states = [], 0.0, 0.0, 0
     for it in items:
-        row = {"id": it["id"], "params": it["params"]}
+        row = {"id": it["id"], "params": it.get("params")}
         try:
-            d = Design(**it["params"])
+            d = design(it)
         except InvalidDesign:
             rows.append({**row, "status": "invalid_geometry"})
             continue
@@ -160,16 +173,19 @@ def run(limit: int | None, n_max: int, out: Path | None) -> int:
             tracer.correct = timer.wrap("refine Newton", tracer.correct)
         t2 = time.process_time()
         h = check_harmonics(res, n_max)
+        for _ in range(repeat - 1):
+            check_harmonics(res, n_max)
         t3 = time.process_time()
         t_solve += t1 - t0
         t_check += t3 - t2
-        n_states += h["asym_states_checked"]
+        n_states += repeat * h["asym_states_checked"]
         row.update(status="ok" if res.metrics.get("snaps") else "no_snap", solve_cpu_s=t1 - t0, check_cpu_s=t3 - t2)
         row.update({k: _clean(h.get(k)) for k in EXACT + CLOSE})
         rows.append(row)
     timer.cpu["Python glue"] = t_check - sum(v for k, v in timer.cpu.items() if k != "Python glue")
     checked = [r for r in rows if "check_cpu_s" in r]
-    print(f"sample: {len(items)} designs ({POINTS.relative_to(REPO)}), {len(checked)} checked "
+    what = ", ".join(designs) + " (default mesh)" if designs else str(POINTS.relative_to(REPO))
+    print(f"sample: {len(items)} designs ({what}), {len(checked)} checked x {repeat} "
           f"(n <= {n_max}), {n_states} states ({n_states / max(len(checked), 1):.1f} per design); "
           f"load average {os.getloadavg()[0]:.2f}")
     print(f"CPU: solve with the check off {t_solve:.2f} s, the check {t_check:.2f} s "
@@ -230,8 +246,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--limit", type=int, default=None, help="the first N designs of the sample (default: all 480)")
     ap.add_argument("--n-max", type=int, default=4, help="highest harmonic checked (default 4, the grid's)")
     ap.add_argument("--out", type=Path, default=None, help="write the answers and CPU times (JSON)")
+    ap.add_argument("--design", action="append", default=None, help="a named design instead of the sample (repeatable)")
+    ap.add_argument("--repeat", type=int, default=1, help="run the check this many times per design")
     a = ap.parse_args(argv)
-    return run(a.limit, a.n_max, a.out)
+    return run(a.limit, a.n_max, a.out, a.design, max(1, a.repeat))
 
 
 if __name__ == "__main__":

@@ -4,8 +4,10 @@
 
 Prints how many rows changed status, each flag (``self_crossing``, ``lower_state_method``,
 ``snaps``, ``mesh_sensitive``) on the rows ok in both, the largest relative change of dE,
-dy_pole, h_imp, V*, p* and p_max (and how many rows moved by more than 0.5 % and 1e-4), and the
-CPU time per valid design of both runs. Rows are matched by their key, or by the grid index
+dy_pole, h_imp, V*, p* and p_max (and how many rows moved by more than 0.5 % and 1e-4), the
+harmonic check's answers when both runs have them (``asym_first``, ``asym_n``,
+``asym_lower_stable`` exactly; ``asym_V_m3``, ``asym_p_Pa`` by their largest relative change), and
+the CPU time per valid design of both runs. Rows are matched by their key, or by the grid index
 (same design parameters) when the two runs' keys differ (key version v1 before 23 November 2026) (the ``wall_s`` of each row: mean, p50, p90, max, the
 designs over 3 s, the split by the way the lower state was found). This is the full-grid answer
 check of the speed work (docs/performance.md, "Full paper-grid runs").
@@ -48,6 +50,17 @@ def main(argv: list[str] | None = None) -> int:
         rel = ((new.loc[ok, f] - old.loc[ok, f]).abs() / old.loc[ok, f].abs()).astype(float)
         print(f"{f}: largest relative change {rel.max():.2e}; rows over 0.5 %: {int((rel > 0.005).sum())}, "
               f"over 1e-4: {int((rel > 1e-4).sum())}")
+    if "asym_first" in old and "asym_first" in new:
+        for f in ("asym_first", "asym_n", "asym_lower_stable"):
+            changed = old.loc[ok, f].astype(str) != new.loc[ok, f].astype(str)
+            print(f"{f} changed on {int(changed.sum())} of {int(ok.sum())} rows ok in both"
+                  + (f": {list(changed[changed].index[:5])}" if changed.any() else ""))
+        for f in ("asym_V_m3", "asym_p_Pa"):
+            a, b = old.loc[ok, f].astype(float), new.loc[ok, f].astype(float)
+            both = a.notna() & b.notna()
+            rel = ((b[both] - a[both]).abs() / a[both].abs())
+            print(f"{f}: set on {int(both.sum())} rows in both, on one only {int((a.notna() != b.notna()).sum())}; "
+                  f"largest relative change {rel.max() if len(rel) else 0.0:.2e}")
     for label, df in (("old", old), ("new", new)):
         v = df[df["status"] == "ok"]
         w = v["wall_s"].astype(float)
