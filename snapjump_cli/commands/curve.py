@@ -8,7 +8,10 @@ harmonic check's ``asym_first``, ``asym_n``, ``asym_V_m3``, ``asym_p_Pa``, ``asy
 (null without ``--harmonics``), the followed branch's ``followed``, ``follow_n``, ``follow_N``,
 ``follow_kind``, ``follow_V_bif_m3`` and ``axisym_dE_J``, ``axisym_dy_pole_m``, ``axisym_h_imp_m``,
 ``axisym_V_star_m3``, ``axisym_p_star_Pa`` (null without ``--follow``: with it, ``dE_J``,
-``dy_pole_m``, ``h_imp_m``, ``V_star_m3``, ``p_star_Pa`` describe the followed snap); plus
+``dy_pole_m``, ``h_imp_m``, ``V_star_m3``, ``p_star_Pa`` describe the followed snap); with
+``--imperfection DELTA`` the imperfect actuator's snap (docs/harmonics.md section 12) as
+``imp_dE_J``, ``imp_dy_pole_m``, ``imp_h_imp_m``, ``imp_V_star_m3``, ``imp_p_star_Pa`` with
+``imp_delta``, ``imp_n``, ``imp_N``, ``imp_shape``, ``imp_amplitude_m``, ``imp_note``; plus
 diagnostics (``dE_rel_diff``, ``dy_pole_upper_m``, ``p_lower_Pa``, mesh size, ``max_dilatation``,
 timings, ``stop_reason``; ``E_o_J`` for an outer cap alone).
 
@@ -130,6 +133,40 @@ def _fluid(air_ml: float | None, gamma: float | None, p0: float | None, harmonic
         raise BadInput(f"{opts[e.field]}: expected {e.expected}, got {e.value!r}") from None
 
 
+#: The keys ``--imperfection`` adds (SI units).
+IMP_KEYS: tuple[str, ...] = ("imp_delta", "imp_n", "imp_N", "imp_shape", "imp_amplitude_m", "imp_dE_J", "imp_dy_pole_m",
+                             "imp_h_imp_m", "imp_V_star_m3", "imp_p_star_Pa", "imp_lower_state_method", "imp_note")
+
+
+def _imperfect(res, scene, delta: float, n: int | None, N: int, time_limit_s: float) -> None:
+    """Trace the imperfect actuator (:mod:`snapjump_cli.fe.imperfection`) and add its keys to
+    ``res.metrics``."""
+    from snapjump_cli.fe.imperfection import imperfection_shape, inner_thickness, trace_imperfect
+    from snapjump_cli.fe.limits import TimeLimitExceeded, time_limit
+
+    m = res.metrics
+    if res.states is None or res.states.upper is None:
+        raise click.ClickException("--imperfection: the perfect actuator does not snap; nothing to compare")
+    if n is None:
+        n = int(m["asym_n"]) if m.get("asym_first") else 1
+    m.update({k: None for k in IMP_KEYS})
+    m.update(imp_delta=float(delta), imp_n=n)
+    try:
+        with time_limit(time_limit_s):
+            shape = imperfection_shape(res, n)
+            r = trace_imperfect(res, shape, delta, inner_thickness(scene), N=N or None)
+    except TimeLimitExceeded as exc:
+        m["imp_note"] = f"not traced to its snap: {exc}"
+        return
+    im = r.metrics
+    m.update(imp_N=int(r.model.hn[-1]), imp_shape=shape.source, imp_amplitude_m=im["imp_amplitude_m"],
+             imp_note=im["imp_note"] or None, imp_lower_state_method=im.get("lower_state_method"))
+    for k in ("dE_J", "dy_pole_m", "h_imp_m", "V_star_m3", "p_star_Pa"):
+        m["imp_" + k] = im.get(k)
+    if im.get("dE_J") is None and not m["imp_note"]:
+        m["imp_note"] = "the imperfect path did not reach a snap"
+
+
 def _text(scene, m: dict) -> str:
     name = getattr(scene, "name", None) or type(scene).__name__
     lines = [f"scene            {name}"]
@@ -176,6 +213,14 @@ def _text(scene, m: dict) -> str:
         if m.get("asym_lower_stable") is not None:
             lines.append(f"lower state, 3D {'stable' if m['asym_lower_stable'] else 'UNSTABLE'} against the harmonics checked"
                          + (" (the axisymmetric path's)" if m.get("followed") else ""))
+    if m.get("imp_delta") is not None:
+        if m.get("imp_dE_J") is not None:
+            lines.append(f"imperfect        n = {m['imp_n']} ({m['imp_shape']} mode), amplitude {m['imp_delta']:g} t_i "
+                         f"({m['imp_amplitude_m'] * 1e6:.4g} um): snaps at V* {m['imp_V_star_m3'] * 1e6:.5g} ml, "
+                         f"p* {m['imp_p_star_Pa'] / 1e3:.5g} kPa, dE {m['imp_dE_J'] * 1e3:.6g} mJ, "
+                         f"dy_pole {m['imp_dy_pole_m'] * 1e3:.5g} mm")
+        else:
+            lines.append(f"imperfect        n = {m['imp_n']}, amplitude {m['imp_delta']:g} t_i: {m['imp_note']}")
     lines += [
         f"p_max            {m['p_max_Pa'] / 1e3:.5g} kPa",
         f"self-crossing    {'yes' if m['self_crossing'] else 'no'}",
@@ -226,6 +271,13 @@ def _text(scene, m: dict) -> str:
                    "along the path: asym_margin, asym_margin_n, asym_margin_V_m3, and margin_n0.. columns in --csv.")
 @click.option("--follow-N", "follow_N", type=click.IntRange(0, 16), default=0, show_default=True, metavar="N",
               help="Highest harmonic of the followed branch (0: 4 n_c for the critical harmonic n_c).")
+@click.option("--imperfection", "imperfection", type=click.FloatRange(min=0.0, max=1.0), default=None,
+              metavar="DELTA",
+              help="Also trace the actuator with an initial geometric imperfection: the lowest mode of harmonic "
+                   "--imperfection-n (the critical mode if it goes unstable before V*, else its least stable one) "
+                   "with a largest displacement of DELTA times the inner cap's thickness; reports imp_* keys.")
+@click.option("--imperfection-n", "imperfection_n", type=click.IntRange(1, 16), default=None, metavar="N",
+              help="Harmonic of --imperfection (default: the first unstable harmonic of --harmonics, else 1).")
 @click.option("--air-ml", "air_ml", type=FiniteFloat(), default=None, metavar="V0",
               help="Inflate with air from a syringe: the gas volume of syringe, tube and cavity before inflation "
                    "[mL] (paper S3's V0_sys). The snap is then at the limit of the dispensed volume; the water "
@@ -238,7 +290,8 @@ def _text(scene, m: dict) -> str:
 def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, overwrite: bool, harmonics: int,
             shapes_path: Path | None, animation_path: Path | None, export_path: Path | None, revolve: int,
             air_ml: float | None, gamma: float | None, p0: float | None, follow: bool, follow_N: int, margins: bool,
-            time_limit_s: float, max_nodes: int, **kw) -> None:
+            time_limit_s: float, max_nodes: int, imperfection: float | None, imperfection_n: int | None,
+            **kw) -> None:
     """Trace one scene's pressure-volume path through its limit points and report the snap.
 
     \b
@@ -249,6 +302,7 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
       snapjump curve --design D --shapes d.png --animation d.gif --export d.pvd
       snapjump curve --cap outer --theta 90 --eta 16.5
       snapjump curve --design B --harmonics 4 --follow --plot b.png
+      snapjump curve --design D --harmonics 4 --imperfection 0.01
       snapjump curve --design C --air-ml 45 --plot c_air.png
     """
     from snapjump_cli.fe.solve import SolveFailed, solve_checked
@@ -257,9 +311,13 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
         raise BadInput("--follow needs --harmonics N with N >= 1 (the check that finds the bifurcation)")
     if margins and harmonics < 1:
         raise BadInput("--margins needs --harmonics N with N >= 1 (the harmonics whose margins are reported)")
+    if imperfection_n is not None and imperfection is None:
+        raise BadInput("--imperfection-n needs --imperfection DELTA (the amplitude)")
     scene = scene_from_options(**pick_scene_options(kw))
     ms = mesh_settings_from_options(**pick_mesh_options(kw))
     fluid = _fluid(air_ml, gamma, p0, harmonics)
+    if imperfection is not None and fluid is not None:
+        raise BadInput("--imperfection is not available with --air-ml")
     from snapjump_cli.viz.outputs import check_outputs, write_outputs
 
     outputs = {"--csv": csv_path, "--plot": plot_path, "--shapes": shapes_path, "--animation": animation_path,
@@ -271,6 +329,8 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
                                                       max_nodes=max_nodes), fluid=fluid)
     except SolveFailed as exc:
         raise click.ClickException(f"solve failed: {exc}") from None
+    if imperfection is not None:
+        _imperfect(res, scene, imperfection, imperfection_n, follow_N, time_limit_s)
     m = to_jsonable(res.metrics)
     if fluid is not None:
         m.update(_jumps(m))
