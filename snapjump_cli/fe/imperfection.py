@@ -133,7 +133,8 @@ def trace_imperfect(result, shape: ImperfectionShape, delta: float, thickness: f
     ImperfectResult
         with ``metrics``: those of :func:`snapjump_cli.fe.follow.multiharmonic_snap_metrics` and
         ``imp_n``, ``imp_delta``, ``imp_amplitude_m``, ``imp_shape``, ``imp_cpu_s``, ``imp_steps``,
-        ``imp_note``
+        ``imp_stop`` (why the trace stopped), ``imp_note`` (says so when the path has no volume
+        limit: the imperfect actuator then does not snap)
     """
     if not (delta >= 0.0 and math.isfinite(delta)):
         raise ValueError(f"the imperfection amplitude must be >= 0, got {delta}")
@@ -183,8 +184,9 @@ def trace_imperfect(result, shape: ImperfectionShape, delta: float, thickness: f
     m = multiharmonic_snap_metrics(mh, path, st, tr.sc)
     m.update(imp_n=n, imp_delta=float(delta), imp_amplitude_m=amp * base.L, imp_shape=shape.source,
              imp_steps=max(len(path.points) - 1, 0), imp_cpu_s=time.process_time() - t0,
-             imp_micro_folds=len(out.micro_folds),
-             imp_note="; ".join(x for x in (failure, out.lower_note) if x))
+             imp_micro_folds=len(out.micro_folds), imp_stop=path.stop_reason or None,
+             imp_note="; ".join(x for x in (failure, out.lower_note, "" if st.upper is not None else
+                                            f"no volume limit before the trace bound ({path.stop_reason})") if x))
     out.metrics = m
     log.debug("imperfection n=%d delta=%g: %s", n, delta, {k: m.get(k) for k in ("V_star_m3", "dE_J")})
     return out
