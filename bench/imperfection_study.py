@@ -24,7 +24,7 @@ KEYS = ("dE_J", "dE_path_J", "dy_pole_m", "V_star_m3", "p_star_Pa", "h_imp_m", "
         "follow_amplitude_m")
 
 
-def run(name: str, deltas: list[float], n: int, N: int | None) -> dict:
+def run(name: str, deltas: list[float], n: int, N: int | None, post: int | None = None) -> dict:
     from snapjump_cli.fe.follow import default_harmonics, follow_branch, locate_bifurcation
     from snapjump_cli.fe.harmonics import check_harmonics
     from snapjump_cli.fe.imperfection import imperfection_shape, inner_thickness, trace_imperfect
@@ -63,7 +63,7 @@ def run(name: str, deltas: list[float], n: int, N: int | None) -> dict:
     print(json.dumps({"scene": name, **perfect}, default=float), file=sys.stderr, flush=True)
     t_i = inner_thickness(scene)
     for d in deltas:
-        r = trace_imperfect(res, shape, d, t_i, N=N)
+        r = trace_imperfect(res, shape, d, t_i, N=N, post_snap_steps=post)
         row = {k: r.metrics.get(k) for k in KEYS}
         row.update(delta=d, kind="imperfect", steps=r.metrics["imp_steps"], cpu_s=r.metrics["imp_cpu_s"],
                    assemblies=r.model.n_assemblies, note=r.metrics["imp_note"],
@@ -96,11 +96,13 @@ def main(argv=None) -> int:
     ap.add_argument("--deltas", nargs="+", type=float, default=[1e-3, 1e-2, 1e-1])
     ap.add_argument("--n", type=int, default=1, help="harmonic of the imperfection (default 1)")
     ap.add_argument("--N", type=int, default=None, help="highest harmonic kept (default 4 n)")
+    ap.add_argument("--post-snap-steps", type=int, default=None,
+                    help="steps after the snap to find the lower state on the path (default: the solver's)")
     ap.add_argument("--out", type=Path, default=Path("bench/out/imperfection_study.json"))
     a = ap.parse_args(argv)
     rows = []
     for name in a.scenes:
-        rows.append(run(name, a.deltas, a.n, a.N))
+        rows.append(run(name, a.deltas, a.n, a.N, a.post_snap_steps))
         a.out.parent.mkdir(parents=True, exist_ok=True)
         a.out.write_text(json.dumps(rows, indent=1, default=float))
     print(table(rows))

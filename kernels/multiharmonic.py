@@ -300,10 +300,229 @@ def point_gradients(A: np.ndarray, conn: np.ndarray, dNdX: np.ndarray, N_ref: np
 
 
 @njit(cache=True)
+def _pair_weights(t: np.ndarray, wphi: np.ndarray, K: int) -> np.ndarray:
+    """``WT[p, j, 9 c + d] = (w_j t_k(phi_j, c)) t_l(phi_j, d)`` for the harmonic pairs
+    ``p = (k, l)``, ``k <= l`` (``k`` outer): the weights of the phi-moments of the tangent,
+    ``Dt_kl = sum_j WT[p, j] * D(phi_j)`` (``t`` is ``cos`` for the components ``c < 5``, ``sin``
+    after)."""
+    nphi = t.shape[0]
+    WT = np.empty((K * (K + 1) // 2, nphi, 81))
+    p = 0
+    for k in range(K):
+        for l in range(k, K):
+            for j in range(nphi):
+                wj = wphi[j]
+                ck = wj * t[j, k, 0]
+                sk = wj * t[j, k, 5]
+                cl = t[j, l, 0]
+                sl = t[j, l, 5]
+                wcc = ck * cl
+                wcs = ck * sl
+                wsc = sk * cl
+                wss = sk * sl
+                for c in range(9):
+                    for d in range(9):
+                        if c < 5:
+                            WT[p, j, 9 * c + d] = wcc if d < 5 else wcs
+                        else:
+                            WT[p, j, 9 * c + d] = wsc if d < 5 else wss
+            p += 1
+    return WT
+
+
+@njit(cache=True, error_model="numpy")
+def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.ndarray, bnq: np.ndarray,
+                     hn: np.ndarray, upto: int, Dtp: np.ndarray, DB: np.ndarray, Kh: np.ndarray) -> None:
+    """The elastic tangent ``sum_q B_k^T Dt_kl B_l`` of one element, harmonic pair by pair
+    (``k <= l``), into ``Kh`` in the *harmonic-major* element order: dof ``(k, i, a)`` (harmonic,
+    component a/b/c, node) at ``nen offset(k) + i nen + a``, so that a row of a block is contiguous
+    over the nodes and the loops below run over the 18 or 27 columns of a block (LLVM vectorises
+    them).
+
+    Phase 3 (``upto >= 3``): the phi-moments ``Dtp[p, q] = sum_j WT[p, j] Dq[q, j]`` (flat 81).
+    Phase 4 (``upto >= 4``): per pair and point, ``DB = Dt B_l`` of every node (``DB[c, i nen +
+    b]``) and the rows ``B_k^T DB`` of every node of harmonic ``k`` (a node's B is sparse: its
+    columns a, b, c have 4, 3 and 4 non-zeros). Every sum is the one of
+    :func:`snapjump_kernels.multiharmonic_reference.mh_elements_reference` in the same order (the
+    same terms, bit for bit).
+
+    ``Dq (nq, nphi, 9, 9)`` the pointwise ``W (d2psi + p d2J)``; ``bxq, byq, bnq (nq, nen)`` the
+    node values ``dN/dR, dN/dZ, N / R`` at each point; ``Dtp (npair, nq, 81)``, ``DB (9, 3 nen)``
+    work arrays.
+    """
+    nq, nphi = Dq.shape[0], Dq.shape[1]
+    nen = bxq.shape[1]
+    K = hn.shape[0]
+    Df = Dq.reshape(nq, nphi, 81)
+    npair = K * (K + 1) // 2
+    for p in range(npair):
+        for q in range(nq):
+            acc = Dtp[p, q]
+            for x in range(81):
+                acc[x] = 0.0
+            for j in range(nphi):
+                w = WT[p, j]
+                dq = Df[q, j]
+                for x in range(81):
+                    acc[x] += w[x] * dq[x]
+    if upto <= 3:
+        return
+    Kh[:, :] = 0.0
+    p = 0
+    for k in range(K):
+        nk = _ndof_k(k)
+        fk = float(hn[k])
+        r0 = nen * _offset(k)
+        for l in range(k, K):
+            nl = _ndof_k(l)
+            fl = float(hn[l])
+            c0 = nen * _offset(l)
+            m = nl * nen
+            for q in range(nq):
+                D = Dtp[p, q]
+                bx = bxq[q]
+                by = byq[q]
+                bn = bnq[q]
+                for c in range(9):
+                    d0 = D[9 * c]
+                    d1 = D[9 * c + 1]
+                    d2 = D[9 * c + 2]
+                    d3 = D[9 * c + 3]
+                    d4 = D[9 * c + 4]
+                    d5 = D[9 * c + 5]
+                    d6 = D[9 * c + 6]
+                    d7 = D[9 * c + 7]
+                    d8 = D[9 * c + 8]
+                    ra = DB[c, :nen]
+                    for b in range(nen):
+                        ra[b] = d0 * bx[b] + d1 * by[b] + d4 * bn[b] - d5 * (fl * bn[b])
+                    rb = DB[c, nen:2 * nen]
+                    for b in range(nen):
+                        rb[b] = d2 * bx[b] + d3 * by[b] - d8 * (fl * bn[b])
+                    if nl > 2:
+                        rc = DB[c, 2 * nen:3 * nen]
+                        for b in range(nen):
+                            rc[b] = d4 * (fl * bn[b]) - d5 * bn[b] + d6 * bx[b] + d7 * by[b]
+                D0 = DB[0, :m]
+                D1 = DB[1, :m]
+                D2 = DB[2, :m]
+                D3 = DB[3, :m]
+                D4 = DB[4, :m]
+                D5 = DB[5, :m]
+                D6 = DB[6, :m]
+                D7 = DB[7, :m]
+                D8 = DB[8, :m]
+                for a in range(nen):
+                    bxa = bx[a]
+                    bya = by[a]
+                    bna = bn[a]
+                    nbna = fk * bna
+                    row = Kh[r0 + a, c0:c0 + m]
+                    for x in range(m):
+                        row[x] += bxa * D0[x] + bya * D1[x] + bna * D4[x] - nbna * D5[x]
+                    row = Kh[r0 + nen + a, c0:c0 + m]
+                    for x in range(m):
+                        row[x] += bxa * D2[x] + bya * D3[x] - nbna * D8[x]
+                    if nk > 2:
+                        row = Kh[r0 + 2 * nen + a, c0:c0 + m]
+                        for x in range(m):
+                            row[x] += nbna * D4[x] - bna * D5[x] + bxa * D6[x] + bya * D7[x]
+            p += 1
+
+
+@njit(cache=True, error_model="numpy")
+def _volumetric_tangent(e: int, dJq: np.ndarray, t: np.ndarray, Wq: np.ndarray, Np: np.ndarray, Minv: np.ndarray,
+                        Minvp: np.ndarray, imperfect: bool, wphi: np.ndarray, ka: float, bxq: np.ndarray,
+                        byq: np.ndarray, bnq: np.ndarray, hn: np.ndarray, Gv: np.ndarray, Hv: np.ndarray,
+                        KL: np.ndarray, tmp: np.ndarray, Ke: np.ndarray) -> None:
+    """Add the volumetric-constraint stiffness ``sum_j w_j kappa G_j^T M^-1 G_j`` of element ``e``
+    to its node-major tangent ``Ke`` (both triangles, each entry's terms in the order of
+    :func:`snapjump_kernels.multiharmonic_reference.mh_elements_reference`). ``G_j`` is formed from
+    the sparse B (``B^T (dJ t)`` per node), each row of ``G^T H`` as one contiguous loop; the lower
+    triangle is accumulated transposed in ``KL`` (rows contiguous) and written back at the end.
+    ``Gv, Hv (npr, nd)``, ``KL (nd, nd)``, ``tmp (nd,)`` are work arrays."""
+    nd = Ke.shape[0]
+    nq, nphi = dJq.shape[0], dJq.shape[1]
+    npr = Np.shape[1]
+    K = hn.shape[0]
+    nen = bxq.shape[1]
+    nc = 2 + 3 * (K - 1)
+    for i in range(nd):
+        for jj in range(i + 1, nd):
+            KL[i, jj] = Ke[jj, i]
+    for j in range(nphi):
+        Gv[:, :] = 0.0
+        for q in range(nq):
+            W = Wq[e, q]
+            for k in range(K):
+                n = float(hn[k])
+                y0 = dJq[q, j, 0] * t[j, k, 0]
+                y1 = dJq[q, j, 1] * t[j, k, 1]
+                y2 = dJq[q, j, 2] * t[j, k, 2]
+                y3 = dJq[q, j, 3] * t[j, k, 3]
+                y4 = dJq[q, j, 4] * t[j, k, 4]
+                y5 = dJq[q, j, 5] * t[j, k, 5]
+                y6 = dJq[q, j, 6] * t[j, k, 6]
+                y7 = dJq[q, j, 7] * t[j, k, 7]
+                y8 = dJq[q, j, 8] * t[j, k, 8]
+                for a in range(nen):
+                    bx = bxq[q, a]
+                    by = byq[q, a]
+                    bn = bnq[q, a]
+                    o = a * nc + _offset(k)
+                    s0 = y0 * bx + y1 * by + y4 * bn + y5 * (-n * bn)
+                    s1 = y2 * bx + y3 * by + y8 * (-n * bn)
+                    for k2 in range(npr):
+                        wn = W * Np[q, k2]
+                        Gv[k2, o] += wn * s0
+                        Gv[k2, o + 1] += wn * s1
+                    if k > 0:
+                        s2 = y4 * (n * bn) + y5 * (-bn) + y6 * bx + y7 * by
+                        for k2 in range(npr):
+                            Gv[k2, o + 2] += W * Np[q, k2] * s2
+        Mi = Minvp[e, j] if imperfect else Minv[e]
+        for k2 in range(npr):
+            for i in range(nd):
+                s = 0.0
+                for l2 in range(npr):
+                    s += Mi[k2, l2] * Gv[l2, i]
+                Hv[k2, i] = wphi[j] * ka * s
+        for i in range(nd):
+            tv = tmp[i:]
+            for x in range(nd - i):
+                tv[x] = 0.0
+            for k2 in range(npr):
+                gi = Gv[k2, i]
+                h = Hv[k2, i:]
+                for x in range(nd - i):
+                    tv[x] += gi * h[x]
+            row = Ke[i, i:]
+            for x in range(nd - i):
+                row[x] += tv[x]
+            rowl = KL[i, i + 1:]
+            tl = tmp[i + 1:]
+            for x in range(nd - i - 1):
+                rowl[x] += tl[x]
+    for i in range(nd):
+        for jj in range(i + 1, nd):
+            Ke[jj, i] = KL[i, jj]
+
+
+@njit(cache=True)
 def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, jm: np.ndarray,
                 kappa: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray, Wq: np.ndarray,
                 Np: np.ndarray, Minv: np.ndarray, hn: np.ndarray, phis: np.ndarray, wphi: np.ndarray,
                 want: int, Fi: np.ndarray, Jimp: np.ndarray, Minvp: np.ndarray):
+    """See :func:`mh_elements_phases` (all phases)."""
+    return mh_elements_phases(A, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, hn, phis, wphi, want, Fi,
+                              Jimp, Minvp, 5)
+
+
+@njit(cache=True)
+def mh_elements_phases(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, jm: np.ndarray,
+                       kappa: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray, Wq: np.ndarray,
+                       Np: np.ndarray, Minv: np.ndarray, hn: np.ndarray, phis: np.ndarray, wphi: np.ndarray,
+                       want: int, Fi: np.ndarray, Jimp: np.ndarray, Minvp: np.ndarray, upto: int):
     """Energy, element residuals and element tangents of the multi-harmonic solid.
 
     Parameters
@@ -321,6 +540,9 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
         ``F F0^-1`` and every volume integral carries ``Jimp`` (:func:`imperfect_point`)
     Minvp : ``(ne, nphi, np, np)`` with an imperfection: the inverse pressure mass matrices of the
         imperfect body at every phi point (``sum_q W_q Jimp Np Np^T``), used instead of ``Minv``
+    upto : the last phase run (for profiling, ``bench/follow_profile.py``; 5 = all): 1 the pointwise
+        material law, 2 the pressures, energy and residual, 3 the phi-moments of the tangent, 4 the
+        ``B_k^T D_kl B_l`` blocks, 5 the mirror and the volumetric-constraint stiffness
 
     Returns
     -------
@@ -361,12 +583,26 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
     pel = np.empty((nphi, npr))
     Bn = np.empty((nen, K, 9, 3))
     S = np.empty((K, 9))
-    Dt = np.empty((9, 9))
-    DB = np.empty((nen, 9, 3))
     Gv = np.empty((npr, nd))
     Hv = np.empty((npr, nd))
     bq = np.empty((nen, 3))
     hk = np.empty(nd, np.int64)  # harmonic index of each element dof
+    # the tangent's work arrays (docstring of _elastic_tangent)
+    npair = K * (K + 1) // 2
+    WT = _pair_weights(t, wphi, K) if want >= 2 else np.empty((0, nphi, 81))
+    Dtp = np.empty((npair, nq, 81))
+    DB = np.empty((9, 3 * nen))
+    Kh = np.zeros((nd, nd))
+    KL = np.empty((nd, nd))
+    tmp = np.empty(nd)
+    bxq = np.empty((nq, nen))
+    byq = np.empty((nq, nen))
+    bnq = np.empty((nq, nen))
+    hperm = np.empty(nd, np.int64)  # node-major element dof of each harmonic-major one
+    for k in range(K):
+        for dof in range(_ndof_k(k)):
+            for a in range(nen):
+                hperm[nen * _offset(k) + dof * nen + a] = a * nc + _offset(k) + dof
     imperfect = Fi.shape[0] > 0
     ve = np.empty(9)
     dpe = np.zeros(9)
@@ -438,6 +674,8 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
                 jw = Jimp[e, q, j] if imperfect else 1.0
                 for k2 in range(npr):
                     g[j, k2] += W * jw * Np[q, k2] * (J - 1.0)
+        if upto <= 1:
+            continue
         # element pressures at every phi point, the volumetric energy
         for j in range(nphi):
             Mi = Minvp[e, j] if imperfect else Minv[e]
@@ -481,10 +719,14 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
                         for c in range(9):
                             s += Bn[a, k, c, dof] * S[k, c]
                         re[e, o + dof] += s
-            if want < 2:
+            # the node values of B at this point, by node (contiguous over the nodes)
+            for a in range(nen):
+                bxq[q, a] = bq[a, 0]
+                byq[q, a] = bq[a, 1]
+                bnq[q, a] = bq[a, 2]
+            if want < 2 or upto <= 2:
                 continue
-            # tangent: for each pair of harmonics k <= l the phi-moment of D, then B_k^T Dt B_l
-            # (the B of a node is sparse: _db_cols / _bt_db), mirrored afterwards
+            # the tangent's pointwise D with the pressure part, W (d2psi + p d2J)
             for j in range(nphi):
                 pq = 0.0
                 for k2 in range(npr):
@@ -493,81 +735,29 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
                 for c in range(9):
                     for d in range(9):
                         Dq[q, j, c, d] += pw * d2Jq[q, j, c, d]
-            for k in range(K):
-                nk = _ndof_k(k)
-                fk = float(hn[k])
-                for l in range(k, K):
-                    fl = float(hn[l])
-                    nl = _ndof_k(l)
-                    Dt[:, :] = 0.0
-                    for j in range(nphi):
-                        wj = wphi[j]
-                        ck = wj * t[j, k, 0]
-                        sk = wj * t[j, k, 5]
-                        cl = t[j, l, 0]
-                        sl = t[j, l, 5]
-                        wcc = ck * cl
-                        wcs = ck * sl
-                        wsc = sk * cl
-                        wss = sk * sl
-                        for c in range(5):
-                            for d in range(5):
-                                Dt[c, d] += wcc * Dq[q, j, c, d]
-                            for d in range(5, 9):
-                                Dt[c, d] += wcs * Dq[q, j, c, d]
-                        for c in range(5, 9):
-                            for d in range(5):
-                                Dt[c, d] += wsc * Dq[q, j, c, d]
-                            for d in range(5, 9):
-                                Dt[c, d] += wss * Dq[q, j, c, d]
-                    for b in range(nen):
-                        _db_cols(Dt, bq[b, 0], bq[b, 1], bq[b, 2], fl, DB[b])
-                    for a in range(nen):
-                        oa = a * nc + _offset(k)
-                        for b in range(nen):
-                            ob = b * nc + _offset(l)
-                            _bt_db(bq[a, 0], bq[a, 1], bq[a, 2], fk, DB[b], nk, nl, Ke[e], oa, ob)
-        if want < 2:
+        if want < 2 or upto <= 2:
             continue
-        # the elastic blocks of harmonics k < l were formed once: their transposes are the (l, k) blocks
+        _elastic_tangent(Dq, WT, bxq, byq, bnq, hn, upto, Dtp, DB, Kh)
+        if upto <= 3:
+            continue
+        # harmonic-major blocks -> node-major Ke; the blocks of harmonics k < l were formed once:
+        # their transposes are the (l, k) blocks (as the element dofs' harmonics say)
+        Ke_e = Ke[e]
+        for r in range(nd):
+            pr = hperm[r]
+            kr = hk[pr]
+            for c in range(nd):
+                pc = hperm[c]
+                if kr <= hk[pc]:
+                    Ke_e[pr, pc] = Kh[r, c]
         for i in range(nd):
             for jj in range(nd):
                 if hk[i] < hk[jj]:
-                    Ke[e, jj, i] = Ke[e, i, jj]
-        # volumetric constraint stiffness: sum_j w_j kappa G_j^T M^-1 G_j
-        for j in range(nphi):
-            Gv[:, :] = 0.0
-            for q in range(nq):
-                R = Rq[e, q]
-                W = Wq[e, q]
-                for a in range(nen):
-                    bx = dNdX[e, q, a, 0]
-                    by = dNdX[e, q, a, 1]
-                    bn = N_ref[q, a] / R
-                    for k in range(K):
-                        _node_b(bx, by, bn, float(hn[k]), Bn[a, k])
-                        o = a * nc + _offset(k)
-                        for dof in range(_ndof_k(k)):
-                            s = 0.0
-                            for c in range(9):
-                                s += dJq[q, j, c] * t[j, k, c] * Bn[a, k, c, dof]
-                            for k2 in range(npr):
-                                Gv[k2, o + dof] += W * Np[q, k2] * s
-            Mi = Minvp[e, j] if imperfect else Minv[e]
-            for k2 in range(npr):
-                for i in range(nd):
-                    s = 0.0
-                    for l2 in range(npr):
-                        s += Mi[k2, l2] * Gv[l2, i]
-                    Hv[k2, i] = wphi[j] * ka * s
-            for i in range(nd):
-                for jj in range(i, nd):
-                    s = 0.0
-                    for k2 in range(npr):
-                        s += Gv[k2, i] * Hv[k2, jj]
-                    Ke[e, i, jj] += s
-                    if jj != i:
-                        Ke[e, jj, i] += s
+                    Ke_e[jj, i] = Ke_e[i, jj]
+        if upto <= 4:
+            continue
+        _volumetric_tangent(e, dJq, t, Wq, Np, Minv, Minvp, imperfect, wphi, ka, bxq, byq, bnq, hn, Gv, Hv, KL,
+                            tmp, Ke_e)
     return E, True, re, Ke
 
 

@@ -112,7 +112,8 @@ class ImperfectResult:
 
 
 def trace_imperfect(result, shape: ImperfectionShape, delta: float, thickness: float, N: int | None = None,
-                    n_phi: int | None = None, micro: float = 1e-2, max_steps: int | None = None) -> ImperfectResult:
+                    n_phi: int | None = None, micro: float = 1e-2, max_steps: int | None = None,
+                    post_snap_steps: int | None = None) -> ImperfectResult:
     """Trace the actuator of ``result`` with the imperfection ``delta * thickness * shape`` from
     rest to its snap and lower state.
 
@@ -127,6 +128,8 @@ def trace_imperfect(result, shape: ImperfectionShape, delta: float, thickness: f
     micro : a fold releasing less than this fraction of the perfect axisymmetric snap's energy is
         traced through (as on a followed branch)
     max_steps : bound on the continuation steps (default: the axisymmetric trace's)
+    post_snap_steps : steps after the volume limit within which the path must come back to ``V*``
+        (default: the axisymmetric trace's); beyond them the lower state is found at fixed volume
 
     Returns
     -------
@@ -163,7 +166,7 @@ def trace_imperfect(result, shape: ImperfectionShape, delta: float, thickness: f
     stop = getattr(result, "stop_args", None) or {}
     p_stop = stop.get("p_stop", 1.5 * max(pt.p for pt in result.path.points))
     V_stop = stop.get("V_stop", 30.0 * max(pt.zeta[0] for pt in result.path.points))
-    post = stop.get("post_snap_steps", 1500)
+    post = post_snap_steps if post_snap_steps is not None else stop.get("post_snap_steps", 1500)
     tracker = BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post, kind="imperfect")
     st0 = result.states
     if st0 is not None and st0.upper is not None and st0.lower is not None:

@@ -40,9 +40,12 @@ def eig_near(op: HarmonicOperator, u: np.ndarray, p: float, sigma: float, mode: 
     keep = np.setdiff1d(np.arange(op.ndof), op.gauge_dofs(u))
     K = K[keep][:, keep].tocsc()
     M = op.mass()[keep][:, keep].tocsc()
+    # a fixed start vector: ARPACK's default is random, and the answers then differ between
+    # processes at the level of the eigenvalue tolerance (followed dE by ~1e-8)
+    v0 = np.random.default_rng(0).standard_normal(K.shape[0])
     if not mode:
-        return float(np.min(spla.eigsh(K, k=2, M=M, sigma=sigma, which="LM", return_eigenvectors=False)))
-    vals, vecs = spla.eigsh(K, k=2, M=M, sigma=sigma, which="LM")
+        return float(np.min(spla.eigsh(K, k=2, M=M, sigma=sigma, which="LM", v0=v0, return_eigenvectors=False)))
+    vals, vecs = spla.eigsh(K, k=2, M=M, sigma=sigma, which="LM", v0=v0)
     i = int(np.argmin(vals))
     x = np.zeros(op.ndof)
     x[keep] = vecs[:, i]

@@ -53,3 +53,17 @@ def test_solve_reports_them_when_asked():
     assert m["asym_first"] is False and m["asym_margin"] > 0 and m["asym_margin_n"] in (1, 2)
     m = solve_checked(scene, MeshSettings(nt=1, aspect=2.0), SolverSettings(harmonics=2)).metrics
     assert m["asym_margin"] is None
+
+
+def test_the_eigen_solve_is_repeatable(cap):
+    """The same state gives the same eigenvalue and mode to the last bit (ARPACK's start vector is
+    fixed; with its random default, followed answers differed between processes by ~1e-8)."""
+    from snapjump_cli.fe.margins import eig_near
+
+    res = cap
+    pt = res.path.points[len(res.path.points) // 2]
+    op = harmonic_operator(res.model, 1)
+    a = eig_near(op, pt.u, pt.p, -2.0, mode=True)
+    b = eig_near(op, pt.u, pt.p, -2.0, mode=True)
+    assert a[0] == b[0]
+    assert np.array_equal(a[1], b[1])
