@@ -380,11 +380,12 @@ class HarmonicOperator:
         return self._shared[key]
 
     def _shift_band(self, tol: float) -> np.ndarray:
-        """``tol * mu_min * M_n`` in band storage (cached)."""
-        key = ("shift", self.wc, self.ws, tol)
-        if key not in self._shared:
-            self._shared[key] = (tol * float(np.min(self.model.mu))) * self.mass_band()
-        return self._shared[key]
+        """``tol * mu_min * M_n`` in band storage (cached for the last ``tol``: the margins ask for many)."""
+        key = ("shift", self.wc, self.ws)
+        c = self._shared.get(key)
+        if c is None or c[0] != tol:
+            c = self._shared[key] = (tol, (tol * float(np.min(self.model.mu))) * self.mass_band())
+        return c[1]
 
     def inertia(self, u: np.ndarray, p: float, tol: float = ZERO_TOL, parts: StateParts | None = None) -> int:
         """Number of eigenvalues of the pencil ``(K_n, M_n)`` below ``-tol * mu_min`` (scaled
