@@ -251,6 +251,37 @@ def imperfect_point(v: np.ndarray, Fi: np.ndarray, Jimp: float, mu: float, jm: f
     return True, Jimp * psi, J
 
 
+@njit(cache=True, inline="always")
+def harmonic_gradients(A: np.ndarray, conn: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray,
+                       hn: np.ndarray, e: int, q: int, Gk: np.ndarray) -> None:
+    """The harmonic gradients ``Gk (K, 9) = sum_a B_{k,a} A_{a,k}`` of element ``e`` at quadrature
+    point ``q`` (the 9 components of the module docstring, without the trigonometric factor)."""
+    nen = conn.shape[1]
+    K = hn.shape[0]
+    R = Rq[e, q]
+    Gk[:, :] = 0.0
+    for a in range(nen):
+        node = conn[e, a]
+        bx = dNdX[e, q, a, 0]
+        by = dNdX[e, q, a, 1]
+        bn = N_ref[q, a] / R
+        for k in range(K):
+            n = float(hn[k])
+            o = _offset(k)
+            ua = A[node, o]
+            ub = A[node, o + 1]
+            uc = A[node, o + 2] if k > 0 else 0.0
+            Gk[k, 0] += bx * ua
+            Gk[k, 1] += by * ua
+            Gk[k, 2] += bx * ub
+            Gk[k, 3] += by * ub
+            Gk[k, 4] += bn * (ua + n * uc)
+            Gk[k, 5] += -bn * (n * ua + uc)
+            Gk[k, 6] += bx * uc
+            Gk[k, 7] += by * uc
+            Gk[k, 8] += -n * bn * ub
+
+
 @njit(cache=True)
 def point_gradients(A: np.ndarray, conn: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray,
                     hn: np.ndarray, phis: np.ndarray) -> np.ndarray:
@@ -264,28 +295,7 @@ def point_gradients(A: np.ndarray, conn: np.ndarray, dNdX: np.ndarray, N_ref: np
     Gk = np.empty((K, 9))
     for e in range(ne):
         for q in range(nq):
-            R = Rq[e, q]
-            Gk[:, :] = 0.0
-            for a in range(nen):
-                node = conn[e, a]
-                bx = dNdX[e, q, a, 0]
-                by = dNdX[e, q, a, 1]
-                bn = N_ref[q, a] / R
-                for k in range(K):
-                    n = float(hn[k])
-                    o = _offset(k)
-                    ua = A[node, o]
-                    ub = A[node, o + 1]
-                    uc = A[node, o + 2] if k > 0 else 0.0
-                    Gk[k, 0] += bx * ua
-                    Gk[k, 1] += by * ua
-                    Gk[k, 2] += bx * ub
-                    Gk[k, 3] += by * ub
-                    Gk[k, 4] += bn * (ua + n * uc)
-                    Gk[k, 5] += -bn * (n * ua + uc)
-                    Gk[k, 6] += bx * uc
-                    Gk[k, 7] += by * uc
-                    Gk[k, 8] += -n * bn * ub
+            harmonic_gradients(A, conn, dNdX, N_ref, Rq, hn, e, q, Gk)
             for j in range(nphi):
                 for c in range(9):
                     s = 0.0
@@ -620,29 +630,7 @@ def mh_elements_phases(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.
         ka = kappa[m_]
         g[:, :] = 0.0
         for q in range(nq):
-            R = Rq[e, q]
-            # harmonic gradients G_k = sum_a B_{k,a} q_{a,k}
-            Gk[:, :] = 0.0
-            for a in range(nen):
-                node = conn[e, a]
-                bx = dNdX[e, q, a, 0]
-                by = dNdX[e, q, a, 1]
-                bn = N_ref[q, a] / R
-                for k in range(K):
-                    n = float(hn[k])
-                    o = _offset(k)
-                    ua = A[node, o]
-                    ub = A[node, o + 1]
-                    uc = A[node, o + 2] if k > 0 else 0.0
-                    Gk[k, 0] += bx * ua
-                    Gk[k, 1] += by * ua
-                    Gk[k, 2] += bx * ub
-                    Gk[k, 3] += by * ub
-                    Gk[k, 4] += bn * (ua + n * uc)
-                    Gk[k, 5] += -bn * (n * ua + uc)
-                    Gk[k, 6] += bx * uc
-                    Gk[k, 7] += by * uc
-                    Gk[k, 8] += -n * bn * ub
+            harmonic_gradients(A, conn, dNdX, N_ref, Rq, hn, e, q, Gk)
             W = Wq[e, q]
             for j in range(nphi):
                 for c in range(9):

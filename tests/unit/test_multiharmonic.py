@@ -84,6 +84,12 @@ def test_residual_and_tangent_are_the_derivatives_of_the_energy(order, hn):
     p = 0.6
     U = mh.embed(_state(M, 4), _smooth_modes(M, hn, 0.02))
     v = mh.embed(0.01 * np.random.default_rng(5).standard_normal(M.n), _smooth_modes(M, hn, 1.0, shift=0.4))
+    assert_derivatives_of_the_energy(mh, U, v, p)
+
+
+def assert_derivatives_of_the_energy(mh: MultiHarmonicModel, U: np.ndarray, v: np.ndarray, p: float) -> None:
+    """``dV/du``, the residual and the tangent of ``mh`` at ``U`` against central differences of
+    its energy, volume and residual in the direction ``v``."""
     lin = mh.linearize(U, p)
     assert lin is not None
     h = 1e-6
