@@ -406,6 +406,16 @@ def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | Non
         out["follow_note"] = fm.get("follow_note") or "the followed branch did not reach a snap"
         out["follow_wall_s"] = time.perf_counter() - t0
         return out, fr
+    dE_axi = m.get("dE_J")
+    if dE_axi and fm["dE_J"] < MICRO_FOLD_DE * dE_axi:
+        # a fold whose lower state was found off the branch (so the tracker could not trace through
+        # it) and that releases almost nothing: the actuator goes on along the branch to a later
+        # snap that was not traced, so this is not the design's answer
+        out["follow_note"] = "; ".join(x for x in (fm.get("follow_note"), (
+            f"the branch's first fold releases {fm['dE_J']:.3g} J, < {MICRO_FOLD_DE:g} of the axisymmetric "
+            "dE: not the snap, and the branch beyond it was not traced")) if x)
+        out["follow_wall_s"] = time.perf_counter() - t0
+        return out, fr
     out["followed"] = True
     for k in fm:
         if k not in out or k in _REPLACED:

@@ -130,3 +130,23 @@ def test_a_branch_over_the_time_limit_keeps_the_axisymmetric_answer(cap):
     m = res.metrics
     assert m["followed"] is False and "time limit" in m["follow_note"]
     assert m["dE_J"] == before["dE_J"] and m["axisym_dE_J"] == before["dE_J"]
+
+
+def test_a_fold_that_releases_almost_nothing_is_not_the_answer(cap, monkeypatch):
+    """A followed 'snap' releasing < 1 % of the axisymmetric dE (a fold whose lower state was found
+    off the branch, so the tracker could not trace through it) keeps the axisymmetric answer with
+    the reason, instead of reporting a near-zero snap."""
+    from types import SimpleNamespace
+
+    from snapjump_cli.fe import follow
+
+    res, chk = cap
+    dE_axi = res.metrics["dE_J"]
+    fake = {"dE_J": 1e-4 * dE_axi, "dy_pole_m": 1e-8, "follow_kind": "supercritical", "follow_note": ""}
+    monkeypatch.setattr(follow, "locate_bifurcation", lambda result, n: SimpleNamespace(n=n))
+    monkeypatch.setattr(follow, "follow_branch", lambda *a, **k: SimpleNamespace(metrics=dict(fake)))
+    out, _ = follow.followed_metrics(res, chk)
+    assert out["followed"] is False and "releases" in out["follow_note"]
+    fake["dE_J"] = 0.5 * dE_axi  # a real snap is reported
+    out, _ = follow.followed_metrics(res, chk)
+    assert out["followed"] is True and out["dE_J"] == 0.5 * dE_axi
