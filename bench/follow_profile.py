@@ -71,20 +71,10 @@ def _median_cpu(fn, repeat: int) -> float:
 
 def setup(name: str):
     """The scene's axisymmetric result (CPU seconds of its solve) and its bifurcation."""
-    from bench.follow_study import SCENES
+    from bench.follow_study import solve_checked_scene
     from snapjump_cli.fe.follow import locate_bifurcation
-    from snapjump_cli.fe.harmonics import check_harmonics
-    from snapjump_cli.fe.solve import solve_scene
-    from snapjump_cli.geometry.caps import CapScene
-    from snapjump_cli.geometry.designs import get_design
-    from snapjump_cli.settings import MeshSettings, SolverSettings
 
-    kind, arg = SCENES[name]
-    scene = get_design(arg) if kind == "design" else CapScene(**arg)
-    t0 = time.process_time()
-    res = solve_scene(scene, MeshSettings(), SolverSettings())
-    t_axi = time.process_time() - t0
-    chk = check_harmonics(res, 4)
+    res, chk, t_axi = solve_checked_scene(name)
     if not chk["asym_first"]:
         raise SystemExit(f"{name} stays axisymmetric: nothing to follow")
     bif = locate_bifurcation(res, int(chk["asym_n"]))

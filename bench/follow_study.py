@@ -25,20 +25,27 @@ SCENES = {
 }
 
 
-def run(name: str) -> dict:
-    from snapjump_cli.geometry.designs import get_design
-    from snapjump_cli.fe.follow import default_harmonics, follow_branch, locate_bifurcation
-    from snapjump_cli.geometry.caps import CapScene
+def solve_checked_scene(name: str) -> tuple:
+    """The scene ``name`` of :data:`SCENES` solved at the default mesh and checked against
+    ``n <= 4``: ``(result, check, CPU seconds of the solve)``."""
     from snapjump_cli.fe.harmonics import check_harmonics
-    from snapjump_cli.settings import MeshSettings, SolverSettings
     from snapjump_cli.fe.solve import solve_scene
+    from snapjump_cli.geometry.caps import CapScene
+    from snapjump_cli.geometry.designs import get_design
+    from snapjump_cli.settings import MeshSettings, SolverSettings
 
     kind, arg = SCENES[name]
     scene = get_design(arg) if kind == "design" else CapScene(**arg)
     t0 = time.process_time()
     res = solve_scene(scene, MeshSettings(), SolverSettings())
     t_axi = time.process_time() - t0
-    chk = check_harmonics(res, 4)
+    return res, check_harmonics(res, 4), t_axi
+
+
+def run(name: str) -> dict:
+    from snapjump_cli.fe.follow import default_harmonics, follow_branch, locate_bifurcation
+
+    res, chk, t_axi = solve_checked_scene(name)
     m = res.metrics
     out = {"scene": name, "cpu_axisym_s": t_axi, "axisym_dE_J": m["dE_J"], "axisym_dy_pole_m": m["dy_pole_m"],
            "axisym_V_star_m3": m["V_star_m3"], "axisym_h_imp_m": m.get("h_imp_m"), "asym_n": chk["asym_n"],

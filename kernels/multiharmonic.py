@@ -208,27 +208,18 @@ def imperfect_point(v: np.ndarray, Fi: np.ndarray, Jimp: float, mu: float, jm: f
     ok, psi, J = gent3(ve, mu, jm, want, dpe, d2pe, dJe, d2Je)
     if not ok or Jimp <= 0.0:
         return False, 0.0, J
-    # T[c, d] = delta(row c, row d) Fi[col d, col c]
-    if want >= 1:
-        for d in range(9):
-            j = _ROW[d]
-            A = _COL[d]
-            s1 = 0.0
-            s2 = 0.0
-            for B in range(3):
-                c = _IDX[j, B]
-                s1 += dpe[c] * Fi[A, B]
-                s2 += dJe[c] * Fi[A, B]
-            dpsi[d] = Jimp * s1
-            dJ[d] = Jimp * s2
-    else:
-        for d in range(9):
-            j = _ROW[d]
-            A = _COL[d]
-            s2 = 0.0
-            for B in range(3):
-                s2 += dJe[_IDX[j, B]] * Fi[A, B]
-            dJ[d] = Jimp * s2
+    # T[c, d] = delta(row c, row d) Fi[col d, col c] (dpsi_e is stale unless want >= 1: unused then)
+    for d in range(9):
+        j = _ROW[d]
+        A = _COL[d]
+        s1 = 0.0
+        s2 = 0.0
+        for B in range(3):
+            c = _IDX[j, B]
+            s1 += dpe[c] * Fi[A, B]
+            s2 += dJe[c] * Fi[A, B]
+        dpsi[d] = Jimp * s1
+        dJ[d] = Jimp * s2
     if want >= 2:
         for d in range(9):
             j = _ROW[d]

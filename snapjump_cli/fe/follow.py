@@ -55,7 +55,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["Bifurcation", "FollowResult", "locate_bifurcation", "follow_branch", "default_harmonics",
            "FOLLOW_KEYS", "multiharmonic_snap_metrics", "BranchTracker", "followed_metrics", "apply_followed",
-           "lowest_eigen", "ground_height", "branch_curve"]
+           "lowest_eigen", "ground_height", "branch_curve", "harmonic1_gauge"]
 
 #: Keys :func:`followed_metrics` adds to a design's metrics (SI units).
 FOLLOW_KEYS: tuple[str, ...] = (
@@ -141,6 +141,21 @@ def locate_bifurcation(result, n: int, tol_eig: float = 1e-9, max_iter: int = 30
     eig, mode = cache[id(root)]
     log.debug("bifurcation of harmonic %d at V = %.9g (scaled), eigenvalue %.2g", n, root.zeta[0], eig)
     return Bifurcation(n, np.array(root.u), float(root.p), np.array(root.zeta), mode, eig, len(cache))
+def harmonic1_gauge(base, n: int, u: np.ndarray) -> list[tuple[int, int]]:
+    """The ``(node, comp)`` amplitudes of harmonic 1 that the harmonic check's gauge fixes at the
+    axisymmetric state ``u`` (the rigid translation and tilt of a free body); ``[]`` unless
+    ``n == 1`` (a branch of ``n >= 2`` does not keep harmonic 1)."""
+    if n != 1:
+        return []
+    op1 = harmonic_operator(base, 1)
+    L = op1.layout
+    gauge = []
+    for d in op1.gauge_dofs(u):
+        nodes, comps = np.nonzero((L.dofmap == d) & (L.coef > 0))
+        gauge.append((int(nodes[0]), int(comps[0])))
+    return gauge
+
+
 @dataclass
 class FollowResult:
     """A followed branch: its path (from the bifurcation), snap states and model."""
@@ -246,14 +261,7 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     base = result.model
     tr0 = result.tracer
     hn = default_harmonics(bif.n) if hn is None else list(hn)
-    gauge = []
-    if bif.n == 1:
-        op1 = harmonic_operator(base, 1)
-        L = op1.layout
-        for d in op1.gauge_dofs(bif.u):
-            nodes, comps = np.nonzero((L.dofmap == d) & (L.coef > 0))
-            gauge.append((int(nodes[0]), int(comps[0])))
-    mh = MultiHarmonicModel(base, hn, n_phi=n_phi, gauge=gauge)
+    mh = MultiHarmonicModel(base, hn, n_phi=n_phi, gauge=harmonic1_gauge(base, bif.n, bif.u))
     U_c = mh.embed(bif.u)
     Phi = mh.embed(np.zeros(base.n), {bif.n: bif.mode})
     cfg = replace(tr0.cfg, fused=False, mixed_tangent=False)

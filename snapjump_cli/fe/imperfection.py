@@ -30,6 +30,7 @@ from snapjump_cli.fe.continuation import ContinuationFailed, Path, Tracer, trace
 from snapjump_cli.fe.follow import (
     BranchTracker,
     default_harmonics,
+    harmonic1_gauge,
     locate_bifurcation,
     lowest_eigen,
     multiharmonic_snap_metrics,
@@ -145,13 +146,7 @@ def trace_imperfect(result, shape: ImperfectionShape, delta: float, thickness: f
     base = result.model
     n = shape.n
     hn = default_harmonics(n, N)
-    gauge = []
-    if n == 1:
-        op1 = harmonic_operator(base, 1)
-        L1 = op1.layout
-        for d in op1.gauge_dofs(shape.u):
-            nodes, comps = np.nonzero((L1.dofmap == d) & (L1.coef > 0))
-            gauge.append((int(nodes[0]), int(comps[0])))
+    gauge = harmonic1_gauge(base, n, shape.u)
     nn = base.X.shape[0]
     nc = 2 + 3 * (len(hn) - 1)
     A_imp = np.zeros((nn, nc))
