@@ -7,7 +7,11 @@ The solver kernels are compiled once in the parent before the pool starts (the c
 Results arrive as they finish (``return_as="generator_unordered"``). If a worker *process* dies
 (segfault, OOM kill), the designs it was running (marker files in ``<out>.parts/running/``) are
 re-run one at a time in a fresh worker; one that kills its worker again is recorded as ``failed``.
-Any exception raised while solving a design is caught in the worker and recorded as ``failed``.
+Any exception raised while solving a design is caught in the worker and recorded as ``failed``,
+except an interruption: a ``KeyboardInterrupt`` or ``SystemExit`` that reaches the worker inside a
+compiled kernel surfaces as a ``SystemError`` caused by it (CPython chains the pending exception), and
+it is re-raised as what it is, so that a stopped run records no row for the design it was solving
+(a resumed run solves it again).
 """
 from __future__ import annotations
 
@@ -84,6 +88,19 @@ def die_with_parent(parent_pid: int, interval_s: float = 0.5) -> None:
     threading.Thread(target=watch, name="snapjump-parent-watch", daemon=True).start()
 
 
+def interruption(exc: BaseException) -> BaseException | None:
+    """The ``KeyboardInterrupt`` or ``SystemExit`` behind ``exc`` (itself, or an exception in its
+    ``__cause__`` / ``__context__`` chain), or ``None`` if ``exc`` is a failure of its own."""
+    seen: set[int] = set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        if isinstance(e, (KeyboardInterrupt, SystemExit)):
+            return e
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return None
+
+
 def solve_task(task: dict[str, Any], solve_fn: SolveFn, marker_dir: str | None) -> dict[str, Any]:
     """Worker: solve one design and return its row (never raises for a design's failure)."""
     t0 = time.perf_counter()
@@ -104,6 +121,9 @@ def solve_task(task: dict[str, Any], solve_fn: SolveFn, marker_dir: str | None) 
             result = solve_fn(task["design"], task["mesh"], task["solver"])
         fill_row(row, result)
     except Exception as e:  # noqa: BLE001 - any failure of one design is recorded, never raised
+        stop = interruption(e)
+        if stop is not None:  # the run is being stopped: not this design's failure
+            raise stop from None
         msg = str(e).strip().replace("\n", " | ")
         row.update(status="failed", error=f"{type(e).__name__}: {msg}"[:4000])
     row.update(t_total_s=time.perf_counter() - t0, host=socket.gethostname(), pid=os.getpid(), finished_utc=now_utc())

@@ -166,3 +166,52 @@ def test_verbose_after_the_command(grid_file, tmp_path, caplog):
     assert code == 0
     assert logging.getLogger("snapjump_cli").level == logging.INFO
     assert any("sweep done" in r.message for r in caplog.records)
+
+
+def _interrupted_in_a_kernel(after: int):
+    """A solver that, from its ``after``-th call on, fails as a compiled kernel does when Ctrl-C
+    arrives inside it: a SystemError whose cause is the KeyboardInterrupt."""
+    calls = []
+
+    def solve(design, mesh, solver):
+        calls.append(design)
+        if len(calls) > after:
+            try:
+                raise KeyboardInterrupt
+            except KeyboardInterrupt as ki:
+                raise SystemError("CPUDispatcher(<function mh_elements>) returned a result with an exception set") from ki
+        return fake.fast_solve(design, mesh, solver)
+
+    return solve, calls
+
+
+def test_an_interruption_inside_a_kernel_stops_the_run_and_records_no_failed_row(grid_file, tmp_path):
+    out = tmp_path / "r.parquet"
+    cfg = load_config(grid_file(chunk_size=1))
+    solve, calls = _interrupted_in_a_kernel(after=2)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(cfg, output=out, n_jobs=1, solve_fn=solve, progress=False)
+    parts = sorted((tmp_path / "r.parquet.parts").glob("part-*.parquet"))
+    rows = [r for p in parts for r in res.read_results(p).to_dict("records")]
+    solved = [r for r in rows if r["status"] != "invalid_geometry"]
+    assert len(solved) == 2 and all(r["status"] != "failed" for r in rows)
+    # resumed, the interrupted design is solved, not skipped as failed
+    run_sweep(cfg, output=out, n_jobs=1, solve_fn=fake.fast_solve, progress=False)
+    df = res.read_results(out)
+    assert (df["status"] != "failed").all() and len(df) == len(list(cfg.designs()))
+
+
+def test_a_systemerror_of_its_own_is_a_failed_row(grid_file, tmp_path):
+    from snapjump_cli.sweep.execution import interruption
+
+    try:
+        try:
+            raise ValueError("bad")
+        except ValueError as v:
+            raise SystemError("returned a result with an exception set") from v
+    except SystemError as e:
+        assert interruption(e) is None
+    try:
+        raise SystemExit(3)
+    except SystemExit as e:
+        assert interruption(e) is e
