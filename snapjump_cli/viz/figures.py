@@ -75,8 +75,13 @@ def _empty_note(ax: Any, d: pd.DataFrame) -> None:
 
 
 # ---- the flags of a design, each with its own marker ------------------------------------------
-#: marker of a design whose axisymmetric snap holds (circle) and of one that goes asymmetric first
-_AXI, _ASYM = "o", "^"
+#: marker of a design whose axisymmetric snap holds (circle), of one that goes asymmetric first
+#: (triangle) and of one whose asymmetric branch was followed to its snap (diamond: the point is
+#: the followed answer, a line joins it to the axisymmetric answer, drawn as an open triangle)
+_AXI, _ASYM, _FOL = "o", "^", "D"
+
+
+_SIZES = {_AXI: 12, _ASYM: 16, _FOL: 20}
 
 
 def _flags(d: pd.DataFrame) -> dict[str, np.ndarray]:
@@ -89,8 +94,46 @@ def _flags(d: pd.DataFrame) -> dict[str, np.ndarray]:
         return d[name].astype("boolean").fillna(False).to_numpy(bool)
 
     checked = "asym_first" in d.columns and bool(d["asym_first"].notna().any())
-    return {"asym": col("asym_first"), "self_crossing": col("self_crossing"),
+    followed = col("followed")
+    if followed.any():  # a followed row needs its axisymmetric answer to draw the line from it
+        followed &= np.isfinite(_axisym_xy(d)).all(axis=0)
+    return {"asym": col("asym_first"), "followed": followed, "self_crossing": col("self_crossing"),
             "mesh_sensitive": col("mesh_sensitive"), "checked": np.array(checked)}
+
+
+def _axisym_xy(d: pd.DataFrame) -> np.ndarray:
+    """The axisymmetric answers ``(dy_pole / R_i, dE / (mu_i R_i^3))`` of the rows (NaN where a
+    row has none), as a 2 x n array."""
+    if "axisym_dE_J" not in d.columns or "axisym_dy_pole_m" not in d.columns:
+        return np.full((2, len(d)), np.nan)
+    def f(c: str) -> np.ndarray:
+        return pd.to_numeric(d[c], errors="coerce").astype("float64").to_numpy(na_value=np.nan)
+
+    R, mu = f("R_i"), f("mu_i")
+    return np.vstack([f("axisym_dy_pole_m") / R, f("axisym_dE_J") / (mu * R**3)])
+
+
+def _shapes(fl: dict[str, np.ndarray]) -> tuple[tuple[str, np.ndarray], ...]:
+    """(marker, mask) of the rows drawn with each shape."""
+    fol = fl["followed"]
+    return ((_AXI, ~fl["asym"] & ~fol), (_ASYM, fl["asym"] & ~fol), (_FOL, fol))
+
+
+def _mark_followed(ax: Any, d: pd.DataFrame, fl: dict[str, np.ndarray]) -> list:
+    """Join each followed design's answer (diamond) to its axisymmetric answer (open triangle) with
+    a thin line; legend handles."""
+    fol = fl["followed"]
+    if not fol.any():
+        return []
+    from matplotlib.collections import LineCollection
+
+    x0, y0 = _axisym_xy(d)[:, fol]
+    x1, y1 = d["x"].to_numpy()[fol], d["y"].to_numpy()[fol]
+    ax.add_collection(LineCollection(np.stack([np.c_[x0, y0], np.c_[x1, y1]], axis=1), colors="0.35", lw=0.6,
+                                     alpha=0.7, zorder=3))
+    h = ax.scatter(x0, y0, marker=_ASYM, s=22, facecolors="none", edgecolors="0.35", lw=0.7, zorder=3,
+                   label=f"its axisymmetric answer, which does not happen ({int(fol.sum())})")
+    return [h]
 
 
 def _mark_flags(ax: Any, x: np.ndarray, y: np.ndarray, flags: dict[str, np.ndarray]) -> list:
@@ -110,11 +153,16 @@ def _shape_handles(flags: dict[str, np.ndarray], colour: str = "0.45") -> list:
     """Legend entries of the two marker shapes (whether the harmonic check ran)."""
     from matplotlib.lines import Line2D
 
-    asym = flags["asym"]
+    asym, fol = flags["asym"], flags.get("followed", np.zeros_like(flags["asym"]))
     if not bool(flags["checked"]):
         return [Line2D([], [], ls="", marker=_AXI, color=colour, label="asymmetric modes not checked")]
-    return [Line2D([], [], ls="", marker=_AXI, color=colour, label=f"axisymmetric up to V* ({int((~asym).sum())})"),
-            Line2D([], [], ls="", marker=_ASYM, color=colour, label=f"asymmetric mode first ({int(asym.sum())})")]
+    out = [Line2D([], [], ls="", marker=_AXI, color=colour, label=f"axisymmetric up to V* ({int((~asym).sum())})"),
+           Line2D([], [], ls="", marker=_ASYM, color=colour,
+                  label=f"asymmetric mode first ({int(asym.sum())}" + (f"; {int(fol.sum())} followed)" if fol.any() else ")"))]
+    if fol.any():
+        out.append(Line2D([], [], ls="", marker=_FOL, color=colour, mec="k", mew=0.6,
+                          label=f"followed asymmetric snap ({int(fol.sum())})"))
+    return out
 
 
 def _best(d: pd.DataFrame) -> pd.Series | None:
@@ -154,12 +202,15 @@ def plot_fig4a(df: pd.DataFrame, path: str | Path) -> Path:
         for i, (r, g) in enumerate(sorted(d.groupby("mu_ratio"), key=lambda t: t[0])):
             colour = _ratio_colour(r, i)
             sel = d["mu_ratio"].to_numpy() == r
-            for shape, mask in ((_AXI, ~fl["asym"][sel]), (_ASYM, fl["asym"][sel])):
+            for shape, mask in _shapes({k: v[sel] if v.ndim else v for k, v in fl.items()}):
                 if mask.any():
-                    ax.scatter(g["x"].to_numpy()[mask], g["y"].to_numpy()[mask], s=12 if shape == _AXI else 16,
-                               marker=shape, alpha=0.75, color=colour, lw=0)
+                    ax.scatter(g["x"].to_numpy()[mask], g["y"].to_numpy()[mask], s=_SIZES[shape], marker=shape,
+                               alpha=0.75 if shape != _FOL else 1.0, color=colour,
+                               lw=0 if shape != _FOL else 0.6, edgecolors="k" if shape == _FOL else "face",
+                               zorder=4 if shape == _FOL else 2)
             handles.append(ax.scatter([], [], s=30, color=colour, label=rf"$\mu_i/\mu_o$ = {r:g} ({len(g)})"))
-        handles += _shape_handles(fl) + _mark_flags(ax, d["x"].to_numpy(), d["y"].to_numpy(), fl)
+        handles += _shape_handles(fl) + _mark_followed(ax, d, fl)
+        handles += _mark_flags(ax, d["x"].to_numpy(), d["y"].to_numpy(), fl)
         handles += _mark_best(ax, _best(d), "x", "y")
         _log_y_if_wide(ax, d["y"].to_numpy())
         _empty_note(ax, d)
@@ -189,14 +240,16 @@ def plot_fig4c(ranked: pd.DataFrame, path: str | Path) -> Path:
             z = (d["y_jump_m"].astype("float64") / d["R_i"]).to_numpy()
             x, y = d["x"].to_numpy(), d["y"].to_numpy()
             norm = plt.Normalize(float(z.min()), float(z.max()))
-            for shape, mask in ((_AXI, ~fl["asym"]), (_ASYM, fl["asym"])):
+            for shape, mask in _shapes(fl):
                 o = np.flatnonzero(mask)[np.argsort(z[mask])]  # highest jumps drawn on top
                 if o.size:
-                    ax.scatter(x[o], y[o], c=z[o], s=14 if shape == _AXI else 18, marker=shape, cmap="viridis",
-                                    norm=norm, lw=0)
+                    ax.scatter(x[o], y[o], c=z[o], s=_SIZES[shape] + 2, marker=shape, cmap="viridis",
+                               norm=norm, lw=0 if shape != _FOL else 0.6, edgecolors="face" if shape != _FOL else "k",
+                               zorder=4 if shape == _FOL else 2)
             fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap="viridis"), ax=ax,
                          label=r"jump height $y_{jump} / R_i$")
-            handles += _shape_handles(fl) + _mark_flags(ax, x, y, fl) + _mark_best(ax, _best(d), "x", "y")
+            handles += _shape_handles(fl) + _mark_followed(ax, d, fl)
+            handles += _mark_flags(ax, x, y, fl) + _mark_best(ax, _best(d), "x", "y")
         _log_y_if_wide(ax, d["y"].to_numpy())
         _empty_note(ax, d)
         ax.set_xlabel(r"pole travel $\Delta y_{pole} / R_i$")
@@ -241,10 +294,11 @@ def plot_jump_vs_parameters(ranked: pd.DataFrame, path: str | Path) -> Path:
                 colours = ([_ratio_colour(r, i)] * len(g)) if by_row else [
                     _ratio_colour(v, ratios.index(v)) for v in g["mu_ratio"].astype("float64")]
                 colours = np.array(colours, dtype=object)
-                for shape, mask in ((_AXI, ~fl["asym"]), (_ASYM, fl["asym"])):
+                for shape, mask in _shapes(fl):
                     if mask.any():
-                        ax.scatter(x[mask], g["yj"].to_numpy()[mask], s=5 if shape == _AXI else 7, marker=shape,
-                                   alpha=0.55, c=list(colours[mask]), lw=0)
+                        ax.scatter(x[mask], g["yj"].to_numpy()[mask], s=_SIZES[shape] * 0.45, marker=shape,
+                                   alpha=0.55 if shape != _FOL else 1.0, c=list(colours[mask]),
+                                   lw=0 if shape != _FOL else 0.4, edgecolors="face" if shape != _FOL else "k")
                 if best is not None and (sel is None or abs(float(best["mu_ratio"]) - r) < 1e-12):
                     h = ax.scatter([float(best[col])], [float(best["yj"])], marker="*", s=170, facecolors="none",
                                    edgecolors="#d62728", lw=1.1, zorder=6)

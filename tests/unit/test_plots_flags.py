@@ -69,3 +69,43 @@ def test_mu_ratios_get_their_own_rows(legends, tmp_path):
     d["mu_ratio"] = np.linspace(1, 6, len(d))  # many ratios: one row, coloured
     plots.plot_jump_vs_parameters(d, tmp_path / "g.png")
     assert legends[-1][1] == 5
+
+
+@pytest.mark.parametrize("draw", [plots.plot_fig4a, plots.plot_fig4c, plots.plot_jump_vs_parameters])
+def test_followed_designs_are_drawn_at_their_followed_answer_joined_to_the_axisymmetric_one(legends, tmp_path, draw):
+    d = _ranked()
+    fol = np.array([i % 6 == 0 for i in range(len(d))])  # a subset of the asymmetric-first rows
+    d["followed"] = pd.array(fol, dtype="boolean")
+    d["axisym_dE_J"] = np.where(fol, 2.0 * d["dE_J"], d["dE_J"])
+    d["axisym_dy_pole_m"] = np.where(fol, 1.5 * d["dy_pole_m"], d["dy_pole_m"])
+    draw(d, tmp_path / "f.png")
+    joined = "\n".join(legends[-1][0])
+    assert f"followed asymmetric snap ({int(fol.sum())})" in joined
+    assert f"asymmetric mode first ({int(d['asym_first'].sum())}; {int(fol.sum())} followed)" in joined
+    if draw is not plots.plot_jump_vs_parameters:
+        assert f"its axisymmetric answer, which does not happen ({int(fol.sum())})" in joined
+
+
+def test_the_followed_lines_run_from_the_axisymmetric_answer_to_the_followed_one(monkeypatch, tmp_path):
+    d = _ranked()
+    fol = np.array([i % 6 == 0 for i in range(len(d))])
+    d["followed"] = pd.array(fol, dtype="boolean")
+    d["axisym_dE_J"], d["axisym_dy_pole_m"] = 2.0 * d["dE_J"], 1.5 * d["dy_pole_m"]
+    d.loc[6, "axisym_dE_J"] = np.nan  # no axisymmetric answer: not drawn as followed
+    seen = {}
+
+    def save(fig, path, dpi):
+        from matplotlib.collections import LineCollection
+
+        seen["segs"] = [c.get_segments() for c in fig.axes[0].collections if isinstance(c, LineCollection)]
+        return path
+
+    monkeypatch.setattr(plots, "_save", save)
+    plots.plot_fig4a(d, tmp_path / "f.png")
+    (segs,) = seen["segs"]
+    rows = d[fol & (np.arange(len(d)) != 6)]
+    assert len(segs) == len(rows)
+    R, mu = 0.03, 0.35e6
+    for s, (_, r) in zip(segs, rows.iterrows()):
+        np.testing.assert_allclose(s[0], [r["axisym_dy_pole_m"] / R, r["axisym_dE_J"] / (mu * R**3)], rtol=1e-12)
+        np.testing.assert_allclose(s[1], [r["dy_pole_m"] / R, r["dE_J"] / (mu * R**3)], rtol=1e-12)

@@ -1,0 +1,140 @@
+"""Fig. 4A/4C of the paper grid with the followed answers of the designs whose branch was followed.
+
+    .venv/bin/python -m bench.followed_fig4 results/paper_grid.parquet \\
+        results/follow_strata.parquet.parts results/follow_strata_n2.parquet.parts [--plots DIR]
+
+The grid (a sweep with the harmonic check, ``solver: {harmonics: 4}``) gives every design's
+axisymmetric answer and whether it goes asymmetric first; each further file (a sweep with
+``solver: {harmonics: 4, follow: true}``, or the ``.parts`` folder of one still running) gives the
+followed answer of some of those designs. A grid row is replaced by the followed row of the same
+design (the five design parameters match) when that row is ``ok`` and ``followed``; the others keep
+their axisymmetric answer. The table is ranked by the jump model as ``snapjump rank`` ranks it and
+the report gives, for the followed designs, followed / axisymmetric of dE, dy_pole, V* and the jump
+(median and range, overall and by the critical harmonic), how many lift off, and whether the top
+20 changes. ``--plots DIR`` draws ``fig4a.png``, ``fig4c.png`` and ``jump_vs_parameters.png`` of
+the merged table (a followed design: a diamond at its followed answer, joined by a line to its
+axisymmetric answer).
+
+Until the whole grid is followed (``make run-followed``) the figures show the grid with the
+followed sample merged in: the designs not followed are drawn at their axisymmetric answer,
+triangles where it does not happen.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+import pandas as pd
+
+PARAMS = ["eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio"]
+
+
+def read_any(path: Path) -> pd.DataFrame:
+    """A result table, or the part files of an unfinished sweep (a ``.parts`` folder) concatenated."""
+    from snapjump_cli.sweep.results import read_results
+
+    if path.is_dir():
+        parts = sorted(path.glob("part-*.parquet"))
+        if not parts:
+            raise SystemExit(f"{path}: no part-*.parquet files")
+        return pd.concat([read_results(p) for p in parts], ignore_index=True)
+    return read_results(path)
+
+
+def keys(df: pd.DataFrame) -> pd.Series:
+    """The five design parameters of each row as one string (rows of two runs of one grid match)."""
+    return df[PARAMS].astype("float64").round(4).astype(str).agg(",".join, axis=1)
+
+
+def merge(grid: pd.DataFrame, followed: list[pd.DataFrame]) -> tuple[pd.DataFrame, int, int]:
+    """The grid with each design that has an ``ok`` followed row replaced by it; returns the table,
+    the number of rows replaced and the number of followed-sweep rows not in the grid."""
+    out = grid.copy().reset_index(drop=True)
+    for c in ("followed", "follow_n", "follow_kind", "follow_note") + tuple(
+            "axisym_" + k for k in ("dE_J", "dy_pole_m", "h_imp_m", "V_star_m3", "p_star_Pa")):
+        if c not in out.columns:
+            out[c] = pd.NA
+    k = keys(out)
+    pos = dict(zip(k, range(len(out))))
+    from snapjump_cli.fe.follow import MICRO_FOLD_DE
+
+    replaced, missing = 0, 0
+    for f in followed:
+        f = f[(f["status"] == "ok") & f["followed"].astype("boolean").fillna(False)]
+        # rows written before follow.followed_metrics refused a near-zero followed snap: refuse it here too
+        f = f[~(f["dE_J"].astype("float64") < MICRO_FOLD_DE * f["axisym_dE_J"].astype("float64"))]
+        for key, (_, row) in zip(keys(f), f.iterrows()):
+            i = pos.get(key)
+            if i is None:
+                missing += 1
+                continue
+            for c in out.columns:
+                if c in row.index:
+                    out.at[i, c] = row[c]
+            replaced += 1
+    return out, replaced, missing
+
+
+def _ratio_line(name: str, r: np.ndarray) -> str:
+    r = r[np.isfinite(r)]
+    if not r.size:
+        return f"| {name} | - | - |"
+    return f"| {name} | {np.median(r):.2f} | {r.min():.2f} - {r.max():.2f} |"
+
+
+def report(ranked: pd.DataFrame, top: int = 20) -> list[str]:
+    """Followed / axisymmetric ratios of the followed rows of a ranked merged table, and the top."""
+    fol = ranked[ranked["followed"].astype("boolean").fillna(False).to_numpy(bool)]
+    f = lambda c: fol[c].astype("float64").to_numpy()  # noqa: E731
+    out = [f"followed designs: {len(fol)}"]
+    groups = [("all", fol)] + [(f"n = {int(n)}", g) for n, g in fol.groupby(fol["follow_n"].astype("float64"))]
+    for lab, g in groups:
+        gg = lambda c: g[c].astype("float64").to_numpy()  # noqa: E731
+        out.append(f"\n{lab} ({len(g)} designs), followed / axisymmetric:\n\n| | median | range |\n|---|---|---|")
+        out.append(_ratio_line("dE", gg("dE_J") / gg("axisym_dE_J")))
+        out.append(_ratio_line("dy_pole", gg("dy_pole_m") / gg("axisym_dy_pole_m")))
+        out.append(_ratio_line("V*", gg("V_star_m3") / gg("axisym_V_star_m3")))
+        out.append(_ratio_line("jump", gg("y_jump_m") / gg("y_jump_axisym_m")))
+        if "jumped" in g.columns:
+            out.append(f"lift off: {int(g['jumped'].astype('boolean').fillna(False).sum())} of {len(g)}")
+    if len(fol):
+        yj = f("y_jump_m")
+        out.append(f"\nhighest followed jump: {np.nanmax(yj) * 1e3:.0f} mm "
+                   f"(its axisymmetric answer: {f('y_jump_axisym_m')[np.nanargmax(yj)] * 1e3:.0f} mm)")
+    ok = ranked[ranked["status"] == "ok"]
+    top_now = set(keys(ok.head(top)))
+    by_axi = ok.assign(_y=ok["y_jump_axisym_m"].astype("float64")).sort_values("_y", ascending=False)
+    top_axi = set(keys(by_axi.head(top)))
+    out.append(f"top {top}: {len(top_now & top_axi)} of {top} the same as with the axisymmetric answers; "
+               f"followed designs in it: {int(ok.head(top)['followed'].astype('boolean').fillna(False).sum())}")
+    return out
+
+
+def main(argv: Iterable[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.followed_fig4", description=__doc__.split("\n\n")[0])
+    ap.add_argument("grid", type=Path, help="the grid's result table (with the harmonic check)")
+    ap.add_argument("followed", type=Path, nargs="+", help="result tables (or .parts folders) with followed rows")
+    ap.add_argument("--plots", type=Path, default=None, metavar="DIR", help="write the figures into DIR")
+    ap.add_argument("--top", type=int, default=20)
+    a = ap.parse_args(None if argv is None else list(argv))
+    from snapjump_cli.jump.rank import rank_results
+
+    grid = read_any(a.grid)
+    merged, n, missing = merge(grid, [read_any(p) for p in a.followed])
+    print(f"{len(grid)} grid rows; {n} replaced by their followed answer"
+          + (f"; {missing} followed rows are not designs of the grid (ignored)" if missing else ""))
+    ranked = rank_results(merged)
+    print("\n".join(report(ranked, a.top)))
+    if a.plots is not None:
+        from snapjump_cli.viz.figures import make_plots
+
+        for p in make_plots(ranked, a.plots):
+            print(f"wrote {p}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
