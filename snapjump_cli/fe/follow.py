@@ -34,6 +34,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field, replace
+from typing import Callable
 
 import numpy as np
 
@@ -50,12 +51,14 @@ from snapjump_cli.fe.margins import eig_near
 from snapjump_cli.fe.metrics import path_p_dV, snap_sequence
 from snapjump_cli.fe.multiharmonic import MultiHarmonicModel
 from snapjump_cli.fe.snap import SnapStates, SnapTracker, root_on_step
+from snapjump_cli.fe.tracer import start_point
 
 log = logging.getLogger(__name__)
 
 __all__ = ["Bifurcation", "FollowResult", "locate_bifurcation", "follow_branch", "default_harmonics",
            "FOLLOW_KEYS", "multiharmonic_snap_metrics", "BranchTracker", "followed_metrics", "apply_followed",
-           "lowest_eigen", "ground_height", "branch_curve", "harmonic1_gauge"]
+           "lowest_eigen", "ground_height", "branch_curve", "harmonic1_gauge", "trace_through_micro_folds",
+           "ThroughFolds"]
 
 #: Keys :func:`followed_metrics` adds to a design's metrics (SI units).
 FOLLOW_KEYS: tuple[str, ...] = (
@@ -200,15 +203,44 @@ class BranchTracker(SnapTracker):
     A fold whose snap would release less than ``micro_dE`` (scaled energy) is not taken for the
     actuator's snap: the branch comes back to that volume with almost the same energy (a small
     dynamic jump, after which inflation goes on along the branch). It is recorded in
-    ``micro_folds`` and the trace goes on to the branch's next volume limit."""
+    ``micro_folds`` and the trace goes on to the branch's next volume limit.
+
+    With ``mode_amplitude`` (state -> the amplitude of the critical mode) and ``asym_amplitude``
+    (state -> the largest amplitude of any harmonic ``n >= 1``), the post-snap trace also stops
+    when the branch passes back through the axisymmetric path: the critical mode's amplitude
+    changes sign between two points at which every harmonic ``n >= 1`` is below ``REJOIN_FRAC`` of
+    its largest amplitude on the branch. Beyond it the branch is the mirror image of the part already
+    traced (a closed loop through the bifurcation, which would otherwise be traced round and
+    round until the post-snap budget runs out) and cannot come back to ``V*`` any more than that
+    part did."""
 
     kind: str = ""
     first_kind: str = ""  # the verdict of the first step (before any fold was traced through)
     micro_dE: float = 0.0
     micro_folds: list = field(default_factory=list)
+    mode_amplitude: Callable[[np.ndarray], float] | None = None
+    asym_amplitude: Callable[[np.ndarray], float] | None = None
+    _asym_max: float = 0.0
+    _mode_sign: float = 0.0
+    _asym_prev: float = math.inf
+
+    def _rejoined(self, new: PathPoint) -> bool:
+        """Whether the step to ``new`` passed back through the axisymmetric path (see the class)."""
+        if self.mode_amplitude is None or self.asym_amplitude is None:
+            return False
+        a, m = self.asym_amplitude(new.u), self.mode_amplitude(new.u)
+        small = max(a, self._asym_prev) < REJOIN_FRAC * self._asym_max
+        crossed = self._mode_sign != 0.0 and m * self._mode_sign < 0.0 and small
+        self._asym_max, self._asym_prev = max(self._asym_max, a), a
+        if self._mode_sign == 0.0 and m != 0.0:
+            self._mode_sign = math.copysign(1.0, m)
+        return crossed
 
     def __call__(self, path: Path) -> str | None:
         pts = path.points
+        rejoined = self._rejoined(pts[-1])
+        if rejoined and self.states.upper is not None and self.states.lower is None:
+            return "the branch passed back through the axisymmetric path"
         if len(pts) == 2 and not self.kind:
             a, b = pts
             if b.zeta[0] < a.zeta[0]:
@@ -236,6 +268,76 @@ class BranchTracker(SnapTracker):
 #: A fold of a followed branch whose snap releases less than this fraction of the axisymmetric
 #: snap's energy is traced through, not reported as the actuator's snap.
 MICRO_FOLD_DE = 1e-2
+#: :class:`BranchTracker`: "back on the axisymmetric path" means every harmonic ``n >= 1`` below
+#: this fraction of its largest amplitude on the branch.
+REJOIN_FRAC = 0.25
+#: Folds whose lower state, found off the branch, releases less than ``MICRO_FOLD_DE``: inflation
+#: goes on from that lower state, at most this many times.
+MAX_RESTARTS = 3
+
+
+@dataclass
+class ThroughFolds:
+    """What :func:`trace_through_micro_folds` traced: the joined path, the last trace's tracker (its
+    states indexed into the joined path), failure, lower state, every micro-fold ``(V, dE)`` and the
+    number of restarts from an off-branch lower state."""
+
+    path: Path
+    tracker: "BranchTracker"
+    failure: str
+    lower: object
+    micro_folds: list
+    restarts: int
+    first_kind: str
+
+
+def trace_through_micro_folds(run: Callable, start: PathPoint, lower_state: Callable, energy: Callable,
+                              restart_at: Callable, micro_dE: float, max_restarts: int = MAX_RESTARTS) -> ThroughFolds:
+    """Trace a branch to its snap, going on past folds that release almost nothing.
+
+    ``run(first) -> (path, tracker, failure)`` traces from ``first`` (a :class:`BranchTracker`
+    stops it; folds whose lower state lies on the path and releases less than ``micro_dE`` are
+    traced through there). When the trace's volume limit has its lower state off the path
+    (``lower_state(tracker, path, why)``, :func:`snapjump_cli.fe.lower_state.find_lower_state`,
+    method ``"descent"``) and that state releases ``0 < dE < micro_dE`` (``energy(u)``), the
+    actuator makes a small dynamic jump to it and inflation goes on from there: ``run`` again from
+    ``restart_at(lower state)``, at most ``max_restarts`` times. The path returned is the branch up
+    to each such fold followed by the last trace, with the last tracker's indices shifted to it.
+    """
+    path, tracker, failure = run(start)
+    first_kind, micro_folds = tracker.first_kind, list(tracker.micro_folds)
+    kept: list[PathPoint] = []  # the branch before the restarts (up to each restart's fold)
+    restarts, low = 0, None
+    while True:
+        st = tracker.states
+        low = lower_state(tracker, path, failure or path.stop_reason) if st.upper is not None else None
+        if low is not None:
+            st.lower, st.lower_method = low.state, low.method
+        dE = energy(st.upper.u) - energy(low.state.u) if low is not None and low.state is not None else None
+        if (restarts >= max_restarts or dE is None or low.method != "descent" or micro_dE <= 0.0
+                or not 0.0 < dE < micro_dE):  # (dE <= 0: the search came back to the fold itself)
+            break
+        micro_folds.append((float(st.upper.zeta[0]), float(dE)))
+        log.debug("branch: fold at V = %.9g whose lower state, off the branch, releases %.3g < %.3g: inflation "
+                  "goes on from it", st.upper.zeta[0], dE, micro_dE)
+        try:
+            first = restart_at(low.state)
+        except ContinuationFailed as exc:
+            failure = f"no path from the lower state of a fold releasing {dE:.3g}: {exc}"
+            break
+        kept += path.points[: st.k_before + 1]
+        restarts += 1
+        path, tracker, failure = run(first)
+        micro_folds += tracker.micro_folds
+    if kept:  # one path: the branch up to each restart's fold, then the last trace
+        offset = len(kept)
+        path = Path(points=kept + path.points, n_newton=path.n_newton, n_rejected=path.n_rejected,
+                    n_split=path.n_split, n_bifurcations=path.n_bifurcations, stop_reason=path.stop_reason)
+        st = tracker.states
+        for k in ("k_before", "k_return"):
+            if getattr(st, k) is not None:
+                setattr(st, k, getattr(st, k) + offset)
+    return ThroughFolds(path, tracker, failure, low, micro_folds, restarts, first_kind)
 
 
 def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: int | None = None,
@@ -279,23 +381,34 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     p_stop = tracker0["p_stop"] if tracker0 else 1.5 * max(pt.p for pt in result.path.points)
     V_stop = tracker0["V_stop"] if tracker0 else 30.0 * max(pt.zeta[0] for pt in result.path.points)
     post = tracker0["post_snap_steps"] if tracker0 else 1500
-    tracker = BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post)
     st0 = result.states
+    micro_dE = 0.0
     if st0 is not None and st0.upper is not None and st0.lower is not None:
-        tracker.micro_dE = micro * (base.energy(st0.upper.u) - base.energy(st0.lower.u))
-    failure = ""
-    try:
-        path = trace(mh, cfg, tracker, tracer=tr, start=start)
-    except ContinuationFailed as exc:
-        failure = str(exc)
-        path = getattr(exc, "path", None) or Path(points=[start])
+        micro_dE = micro * (base.energy(st0.upper.u) - base.energy(st0.lower.u))
+    phi_unit = Phi / float(np.linalg.norm(Phi))
+    amplitudes = {
+        "mode_amplitude": lambda u: float(u @ phi_unit),
+        "asym_amplitude": lambda u: max(float(np.abs(mh.harmonic_part(u, int(n))).max()) for n in mh.hn[1:]),
+    }
+
+    def run(first: PathPoint, kind: str) -> tuple[Path, BranchTracker, str]:
+        tk = BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post, kind=kind, micro_dE=micro_dE,
+                           **amplitudes)
+        try:
+            return trace(mh, cfg, tk, tracer=tr, start=first), tk, ""
+        except ContinuationFailed as exc:
+            return getattr(exc, "path", None) or Path(points=[first]), tk, str(exc)
+
+    tb = trace_through_micro_folds(
+        lambda first: run(first, "supercritical" if first is not start else ""), start,
+        lambda tk, pth, why: find_lower_state(tr, tk.states, pth.points, why), mh.energy,
+        lambda state: start_point(tr, state.u, state.p), micro_dE)
+    path, tracker, failure, low, micro_folds = tb.path, tb.tracker, tb.failure, tb.lower, tb.micro_folds
     st = tracker.states
-    fr = FollowResult(bif, mh, path, st, tr, tracker.kind if st.upper is not None else "", tracker.first_kind,
-                      failure=failure,
-                      micro_folds=list(tracker.micro_folds))
-    if st.upper is not None:
-        low = find_lower_state(tr, st, path.points, failure or path.stop_reason)
-        st.lower, st.lower_method = low.state, low.method
+    kind = (tracker.kind if not tb.restarts else "supercritical") if st.upper is not None else ""
+    first_kind = tb.first_kind
+    fr = FollowResult(bif, mh, path, st, tr, kind, first_kind, failure=failure, micro_folds=micro_folds)
+    if st.upper is not None and low is not None:
         fr.lower_method, fr.lower_note = low.method, low.note or low.message
     fr.metrics = _branch_metrics(fr, sc)
     fr.metrics["follow_wall_s"] = time.perf_counter() - t0
