@@ -58,7 +58,7 @@ log = logging.getLogger(__name__)
 __all__ = ["Bifurcation", "FollowResult", "locate_bifurcation", "follow_branch", "default_harmonics",
            "FOLLOW_KEYS", "multiharmonic_snap_metrics", "BranchTracker", "followed_metrics", "apply_followed",
            "lowest_eigen", "ground_height", "branch_curve", "harmonic1_gauge", "trace_through_micro_folds",
-           "ThroughFolds"]
+           "ThroughFolds", "axisym_state_at"]
 
 #: Keys :func:`followed_metrics` adds to a design's metrics (SI units).
 FOLLOW_KEYS: tuple[str, ...] = (
@@ -399,9 +399,22 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
         except ContinuationFailed as exc:
             return getattr(exc, "path", None) or Path(points=[first]), tk, str(exc)
 
+    def lower_state(tk: BranchTracker, pth: Path, why: str):
+        low = find_lower_state(tr, tk.states, pth.points, why)
+        up = tk.states.upper
+        if up is not None and (low.state is None or (low.method == "descent"
+                                                      and mh.energy(up.u) - mh.energy(low.state.u) <= 0.0)):
+            # the search found nothing below the fold: the axisymmetric path's state at that volume,
+            # if it is stable there (a loop of the branch through the bifurcation folds over a part
+            # of the axisymmetric path that is stable again)
+            alt = axisym_state_at(result, mh, tr, float(up.zeta[0]))
+            if alt is not None and mh.energy(up.u) - mh.energy(alt.u) > 0.0:
+                return replace(low, state=alt, method="descent", solver="axisymmetric path",
+                               message=f"{low.message}; the axisymmetric path's state at that volume, stable")
+        return low
+
     tb = trace_through_micro_folds(
-        lambda first: run(first, "supercritical" if first is not start else ""), start,
-        lambda tk, pth, why: find_lower_state(tr, tk.states, pth.points, why), mh.energy,
+        lambda first: run(first, "supercritical" if first is not start else ""), start, lower_state, mh.energy,
         lambda state: start_point(tr, state.u, state.p), micro_dE)
     path, tracker, failure, low, micro_folds = tb.path, tb.tracker, tb.failure, tb.lower, tb.micro_folds
     st = tracker.states
@@ -413,6 +426,33 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     fr.metrics = _branch_metrics(fr, sc)
     fr.metrics["follow_wall_s"] = time.perf_counter() - t0
     return fr
+
+
+def axisym_state_at(result, mh: MultiHarmonicModel, tr: Tracer, V: float) -> PathPoint | None:
+    """The axisymmetric path's state at scaled volume ``V`` (before its volume limit) as a state of
+    the multi-harmonic model ``mh`` (traced by ``tr``), if it is stable there under volume control
+    within ``mh``'s harmonics; else ``None``."""
+    from snapjump_cli.fe.lower_state import constrained_instability
+
+    st0 = result.states
+    pts = result.path.points[: (st0.k_before if st0 is not None and st0.k_before is not None else
+                                len(result.path.points) - 1) + 1]
+    locate = SnapTracker(result.tracer, p_stop=math.inf, V_stop=math.inf)
+    for k in range(1, len(pts)):
+        a, b = pts[k - 1], pts[k]
+        if a.zeta[0] < V <= b.zeta[0]:
+            q = locate.locate_volume(a, b, V, pts[k - 2] if k > 1 else None)
+            if q is None:
+                return None
+            U = mh.embed(q.u)
+            lin = mh.linearize(U, q.p)
+            if lin is None or constrained_instability(tr, lin) != 0:
+                return None
+            try:
+                return start_point(tr, U, q.p)
+            except ContinuationFailed:
+                return None
+    return None
 
 
 def _pole_height(mh: MultiHarmonicModel, u: np.ndarray, node: int) -> float:

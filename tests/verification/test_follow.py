@@ -150,3 +150,32 @@ def test_a_fold_that_releases_almost_nothing_is_not_the_answer(cap, monkeypatch)
     fake["dE_J"] = 0.5 * dE_axi  # a real snap is reported
     out, _ = follow.followed_metrics(res, chk)
     assert out["followed"] is True and out["dE_J"] == 0.5 * dE_axi
+
+
+def test_the_axisymmetric_state_at_a_volume_is_offered_only_where_it_is_stable(cap):
+    """follow.axisym_state_at: before the bifurcation the axisymmetric state, embedded in the
+    multi-harmonic model, is an equilibrium at that volume, stable; after it (harmonic 2 unstable)
+    it is not offered."""
+    from dataclasses import replace
+
+    from snapjump_cli.fe.continuation import Tracer
+    from snapjump_cli.fe.follow import axisym_state_at, harmonic1_gauge
+    from snapjump_cli.fe.multiharmonic import MultiHarmonicModel
+
+    res, chk = cap
+    bif = locate_bifurcation(res, 2)
+    mh = MultiHarmonicModel(res.model, default_harmonics(2), gauge=harmonic1_gauge(res.model, 2, bif.u))
+    tr = Tracer(mh, replace(res.tracer.cfg, fused=False, mixed_tangent=False))
+    V_b = float(bif.zeta[0])
+    before = axisym_state_at(res, mh, tr, 0.8 * V_b)
+    assert before is not None and before.zeta[0] == pytest.approx(0.8 * V_b, rel=1e-8)
+    lin = mh.linearize(before.u, before.p)
+    load = abs(before.p) * np.linalg.norm(lin.g)  # the pressure's load: the residual's scale
+    assert np.linalg.norm(mh.residual(before.u, before.p)) < 1e-6 * load
+    # the embedded state has no harmonic 2 and the axisymmetric energy
+    assert np.abs(mh.harmonic_part(before.u, 2)).max() == 0.0
+    k = next(i for i, pt in enumerate(res.path.points) if pt.zeta[0] >= 0.8 * V_b) - 1
+    E = [res.model.energy(res.path.points[i].u) for i in (k, k + 1)]  # the path points around that volume
+    assert E[0] < mh.energy(before.u) < E[1]
+    V_after = 0.5 * (V_b + res.states.upper.zeta[0])
+    assert axisym_state_at(res, mh, tr, V_after) is None
