@@ -42,7 +42,7 @@ from snapjump_cli.sweep import results as res
 from snapjump_cli.sweep.config import MAX_DESIGNS, DesignPoint, SweepConfig
 from snapjump_cli.sweep.execution import SolveFn, connect, default_solver, execute
 from snapjump_cli.sweep.rows import settings_json
-from snapjump_cli.settings import MeshSettings
+from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.sweep.storage import (
     KEY_VERSION,
     OutputLock,
@@ -78,6 +78,13 @@ log = logging.getLogger(__name__)
 #: 0.117 s on a 2-core Xeon with AVX-512 and 0.35 s on a slower 2-core Xeon (docs/performance.md);
 #: the estimate takes the middle, 0.2 s.
 CPU_S_PER_DESIGN = 0.2
+#: The harmonic check (``solver.harmonics``) adds about this fraction to a design's CPU (+30 % on the
+#: 480-design sample, ``python -m bench.check_profile``).
+CHECK_FACTOR = 1.3
+#: With ``solver.follow``: the share of designs that go asymmetric first (72 % of the paper grid)
+#: and the CPU seconds of one followed branch (~100 on the stratified followed sample,
+#: docs/harmonics.md section 10.4, of the order of 100x the axisymmetric solve).
+FOLLOW_SHARE, FOLLOW_CPU_S = 0.72, 100.0
 
 
 @dataclass
@@ -108,14 +115,21 @@ class SweepSummary:
     wall_s: float = 0.0
 
 
-def estimate_seconds(n_solve: int, mesh: MeshSettings, n_workers: int) -> float:
+def estimate_seconds(n_solve: int, mesh: MeshSettings, n_workers: int, solver: SolverSettings | None = None) -> float:
     """A rough wall-time estimate of solving ``n_solve`` designs on ``n_workers`` processes.
 
     Scales :data:`CPU_S_PER_DESIGN` by the number of elements relative to the paper grid's mesh
-    (``nt^2 / aspect``) and, for bilinear elements, by 1/3 (a factor, not a measurement per design).
+    (``nt^2 / aspect``) and, for bilinear elements, by 1/3 (a factor, not a measurement per design);
+    with ``solver``, by :data:`CHECK_FACTOR` for the harmonic check and, when branches are followed,
+    adds :data:`FOLLOW_CPU_S` (scaled alike) for :data:`FOLLOW_SHARE` of the designs.
     """
     scale = (mesh.nt / 2) ** 2 * (3.0 / mesh.aspect) * (1.0 if mesh.order == 2 else 1.0 / 3.0)
-    return n_solve * CPU_S_PER_DESIGN * scale / max(1, n_workers)
+    per = CPU_S_PER_DESIGN
+    if solver is not None and solver.harmonics > 0:
+        per *= CHECK_FACTOR
+        if solver.follow:
+            per += FOLLOW_SHARE * FOLLOW_CPU_S
+    return n_solve * per * scale / max(1, n_workers)
 
 
 def _fmt_duration(s: float) -> str:
@@ -381,7 +395,7 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
         log.info("resuming %s: %d of %d designs already recorded", output, n_resumed, len(points))
     workers = (os.cpu_count() or 1) if n_jobs < 0 else n_jobs
     if announce is not None:
-        est = estimate_seconds(len(tasks), config.mesh, workers)
+        est = estimate_seconds(len(tasks), config.mesh, workers, config.solver)
         announce(f"sweep: {len(points)} designs ({n_resumed} already recorded, {len(invalid_rows)} invalid geometry, "
                  f"{len(tasks)} to solve" + (f" on {workers} worker{'s' if workers != 1 else ''}, roughly "
                                              f"{_fmt_duration(est)}" if tasks and scheduler is None else "") + ")")

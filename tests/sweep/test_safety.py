@@ -215,3 +215,16 @@ def test_a_systemerror_of_its_own_is_a_failed_row(grid_file, tmp_path):
         raise SystemExit(3)
     except SystemExit as e:
         assert interruption(e) is e
+
+
+def test_the_time_estimate_counts_the_harmonic_check_and_the_followed_branches():
+    from snapjump_cli.settings import MeshSettings, SolverSettings
+    from snapjump_cli.sweep import run
+
+    m = MeshSettings(order=2, nt=2, aspect=3.0)
+    plain = run.estimate_seconds(100, m, 2)
+    assert plain == pytest.approx(100 * run.CPU_S_PER_DESIGN / 2)
+    checked = run.estimate_seconds(100, m, 2, SolverSettings(harmonics=4))
+    followed = run.estimate_seconds(100, m, 2, SolverSettings(harmonics=4, follow=True))
+    assert checked == pytest.approx(plain * run.CHECK_FACTOR)
+    assert followed == pytest.approx(checked + 100 * run.FOLLOW_SHARE * run.FOLLOW_CPU_S / 2)
