@@ -67,3 +67,28 @@ def test_the_eigen_solve_is_repeatable(cap):
     b = eig_near(op, pt.u, pt.p, -2.0, mode=True)
     assert a[0] == b[0]
     assert np.array_equal(a[1], b[1])
+
+
+def test_a_free_actuators_rotation_about_its_axis_is_not_its_n0_margin():
+    """A free actuator can turn about its axis: a zero eigenvalue of the n = 0 torsion that is not
+    a margin. The margin is the smallest of the other eigenvalues (dense reference, the rotation's
+    eigenvector found by its M-cosine), certified by the inertia less the rotation."""
+    from snapjump_cli.fe.margins import axis_rotation
+    from snapjump_cli.geometry.designs import get_design
+
+    res = solve_scene(get_design("C"), MeshSettings(nt=1, aspect=4.0), SolverSettings())
+    pt = res.path.points[len(res.path.points[: res.states.k_before]) // 3]  # well before p_max
+    op = harmonic_operator(res.model, 0)
+    r = axis_rotation(op, pt.u)
+    assert r is not None and harmonic_operator(res.model, 1) is not None and axis_rotation(harmonic_operator(res.model, 1), pt.u) is None
+    keep = np.setdiff1d(np.arange(op.ndof), op.gauge_dofs(pt.u))
+    K = op.matrix(pt.u, pt.p).toarray()[np.ix_(keep, keep)]
+    M = op.mass().toarray()[np.ix_(keep, keep)]
+    np.testing.assert_allclose(K @ r[keep], 0.0, atol=1e-9 * np.abs(K).max() * np.abs(r).max())  # a zero mode
+    w, V = sl.eigh(K, M)
+    Mr = M @ r[keep]
+    cos = np.abs(V.T @ Mr) / np.sqrt(r[keep] @ Mr)  # V is M-orthonormal
+    assert cos.max() > 0.999 and abs(w[np.argmax(cos)]) < 1e-8
+    others = w[cos < 0.99]
+    lam = smallest_eigenvalue(op, pt.u, pt.p)
+    assert lam == pytest.approx(others[0], rel=1e-6) and lam > 1e-3 * float(np.min(res.model.mu))
