@@ -58,7 +58,7 @@ log = logging.getLogger(__name__)
 __all__ = ["Bifurcation", "FollowResult", "locate_bifurcation", "follow_branch", "default_harmonics",
            "FOLLOW_KEYS", "multiharmonic_snap_metrics", "BranchTracker", "followed_metrics", "apply_followed",
            "lowest_eigen", "ground_height", "branch_curve", "harmonic1_gauge", "trace_through_micro_folds",
-           "ThroughFolds", "axisym_state_at"]
+           "ThroughFolds", "axisym_state_at", "tracker_bounds", "micro_energy"]
 
 #: Keys :func:`followed_metrics` adds to a design's metrics (SI units).
 FOLLOW_KEYS: tuple[str, ...] = (
@@ -340,6 +340,27 @@ def trace_through_micro_folds(run: Callable, start: PathPoint, lower_state: Call
     return ThroughFolds(path, tracker, failure, low, micro_folds, restarts, first_kind)
 
 
+def tracker_bounds(result, post_snap_steps: int | None = None) -> tuple[float, float, int]:
+    """``(p_stop, V_stop, post_snap_steps)`` of a multi-harmonic trace from the axisymmetric solve
+    ``result``: those of its own tracker (``result.stop_args``), or bounds from its path (1.5 times
+    its largest pressure, 30 times its largest volume, 1500 post-snap steps) when it has none;
+    ``post_snap_steps`` overrides the budget."""
+    stop = getattr(result, "stop_args", None) or {}
+    p_stop = stop.get("p_stop", 1.5 * max(pt.p for pt in result.path.points))
+    V_stop = stop.get("V_stop", 30.0 * max(pt.zeta[0] for pt in result.path.points))
+    post = post_snap_steps if post_snap_steps is not None else stop.get("post_snap_steps", 1500)
+    return p_stop, V_stop, post
+
+
+def micro_energy(result, micro: float) -> float:
+    """The scaled energy below which a fold's snap is a micro-fold: ``micro`` times the axisymmetric
+    snap's energy of ``result`` (0 when it has no snap)."""
+    st0 = result.states
+    if st0 is None or st0.upper is None or st0.lower is None:
+        return 0.0
+    return micro * (result.model.energy(st0.upper.u) - result.model.energy(st0.lower.u))
+
+
 def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: int | None = None,
                   micro: float = MICRO_FOLD_DE, max_steps: int | None = None) -> FollowResult:
     """Trace the branch of ``bif`` with the harmonics ``hn`` (default :func:`default_harmonics`)
@@ -377,14 +398,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     z_c = tr.zeta(U_c, bif.p)[0]
     start = PathPoint(U_c, bif.p, z_c, np.zeros(len(z_c)), du_ds, 0.0, 0.0)
     sc = tr0.sc
-    tracker0 = getattr(result, "stop_args", None)
-    p_stop = tracker0["p_stop"] if tracker0 else 1.5 * max(pt.p for pt in result.path.points)
-    V_stop = tracker0["V_stop"] if tracker0 else 30.0 * max(pt.zeta[0] for pt in result.path.points)
-    post = tracker0["post_snap_steps"] if tracker0 else 1500
-    st0 = result.states
-    micro_dE = 0.0
-    if st0 is not None and st0.upper is not None and st0.lower is not None:
-        micro_dE = micro * (base.energy(st0.upper.u) - base.energy(st0.lower.u))
+    p_stop, V_stop, post = tracker_bounds(result)
+    micro_dE = micro_energy(result, micro)
     phi_unit = Phi / float(np.linalg.norm(Phi))
     amplitudes = {
         "mode_amplitude": lambda u: float(u @ phi_unit),

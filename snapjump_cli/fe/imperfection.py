@@ -29,6 +29,8 @@ import numpy as np
 from snapjump_cli.fe.continuation import ContinuationFailed, Path, Tracer, trace
 from snapjump_cli.fe.follow import (
     BranchTracker,
+    micro_energy,
+    tracker_bounds,
     default_harmonics,
     harmonic1_gauge,
     locate_bifurcation,
@@ -158,14 +160,9 @@ def trace_imperfect(result, shape: ImperfectionShape, delta: float, thickness: f
     if max_steps is not None:
         cfg = replace(cfg, max_steps=int(max_steps))
     tr = Tracer(mh, cfg)
-    stop = getattr(result, "stop_args", None) or {}
-    p_stop = stop.get("p_stop", 1.5 * max(pt.p for pt in result.path.points))
-    V_stop = stop.get("V_stop", 30.0 * max(pt.zeta[0] for pt in result.path.points))
-    post = post_snap_steps if post_snap_steps is not None else stop.get("post_snap_steps", 1500)
-    tracker = BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post, kind="imperfect")
-    st0 = result.states
-    if st0 is not None and st0.upper is not None and st0.lower is not None:
-        tracker.micro_dE = micro * (base.energy(st0.upper.u) - base.energy(st0.lower.u))
+    p_stop, V_stop, post = tracker_bounds(result, post_snap_steps)
+    tracker = BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post, kind="imperfect",
+                            micro_dE=micro_energy(result, micro))
     failure = ""
     try:
         path = trace(mh, cfg, tracker, u0=np.zeros(mh.n), tracer=tr)
