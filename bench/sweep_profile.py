@@ -4,7 +4,7 @@
 
 A seeded sample of the designs of a finished grid run (``--grid``; the designs whose lower state
 was found on the path and those found by descent, i.e. re-solved at ``nt = 3``) is solved again
-as the sweep solves it (``solve_checked`` with the grid's mesh and solver settings, the harmonic
+as the sweep solves it (``solve_design`` with the grid's mesh and solver settings, the harmonic
 check included), one process, one BLAS thread, process CPU time (``time.process_time``). The
 phases are timed by wrapping the functions the solve calls (exclusive times):
 
@@ -18,9 +18,16 @@ phases are timed by wrapping the functions the solve calls (exclusive times):
 * ``check``: :func:`snapjump_cli.fe.harmonics.check_harmonics`;
 * ``other``: the rest (model set-up, Python glue).
 
-The first solve of a design is ``nt2``, the mesh re-check's ``nt3``. The answers of every design
-(``dE_J``, ``dy_pole_m``, the flags, ``n_steps``) are printed as a digest, so that two versions can be
-compared on the same sample (``--out`` writes them as JSON).
+The first solve of a design is ``nt2``, the mesh re-check's ``nt3``. ``--out`` writes every
+design's answers (``dE_J``, ``dy_pole_m``, the flags, ``n_steps``, ...) and CPU per phase as JSON,
+so that two versions can be compared on the same sample (run this file with the other checkout's
+interpreter: ``cd OTHER && .venv/bin/python /path/to/bench/sweep_profile.py ...``).
+
+    .venv/bin/python -m bench.sweep_profile --dispatch [--path 30] [--repeat 4]
+
+times the path designs of the sample in one process, alternately with the ahead-of-time kernels'
+argument checks as separate per-argument closures (as before 2026-11-28) and as one generated
+check per signature (:func:`snapjump_kernels.aot.signature_check`): the CPU per design of each.
 """
 from __future__ import annotations
 
@@ -145,6 +152,60 @@ def _clean(v):
     return v
 
 
+def dispatch_ab(grid: Path, n_path: int, seed: int, repeat: int) -> int:
+    """CPU per path design with the per-argument checks of the ahead-of-time kernels against the
+    generated whole-signature checks, alternated in one process."""
+    import sys
+
+    import snapjump_kernels.aot as aot
+    import snapjump_kernels.calls as calls
+    from snapjump_cli.fe import harmonics, lower_state, model, solve  # noqa: F401 - their kernel names are patched
+    from snapjump_cli.geometry.caps import Design
+    from snapjump_cli.sweep.config import load_config
+
+    exports, ext = aot._table()
+    if ext is None:
+        print("no ahead-of-time build in use here (make install; SNAPJUMP_NO_AOT unset)")
+        return 1
+    cfg = load_config(GRID)
+    rows = [r for kind, r in pick(grid, n_path, 0, seed)]
+    designs = [Design(eta_i=float(r.eta_i), theta_i_deg=float(r.theta_i_deg), eta_o=float(r.eta_o),
+                      theta_o_deg=float(r.theta_o_deg), mu_ratio=float(r.mu_ratio), R_i=cfg.R_i, mu_i=cfg.mu_i,
+                      J_m=cfg.J_m, t_ring_frac=cfg.t_ring_frac, w_ring_frac=cfg.w_ring_frac) for r in rows]
+    new, old = {}, {}
+    for mod, names in calls.KERNELS.items():
+        for name in names:
+            new[name] = getattr(calls, name)
+            variants = exports.get(mod, {}).get(name)
+            old[name] = aot.dispatch([(getattr(ext, v["export"]), [aot.arg_check(x) for x in v["args"]])
+                                      for v in variants], new[name].jit) if variants else new[name]
+
+    def install(table):
+        for m in list(sys.modules.values()):
+            if getattr(m, "__name__", "").startswith("snapjump_cli"):
+                for name, f in table.items():
+                    if callable(vars(m).get(name)):
+                        setattr(m, name, f)
+
+    solve.warm_up()
+    solve.solve_design(designs[0], cfg.mesh, cfg.solver)
+    tot = {"per-argument checks": 0.0, "generated check": 0.0}
+    for rep in range(repeat):
+        for label in (list(tot) if rep % 2 == 0 else list(tot)[::-1]):
+            install(old if label.startswith("per") else new)
+            t0 = time.process_time()
+            for d in designs:
+                solve.solve_design(d, cfg.mesh, cfg.solver)
+            tot[label] += time.process_time() - t0
+    install(new)
+    n = repeat * len(designs)
+    print(f"load average {os.getloadavg()[0]:.2f}; {len(designs)} path designs x {repeat}, alternated")
+    for label, v in tot.items():
+        print(f"{label}: {v / n:.4f} CPU-s per design")
+    print(f"ratio {tot['generated check'] / tot['per-argument checks']:.3f}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.sweep_profile", description=__doc__.split("\n\n")[0])
     ap.add_argument("--grid", type=Path, default=REPO / "results" / "paper_grid.parquet")
@@ -152,7 +213,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--descent", type=int, default=24, help="designs with the lower state by descent")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--out", type=Path, default=None, help="write the answers and CPU per design (JSON)")
+    ap.add_argument("--dispatch", action="store_true", help="A/B of the aot argument checks on the path designs")
+    ap.add_argument("--repeat", type=int, default=4, help="with --dispatch: alternations")
     a = ap.parse_args(argv)
+    if a.dispatch:
+        return dispatch_ab(a.grid, a.path, a.seed, a.repeat)
 
     from snapjump_cli.fe import solve
     from snapjump_cli.geometry.caps import Design
@@ -169,7 +234,7 @@ def main(argv: list[str] | None = None) -> int:
                       theta_o_deg=float(r.theta_o_deg), mu_ratio=float(r.mu_ratio), R_i=cfg.R_i, mu_i=cfg.mu_i,
                       J_m=cfg.J_m, t_ring_frac=cfg.t_ring_frac, w_ring_frac=cfg.w_ring_frac)
 
-    solve.solve_checked(design(items[0][1]), cfg.mesh, cfg.solver)  # compile / load outside the timings
+    solve.solve_design(design(items[0][1]), cfg.mesh, cfg.solver)  # compile / load outside the timings
     rows = []
     totals: dict[str, dict] = {}
     for kind, r in items:
@@ -177,7 +242,7 @@ def main(argv: list[str] | None = None) -> int:
         clock.reset_count()
         t0 = time.process_time()
         try:
-            m = solve.solve_checked(design(r), cfg.mesh, cfg.solver).metrics
+            m = solve.solve_design(design(r), cfg.mesh, cfg.solver)
             m["status"] = "ok" if m.get("snaps") else "no_snap"
         except solve.SolveFailed as exc:
             m = {"status": "failed", "error": str(exc)[:200]}

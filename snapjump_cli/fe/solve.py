@@ -266,13 +266,16 @@ def suspicious_snap(m: dict) -> str:
 
 def solve_checked(
     scene: Design | CapScene, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings(),
-    check_mesh: bool = True, fluid: FluidSettings | None = None, *, fused: bool = True,
+    check_mesh: bool = True, fluid: FluidSettings | None = None, *, fused: bool = True, short_recheck: bool = False,
 ) -> SceneResult:
     """Solve a scene the way every command reports it: :func:`solve_scene`, the mesh check, and
     (``solver.harmonics > 0``) the Fourier-harmonic stability check of the reported solve
     (:func:`snapjump_cli.fe.harmonics.check_harmonics`: ``asym_first``, ``asym_n``, ``asym_V_m3``,
     ``asym_p_Pa``, ``asym_lower_stable``; all None when it is off). ``fluid``: water (``None``) or
     air (:func:`solve_scene`; not with the harmonic check); ``fused`` as in :func:`solve_scene`.
+    ``short_recheck``: the mesh re-check of a design whose coarse path went to zero volume stops
+    its trace at the snap (:func:`_short_recheck`; the sweep's :func:`solve_design` asks for it,
+    ``snapjump curve`` does not: it draws the re-checked path).
 
     All of it runs within ``solver.time_limit_s`` CPU seconds (:mod:`snapjump_cli.fe.limits`);
     beyond them :class:`SolveFailed` says so.
@@ -281,14 +284,14 @@ def solve_checked(
         raise ValueError("the harmonic check is not available under air (fluid: air with solver.harmonics > 0)")
     try:
         with time_limit(solver.time_limit_s):
-            return _solve_and_check(scene, mesh, solver, check_mesh, fluid, fused)
+            return _solve_and_check(scene, mesh, solver, check_mesh, fluid, fused, short_recheck)
     except TimeLimitExceeded as exc:
         raise SolveFailed(f"stopped: {exc}") from None
 
 
 def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool,
-                     fluid: FluidSettings | None, fused: bool) -> SceneResult:
-    res = _solve_mesh_checked(scene, mesh, solver, check_mesh, fluid, fused)
+                     fluid: FluidSettings | None, fused: bool, short_recheck: bool = False) -> SceneResult:
+    res = _solve_mesh_checked(scene, mesh, solver, check_mesh, fluid, fused, short_recheck)
     m = res.metrics
     m.update({k: None for k in ASYM_KEYS})
     m.update({k: None for k in FOLLOW_ROW_KEYS})
@@ -315,7 +318,7 @@ def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: Solve
 
 def _solve_mesh_checked(
     scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool,
-    fluid: FluidSettings | None = None, fused: bool = True,
+    fluid: FluidSettings | None = None, fused: bool = True, short_recheck: bool = False,
 ) -> SceneResult:
     """:func:`solve_scene`, then the mesh check.
 
@@ -326,7 +329,8 @@ def _solve_mesh_checked(
     when dE or dy_pole moved by more than ``MESH_SENSITIVE_REL``, the refined run no longer snaps
     or fails, or its fold is still a near-cusp; ``mesh_check`` says why and how it was checked. For
     a re-solved scene the timing keys (``wall_s``, ``mesh_s``, ``t_assembly_s``, ``t_residual_s``,
-    ``t_factor_s``, ``t_newton_s``) cover both solves.
+    ``t_factor_s``, ``t_newton_s``) cover both solves. With ``short_recheck`` the re-check of a
+    design whose coarse path went to zero volume stops its trace at the snap (:func:`_short_recheck`).
 
     Returns
     -------
@@ -349,7 +353,7 @@ def _solve_mesh_checked(
     aspect = mesh.aspect * nt / (2 * mesh.nt) if m.get("fold_note") else mesh.aspect
     finer = MeshSettings(order=mesh.order, nt=nt, aspect=aspect)
     coarse = m
-    short = _short_recheck(coarse, solver, air)
+    short = short_recheck and _short_recheck(coarse, solver, air)
     try:
         fine, spent = None, 0.0
         if short:
@@ -428,9 +432,10 @@ def solve_design(
     design: Design, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings(),
     check_mesh: bool = True, fluid: FluidSettings | None = None, *, fused: bool = True,
 ) -> dict:
-    """Sweep entry point: the metrics dict of one design as :func:`solve_checked` reports it
-    (``fused``: as in :func:`solve_scene`)."""
-    return solve_checked(design, mesh, solver, check_mesh, fluid=fluid, fused=fused).metrics
+    """Sweep entry point: the metrics dict of one design as :func:`solve_checked` reports it, with
+    the short mesh re-check (``short_recheck``: the sweep does not keep the traced path; ``fused``:
+    as in :func:`solve_scene`)."""
+    return solve_checked(design, mesh, solver, check_mesh, fluid=fluid, fused=fused, short_recheck=True).metrics
 
 
 def warm_up() -> float:

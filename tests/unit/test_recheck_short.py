@@ -97,6 +97,16 @@ def test_a_lower_state_that_needed_the_path_is_solved_again_in_full(monkeypatch)
     assert m["stop_reason"] == "cavity volume reached zero"
 
 
+def test_curve_traces_the_whole_rechecked_path(solved):
+    """``solve_checked`` as ``snapjump curve`` calls it keeps the re-check's whole path (it draws it)."""
+    _, full, _ = solved
+    res = solve.solve_checked(DESIGN, MESH, SolverSettings())
+    m = res.metrics
+    assert m["mesh_check"] == "lower state by descent; re-solved at nt=3"
+    assert m["stop_reason"] == "cavity volume reached zero" and m["n_steps"] == full.metrics["n_steps"]
+    assert m["self_crossing"] == full.metrics["self_crossing"] and len(res.path.points) == len(full.path.points)
+
+
 def test_no_short_recheck_with_the_whole_curve_or_without_zero_volume():
     m = {"lower_state_method": "descent", "stop_reason": "cavity volume reached zero"}
     assert solve._short_recheck(m, SolverSettings(), {})
