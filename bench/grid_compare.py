@@ -21,6 +21,16 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 
 
+def _changed(a, b):
+    """Rows where two columns differ; missing in both counts as equal (a nullable integer column's
+    missing values are NaN as strings, and NaN differs from itself)."""
+    import pandas as pd
+
+    am, bm = a.isna().to_numpy(), b.isna().to_numpy()
+    differ = a.astype(str).to_numpy() != b.astype(str).to_numpy()
+    return pd.Series((am != bm) | (~am & ~bm & differ), index=a.index)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("old", type=Path)
@@ -43,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"status changed: {int((old['status'] != new['status']).sum())}")
     ok = (old["status"] == "ok") & (new["status"] == "ok")
     for f in ("self_crossing", "lower_state_method", "snaps", "mesh_sensitive"):
-        changed = old.loc[ok, f].astype(str) != new.loc[ok, f].astype(str)
+        changed = _changed(old.loc[ok, f], new.loc[ok, f])
         print(f"{f} changed on {int(changed.sum())} of {int(ok.sum())} rows ok in both"
               + (f": {list(changed[changed].index[:5])}" if changed.any() else ""))
     for f in ("dE_J", "dy_pole_m", "h_imp_m", "V_star_m3", "p_star_Pa", "p_max_Pa"):
@@ -52,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
               f"over 1e-4: {int((rel > 1e-4).sum())}")
     if "asym_first" in old and "asym_first" in new:
         for f in ("asym_first", "asym_n", "asym_lower_stable"):
-            changed = old.loc[ok, f].astype(str) != new.loc[ok, f].astype(str)
+            changed = _changed(old.loc[ok, f], new.loc[ok, f])
             print(f"{f} changed on {int(changed.sum())} of {int(ok.sum())} rows ok in both"
                   + (f": {list(changed[changed].index[:5])}" if changed.any() else ""))
         for f in ("asym_V_m3", "asym_p_Pa"):

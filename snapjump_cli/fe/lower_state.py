@@ -83,6 +83,9 @@ class LowerState:
     note : why the path's own lower state was rejected (``""``: it was not)
     reason : why the lower state was sought off the path
     message : the off-path solver's report
+    from_path : whether the off-path solver needed the traced path beyond the upper state (the energy
+        descent started from a post-snap path point: :func:`descent_starts`); the volume path and
+        the descent along the fold's unstable mode start from the upper state alone
     """
 
     state: PathPoint | None
@@ -91,6 +94,7 @@ class LowerState:
     note: str = ""
     reason: str = ""
     message: str = ""
+    from_path: bool = False
 
 
 def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint], why: str = "",
@@ -133,10 +137,15 @@ def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint]
         for start in [None] + descent_starts(points, states.upper, states.k_before, control=control):
             low, msg = descend_at_volume(tracer, states.upper, start=start, control=control)
             if low is not None:
+                from_path = start is not None
                 break
+        else:
+            from_path = True  # (every start was tried: the path's points were needed)
+    else:
+        from_path = False
     if low is not None:
         log.info("lower state at fixed volume (%s): %s", reason, msg)
-    return LowerState(low, "descent" if low is not None else "", solver, note, reason, msg)
+    return LowerState(low, "descent" if low is not None else "", solver, note, reason, msg, from_path)
 
 
 class _MultiBorderedSolver:

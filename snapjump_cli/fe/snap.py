@@ -29,7 +29,10 @@ from snapjump_cli.fe.continuation import Path, PathPoint, Tracer
 
 log = logging.getLogger(__name__)
 
-__all__ = ["SnapStates", "SnapTracker", "root_on_step", "state_at_pressure"]
+__all__ = ["SnapStates", "SnapTracker", "root_on_step", "state_at_pressure", "POST_SNAP_SKIPPED"]
+
+#: The stop reason of a trace told not to follow the post-snap path (``SnapTracker(post_snap=False)``).
+POST_SNAP_SKIPPED = "upper state located; post-snap path not traced"
 
 
 def root_on_step(tr: Tracer, a: PathPoint, b: PathPoint, a_prev: PathPoint | None,
@@ -133,6 +136,12 @@ class SnapTracker:
     full : keep tracing after the snap is characterised (to ``p_stop`` or ``V_stop``)
     post_snap_steps : steps after the volume limit within which the path must come back to V*
         (the solver passes :func:`snapjump_cli.fe.solve.post_snap_budget`)
+    post_snap : follow the post-snap path until it comes back to V* or stops otherwise (the cavity
+        volume at zero, the step budget). ``False``: stop as soon as the upper state is located and
+        the near-cusp watch has decided (the first change of ``neg(K_T)`` after the fold,
+        :meth:`_watch_cusp`), unless the path is back at V* before then; the lower state is then
+        sought at fixed volume. The mesh re-check of a design whose coarse path went to zero
+        volume uses it (:func:`snapjump_cli.fe.solve.solve_scene`, docs/performance.md).
     """
 
     tracer: Tracer
@@ -141,6 +150,7 @@ class SnapTracker:
     full: bool = False
     post_snap_steps: int = 1500
     cusp_window: float = 1e-3
+    post_snap: bool = True
     states: SnapStates = field(default_factory=SnapStates)
 
     def __call__(self, path: Path) -> str | None:
@@ -174,6 +184,9 @@ class SnapTracker:
             return "cavity volume reached zero"
         if new.p > self.p_stop and (st.upper is None or st.lower is not None or self.full):
             return "pressure bound"
+        if not self.post_snap and not self.full and st.upper is not None and st.lower is None \
+                and st.cusp_change is not None:
+            return POST_SNAP_SKIPPED
         return None
 
     def _distance(self, pt: PathPoint) -> float:

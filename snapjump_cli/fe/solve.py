@@ -27,7 +27,7 @@ from snapjump_cli.fe.metrics import scene_curve, snap_metrics
 from snapjump_cli.fe.model import Model
 from snapjump_cli.sweep.rows import ASYM_KEYS, FOLLOW_ROW_KEYS
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.fe.snap import SnapStates, SnapTracker, state_at_pressure
+from snapjump_cli.fe.snap import POST_SNAP_SKIPPED, SnapStates, SnapTracker, state_at_pressure
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +53,7 @@ class SceneResult:
     follow: object | None = field(default=None, repr=False)  # the followed branch (snapjump_cli.fe.follow)
     margins: np.ndarray | None = field(default=None, repr=False)  # (states, 1 + harmonics): V and margins
     air: object | None = field(default=None, repr=False)  # the air snap (:class:`snapjump_cli.fe.air_snap.AirSnap`)
+    lower: object | None = field(default=None, repr=False)  # how the lower state was found (LowerState)
     _curve: dict | None = field(default=None, init=False, repr=False)
 
     @property
@@ -110,6 +111,7 @@ def solve_scene(
     fluid: FluidSettings | None = None,
     *,
     fused: bool = True,
+    post_snap: bool = True,
 ) -> SceneResult:
     """Trace a scene's pressure-volume path and compute its snap metrics.
 
@@ -122,6 +124,11 @@ def solve_scene(
         are the air snap's, the water snap's are kept as ``water_dE_J``, ...)
     fused : the compiled Newton corrector (``False``: the Python corrector, whose timers split
         assembly and factorisation; the same answers, slower: for profiling)
+    post_snap : trace the post-snap path (``False``: stop the trace once the upper state is located
+        and the near-cusp watch has decided, :class:`~snapjump_cli.fe.snap.SnapTracker`; the lower
+        state is then found at fixed volume unless the path was back at V* by then; the path's
+        ``self_crossing``, ``n_steps`` and ``n_newton`` describe the shorter trace). Water only;
+        ignored with ``solver.full``.
 
     Returns
     -------
@@ -152,7 +159,7 @@ def solve_scene(
     air = None
     if fluid is not None and fluid.is_air:
         air = AirSnap(fluid, Tracer(model, _settings(scene, solver, fused)), post_snap_budget(solver))
-    tracer, st, path, failure = _trace(scene, model, solver, V0, air, fused)
+    tracer, st, path, failure = _trace(scene, model, solver, V0, air, fused, post_snap=post_snap or air is not None)
     lower = find_lower_state(tracer, st, path.points, failure or path.stop_reason)
     if st.upper is not None and lower.state is None:
         raise SolveFailed(f"volume limit found (V*={st.upper.zeta[0] * sc['sV'] * sc['L']**3:.4g} m^3) but no lower "
@@ -183,7 +190,7 @@ def solve_scene(
     stop_args = {"p_stop": tracer.stop_bounds[0], "V_stop": tracer.stop_bounds[1],
                  "post_snap_steps": post_snap_budget(solver)}
     return SceneResult(metrics=metrics, model=model, path=path, states=st, tracer=tracer, curve_args=(scales, V0),
-                       air=air, stop_args=stop_args)
+                       air=air, stop_args=stop_args, lower=lower)
 
 
 def post_snap_budget(solver: SolverSettings) -> int:
@@ -203,8 +210,8 @@ def _settings(scene: Design | CapScene, solver: SolverSettings, fused: bool = Tr
     )
 
 
-def _trace(scene: Design | CapScene, model: Model, solver: SolverSettings, V0: float, air=None, fused: bool = True
-           ) -> tuple[Tracer, SnapStates, Path, str]:
+def _trace(scene: Design | CapScene, model: Model, solver: SolverSettings, V0: float, air=None, fused: bool = True,
+           post_snap: bool = True) -> tuple[Tracer, SnapStates, Path, str]:
     """Trace the scene's pressure-volume path from the stress-free state until the snap tracker
     (with ``air``, an :class:`~snapjump_cli.fe.air_snap.AirSnap`: until both snaps are characterised)
     stops it; returns the tracer, the snap states, the path and the continuation's failure ('' if
@@ -217,7 +224,7 @@ def _trace(scene: Design | CapScene, model: Model, solver: SolverSettings, V0: f
     else:
         p_stop = 1.5 * sc["p_c"]
     tracker = SnapTracker(tracer, p_stop=p_stop, V_stop=_V_stop(scene, V0) / sc["sV"], full=solver.full,
-                          post_snap_steps=post_snap_budget(solver))
+                          post_snap_steps=post_snap_budget(solver), post_snap=post_snap)
     tracer.stop_bounds = (tracker.p_stop, tracker.V_stop)
     failure = ""
     path: Path | None = None
@@ -259,13 +266,16 @@ def suspicious_snap(m: dict) -> str:
 
 def solve_checked(
     scene: Design | CapScene, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings(),
-    check_mesh: bool = True, fluid: FluidSettings | None = None, *, fused: bool = True,
+    check_mesh: bool = True, fluid: FluidSettings | None = None, *, fused: bool = True, short_recheck: bool = False,
 ) -> SceneResult:
     """Solve a scene the way every command reports it: :func:`solve_scene`, the mesh check, and
     (``solver.harmonics > 0``) the Fourier-harmonic stability check of the reported solve
     (:func:`snapjump_cli.fe.harmonics.check_harmonics`: ``asym_first``, ``asym_n``, ``asym_V_m3``,
     ``asym_p_Pa``, ``asym_lower_stable``; all None when it is off). ``fluid``: water (``None``) or
     air (:func:`solve_scene`; not with the harmonic check); ``fused`` as in :func:`solve_scene`.
+    ``short_recheck``: the mesh re-check of a design whose coarse path went to zero volume stops
+    its trace at the snap (:func:`_short_recheck`; the sweep's :func:`solve_design` asks for it,
+    ``snapjump curve`` does not: it draws the re-checked path).
 
     All of it runs within ``solver.time_limit_s`` CPU seconds (:mod:`snapjump_cli.fe.limits`);
     beyond them :class:`SolveFailed` says so.
@@ -274,14 +284,14 @@ def solve_checked(
         raise ValueError("the harmonic check is not available under air (fluid: air with solver.harmonics > 0)")
     try:
         with time_limit(solver.time_limit_s):
-            return _solve_and_check(scene, mesh, solver, check_mesh, fluid, fused)
+            return _solve_and_check(scene, mesh, solver, check_mesh, fluid, fused, short_recheck)
     except TimeLimitExceeded as exc:
         raise SolveFailed(f"stopped: {exc}") from None
 
 
 def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool,
-                     fluid: FluidSettings | None, fused: bool) -> SceneResult:
-    res = _solve_mesh_checked(scene, mesh, solver, check_mesh, fluid, fused)
+                     fluid: FluidSettings | None, fused: bool, short_recheck: bool = False) -> SceneResult:
+    res = _solve_mesh_checked(scene, mesh, solver, check_mesh, fluid, fused, short_recheck)
     m = res.metrics
     m.update({k: None for k in ASYM_KEYS})
     m.update({k: None for k in FOLLOW_ROW_KEYS})
@@ -308,7 +318,7 @@ def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: Solve
 
 def _solve_mesh_checked(
     scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool,
-    fluid: FluidSettings | None = None, fused: bool = True,
+    fluid: FluidSettings | None = None, fused: bool = True, short_recheck: bool = False,
 ) -> SceneResult:
     """:func:`solve_scene`, then the mesh check.
 
@@ -319,7 +329,8 @@ def _solve_mesh_checked(
     when dE or dy_pole moved by more than ``MESH_SENSITIVE_REL``, the refined run no longer snaps
     or fails, or its fold is still a near-cusp; ``mesh_check`` says why and how it was checked. For
     a re-solved scene the timing keys (``wall_s``, ``mesh_s``, ``t_assembly_s``, ``t_residual_s``,
-    ``t_factor_s``, ``t_newton_s``) cover both solves.
+    ``t_factor_s``, ``t_newton_s``) cover both solves. With ``short_recheck`` the re-check of a
+    design whose coarse path went to zero volume stops its trace at the snap (:func:`_short_recheck`).
 
     Returns
     -------
@@ -342,11 +353,28 @@ def _solve_mesh_checked(
     aspect = mesh.aspect * nt / (2 * mesh.nt) if m.get("fold_note") else mesh.aspect
     finer = MeshSettings(order=mesh.order, nt=nt, aspect=aspect)
     coarse = m
+    short = short_recheck and _short_recheck(coarse, solver, air)
     try:
-        res = solve_scene(scene, finer, solver, **air)
+        fine, spent = None, 0.0
+        if short:
+            t1 = time.perf_counter()
+            try:
+                fine = solve_scene(scene, finer, solver, **air, post_snap=False)
+            except SolveFailed:  # (no lower state at fixed volume: the full trace has more to try)
+                pass
+            if fine is None or not _short_recheck_holds(fine):
+                short, fine = False, None  # solved again with the whole trace
+                spent = time.perf_counter() - t1
+        if fine is None:
+            fine = solve_scene(scene, finer, solver, **air)
+        res = fine
         m = res.metrics
+        m["wall_s"] = (m.get("wall_s") or 0.0) + spent
         m.update(mesh_sensitive=False, mesh_check=f"{why}; re-solved at nt={finer.nt}"
                  + (f", aspect={finer.aspect:.3g}" if finer.aspect != mesh.aspect else ""))
+        if short and m.get("stop_reason") == POST_SNAP_SKIPPED:  # (else it was back at V* before it stopped)
+            m["self_crossing"] = bool(m["self_crossing"] or coarse.get("self_crossing"))
+            m["mesh_check"] += f" to the snap (post-snap path and self_crossing: nt={mesh.nt})"
     except SolveFailed as exc:
         coarse["wall_s"] = time.perf_counter() - t0
         coarse["mesh_sensitive"] = True
@@ -367,13 +395,47 @@ def _solve_mesh_checked(
     return res
 
 
+#: The stop reasons of a coarse trace that followed the post-snap path to its end without coming
+#: back to V* (the cavity volume at zero): the re-check of such a design need not trace it again.
+_POST_SNAP_ENDS = ("cavity volume reached zero",)
+
+
+def _short_recheck(coarse: dict, solver: SolverSettings, air: dict) -> bool:
+    """Whether the mesh re-check of a design may stop its trace at the upper state
+    (``solve_scene(..., post_snap=False)``): its coarse path went to zero cavity volume without
+    coming back to V* (the lower state by descent), under water, without ``solver.full``.
+
+    The re-check exists for the snap's answers, which come from the upper state and the lower
+    state at fixed volume (``lower_state_method = "descent"``); neither depends on the post-snap
+    path. That path (150-190 steps to zero volume at nt 3, ~40 % of such a design's CPU) fed only
+    the ``self_crossing`` flag, ``n_steps`` and ``n_newton`` of the reported row; the flag is then
+    taken from the coarse path (which was traced to its end) or'ed with the refined trace's own
+    (docs/performance.md: on the paper grid it differed between the two meshes on 2 of 465 designs).
+    """
+    return (not air and not solver.full and coarse.get("lower_state_method") == "descent"
+            and coarse.get("stop_reason") in _POST_SNAP_ENDS)
+
+
+def _short_recheck_holds(res: SceneResult) -> bool:
+    """Whether a re-check stopped at the upper state gave what the full trace would (else it is
+    solved again with the whole trace): its lower state was found without the post-snap path (on
+    the path before the trace stopped, by the volume path or by the energy descent along the fold's
+    unstable mode, which start from the upper state alone, ``LowerState.from_path``), or there is
+    no snap."""
+    if not res.metrics.get("snaps"):
+        return True
+    lower = res.lower
+    return lower is not None and not lower.from_path
+
+
 def solve_design(
     design: Design, mesh: MeshSettings = MeshSettings(), solver: SolverSettings = SolverSettings(),
     check_mesh: bool = True, fluid: FluidSettings | None = None, *, fused: bool = True,
 ) -> dict:
-    """Sweep entry point: the metrics dict of one design as :func:`solve_checked` reports it
-    (``fused``: as in :func:`solve_scene`)."""
-    return solve_checked(design, mesh, solver, check_mesh, fluid=fluid, fused=fused).metrics
+    """Sweep entry point: the metrics dict of one design as :func:`solve_checked` reports it, with
+    the short mesh re-check (``short_recheck``: the sweep does not keep the traced path; ``fused``:
+    as in :func:`solve_scene`)."""
+    return solve_checked(design, mesh, solver, check_mesh, fluid=fluid, fused=fused, short_recheck=True).metrics
 
 
 def warm_up() -> float:

@@ -76,6 +76,26 @@ def test_argument_checks_are_exact():
     assert aot.arg_check(["bool"])(np.bool_(True)) and not aot.arg_check(["bool"])(1)
 
 
+def test_the_signature_check_is_the_argument_checks():
+    """One generated check of the whole argument tuple answers as the per-argument checks do."""
+    specs = [["array", "float64", 2, "C", True], ["array", "float64", 1, "A", False], ["array", "int64", 1, "C", True],
+             ["array", "float64", 2, "F", True], ["array", "bool", 1, "C", False], ["int"], ["float"], ["bool"]]
+    a = np.zeros((3, 4))
+    ro = a.copy()
+    ro.flags.writeable = False
+    values = [a, np.asfortranarray(a), a[:, ::2], a[0], a[:, 0], a.astype(np.float32), ro, ro[0], np.zeros(3, np.int64),
+              np.zeros(3, np.int32), np.zeros(3, bool), a.tolist(), 3, np.int64(3), True, np.bool_(False), 3.0,
+              np.float64(3.0), np.float32(3.0), None, "x"]
+    for spec in specs:
+        one, whole = aot.arg_check(spec), aot.signature_check([spec])
+        for v in values:
+            assert whole((v,)) == one(v), (spec, v)
+        assert not whole(()) and not whole((values[0], values[0]))
+    whole = aot.signature_check(specs[:3])
+    assert whole((a, a[0], np.zeros(2, np.int64))) and not whole((a, a[0], np.zeros(2)))
+    assert aot.signature_check([])(()) and not aot.signature_check([])((1,))
+
+
 def test_a_mismatch_goes_to_the_dispatcher():
     calls_made = []
 
