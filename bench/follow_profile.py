@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
+import sys
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -123,17 +124,25 @@ def instrumented(acc: dict):
 
 
 def load_kernel(path: Path | None):
-    """The element kernel module of the "before" runs: the kernel source file ``path`` (e.g. the
-    main branch's ``kernels/multiharmonic.py``) imported under another name, or ``None`` for the
-    library's own :mod:`snapjump_kernels.multiharmonic`."""
+    """The element kernel module of the "before" runs: a copy of the kernel source file ``path``
+    (e.g. the main branch's ``kernels/multiharmonic.py``) in ``bench/out/follow_profile_before/``,
+    imported from there (so that its numba cache lives there, not beside ``path``), or ``None``
+    for the library's own :mod:`snapjump_kernels.multiharmonic`."""
     if path is None:
         import snapjump_kernels.multiharmonic as kmh
 
         return kmh
     import importlib.util
 
-    spec = importlib.util.spec_from_file_location("follow_profile_before_kernel", str(path))
+    folder = Path(__file__).resolve().parent / "out" / "follow_profile_before"
+    folder.mkdir(parents=True, exist_ok=True)
+    copy = folder / "before_multiharmonic.py"
+    text = Path(path).read_text()
+    if not copy.is_file() or copy.read_text() != text:
+        copy.write_text(text)
+    spec = importlib.util.spec_from_file_location("before_multiharmonic", str(copy))
     mod = importlib.util.module_from_spec(spec)
+    sys.modules["before_multiharmonic"] = mod  # importable by name (numba's cache rebuilds its environment so)
     spec.loader.exec_module(mod)
     return mod
 
