@@ -24,6 +24,12 @@ _NB = 6
 
 @njit(cache=True)
 def envelope_ldlt(ab: np.ndarray, ext: np.ndarray):
+    """See :func:`_envelope_ldlt` (in place)."""
+    return _envelope_ldlt(ab, ext, ab, False)
+
+
+@njit(cache=True)
+def _envelope_ldlt(ab: np.ndarray, ext: np.ndarray, src: np.ndarray, copy: bool):
     """Factorise the lower band ``ab`` in place: ``ab[:, 0]`` holds ``D`` and ``ab[:, 1:]`` the
     unit-lower ``L``, as :func:`snapjump_kernels.banded.band_ldlt` (see there for the storage,
     the envelope ``ext`` and the algorithm), with the same result bit for bit.
@@ -31,6 +37,10 @@ def envelope_ldlt(ab: np.ndarray, ext: np.ndarray):
     The trailing update of a block, ``A[r, c] -= sum_t L[r, t] d_t L[c, t]`` over the block's 6
     columns ``t`` (summed in their order, as ``band_ldlt`` does), runs over two target columns
     ``c, c + 1`` at a time, sharing the loads of ``L[r, t]``.
+
+    With ``copy``, the matrix is read from ``src`` instead: the envelope of each column is copied
+    into ``ab`` just before the column is first updated (while it is about to be used, instead
+    of in a pass of its own over the whole band).
 
     Returns
     -------
@@ -40,7 +50,7 @@ def envelope_ldlt(ab: np.ndarray, ext: np.ndarray):
     kl = m1 - 1
     scale = 0.0
     for j in range(n):
-        a = abs(ab[j, 0])
+        a = abs(src[j, 0])  # the diagonal of the matrix (src is ab without copy)
         if a > scale:
             scale = a
     tiny = 1e-14 * scale
@@ -48,6 +58,7 @@ def envelope_ldlt(ab: np.ndarray, ext: np.ndarray):
     nb = _NB
     P = np.empty((nb, kl + 1))  # P[t, rr] = L[r0 + rr, j0 + t]: the block's columns below the block
     dvec = np.empty(nb)
+    copied = 0  # columns 0 .. copied - 1 of src are in ab
     j0 = 0
     while j0 < n:
         b = min(nb, n - j0)
@@ -55,6 +66,16 @@ def envelope_ldlt(ab: np.ndarray, ext: np.ndarray):
         for t in range(j0, j0 + b):
             if t + ext[t] > R:
                 R = t + ext[t]
+        if copy:
+            upto = max(R, j0 + b - 1)  # the block's columns and every column it updates
+            for c in range(copied, upto + 1):
+                m = ext[c] + 1
+                dst = ab[c, :m]
+                col = src[c, :m]
+                for x in range(m):
+                    dst[x] = col[x]
+            if upto + 1 > copied:
+                copied = upto + 1
         # the block's columns, each updating the block's later columns (all their rows)
         for j in range(j0, j0 + b):
             d = ab[j, 0]
@@ -136,22 +157,16 @@ def bordered_factor_into(K: np.ndarray, ext: np.ndarray, b: np.ndarray, c: np.nd
                          fac: np.ndarray):
     """Factorise the bordered matrix ``[[K, b], [c^T, d]]`` as
     :func:`snapjump_kernels.banded.bordered_factor` does (the same results bit for bit), with the
-    band LDL^T of ``K`` written into ``fac`` (same shape as ``K``; only its envelope is written:
-    entries outside it must be zero, as a fresh ``np.zeros`` band is).
+    band LDL^T of ``K`` written into ``fac`` (same shape as ``K``; only its envelope is written,
+    each column copied from ``K`` just before it is first updated: entries outside the envelope
+    must be zero, as a fresh ``np.zeros`` band is).
 
     Returns
     -------
     (ok, n_negative, Kib, schur)
         ``Kib = K^-1 b``, ``schur = d - c^T K^-1 b``; ``ok`` False if ``K`` is singular to round-off.
     """
-    n = K.shape[0]
-    for j in range(n):
-        m = ext[j] + 1
-        fj = fac[j, :m]
-        kj = K[j, :m]
-        for x in range(m):
-            fj[x] = kj[x]
-    ok, nneg = envelope_ldlt(fac, ext)
+    ok, nneg = _envelope_ldlt(fac, ext, K, True)
     if not ok:
         return False, nneg, np.zeros(0), 0.0
     Kib = band_ldlt_solve(fac, b, ext)
