@@ -1,31 +1,39 @@
-"""Per-phase CPU profile of a followed branch (docs/harmonics.md, section 10.4; docs/performance.md).
+"""Per-phase CPU profile of a followed branch, before and after (docs/harmonics.md, section 10.4).
 
-    .venv/bin/python -m bench.follow_profile [SCENE] [--N N] [--repeat R] [--reference] [--json PATH]
+    .venv/bin/python -m bench.follow_profile [SCENE] [--N N] [--repeat R] [--before KERNEL.py]
+                                             [--reference] [--compare [--rounds R]] [--json PATH]
 
 ``SCENE`` is one of :data:`bench.follow_study.SCENES` (default ``B``). The scene is solved
 axisymmetrically, its bifurcation located, and its branch followed with the harmonics
-``0, n_c, ..., N`` (default ``N = 4 n_c``, as the sweep does). Prints two markdown tables of CPU
-seconds (``time.process_time``):
+``0, n_c, ..., N`` (default ``N = 4 n_c``, as the sweep does), in two modes (:func:`mode`), in
+this process, back to back: **after**, the library as it is, and **before**, the model's
+assembly and factorisation of 2026-11-27 (element matrices in memory, ``scatter_band``, the band
+and the factors in fresh arrays: ``MultiHarmonicModel.fused_assembly = False``) with the element
+kernel of ``--before`` (a kernel source file, e.g. the main branch's ``kernels/multiharmonic.py``
+before this change, imported from a copy under ``bench/out/``; default the library's own), or
+with ``--reference`` the kernel before 2026-11-27
+(:mod:`snapjump_kernels.multiharmonic_reference`). Every kernel is compiled before anything is
+timed. Prints two markdown tables of CPU seconds (``time.process_time``), before and after:
 
 1. **one assembly** at the middle state of the followed path, each phase timed ``R`` times (the
-   median): the element kernel's phases (:func:`snapjump_kernels.multiharmonic.mh_elements_phases`
-   run up to each phase, the differences), the cavity, the scatter to the band, the band
-   LDL^T, and the Python glue of :meth:`MultiHarmonicModel.linearize` (its time less the kernels'),
-   with the flops of the tangent and the rate they run at;
+   median; the better of two alternated rounds): the element kernel's phases
+   (:func:`snapjump_kernels.multiharmonic.mh_elements_phases` run up to each phase, the
+   differences), the cavity, the scatter to the band (after: what the fused pass
+   :func:`~snapjump_kernels.multiharmonic.mh_assemble_band` costs beyond the element kernel,
+   plus the cavity's scatter), the bordered band LDL^T with ``K^-1 b``, and the Python glue of
+   :meth:`MultiHarmonicModel.linearize` (its time less the kernels'), with the flops of the
+   tangent and the LDL^T and the rates they run at;
 2. **the whole followed solve**, every kernel call of the model timed where the model calls it
    (the element kernel with the tangent and without, the cavity, the scatters, the bordered
-   factorisation and solves; the rest is the continuation's Python), with the steps, assemblies
-   and dofs, and the axisymmetric solve's CPU time for the ratio.
+   factorisation and solves; the rest is the continuation's Python), with the steps and
+   assemblies, the axisymmetric solve and check's CPU time (timed in between) and the
+   followed/axisymmetric ratios, and whether the answers of both modes are identical.
 
-``--reference`` runs both with the element kernel as it was before it was restructured
-(:func:`snapjump_kernels.multiharmonic_reference.mh_elements_reference`), with the same answers bit
-for bit: the before/after comparison, back to back on one machine.
-
-``--compare`` instead follows the branch from one located bifurcation with the library kernel,
-the reference kernel and the library kernel again, in this process (a bifurcation located in
-another process differs at ~1e-9: ARPACK's start vector), and prints each run's answers
-(``dE_J``, ``dy_pole_m``, ``V_star_m3``, ``p_star_Pa``), CPU seconds, steps and assemblies, and the
-largest relative difference of the answers.
+``--compare`` instead follows the branch from one located bifurcation after, before and then the
+axisymmetric solve and check, ``--rounds`` times (a bifurcation located in another process may
+differ at ~1e-9), and prints each run's answers (``dE_J``, ``dy_pole_m``, ``V_star_m3``,
+``p_star_Pa``), CPU seconds, steps and assemblies, the medians, the ratios and the largest
+relative difference of the answers.
 """
 from __future__ import annotations
 
@@ -273,15 +281,13 @@ def one_assembly(mh, u: np.ndarray, p: float, repeat: int, which: str = "after",
 
 
 def axisymmetric(name: str) -> float:
-    """CPU seconds of the scene's axisymmetric solve and harmonic check (``n <= 4``)."""
+    """CPU seconds of the scene's axisymmetric solve and harmonic check (``n <= 4``): one call of
+    :func:`bench.follow_study.solve_checked_scene`, meshing included."""
     from bench.follow_study import solve_checked_scene
-    from snapjump_cli.fe.harmonics import check_harmonics
 
     t0 = time.process_time()
-    res, _, _ = solve_checked_scene(name)
-    t1 = time.process_time()
-    check_harmonics(res, 4)  # solve_checked_scene's check, timed with the solve
-    return t1 - t0 + (time.process_time() - t1)
+    solve_checked_scene(name)
+    return time.process_time() - t0
 
 
 KEYS = ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa")
