@@ -307,17 +307,17 @@ def warm(res, bif, hn, modes, before_kernel=None) -> None:
             follow_branch(res, bif, hn, max_steps=3)
 
 
-def compare(name: str, res, bif, hn, before_kernel=None, rounds: int = 2) -> float:
+def compare(name: str, res, bif, hn, before_kernel=None, rounds: int = 2, before: str = "before") -> float:
     """Follow the branch from one located bifurcation "after" and "before" (:func:`mode`),
-    alternated ``rounds`` times in this process, with the scene's axisymmetric solve and check
+    alternated ``rounds`` times in this process (``before``: ``"before"`` or ``"reference"``), with the scene's axisymmetric solve and check
     timed between them (back to back, at the same load); print each run's answers, CPU, steps and
     assemblies; return the largest relative difference of the answers."""
     from snapjump_cli.fe.follow import follow_branch
 
-    warm(res, bif, hn, ("before", "after"), before_kernel)
-    runs: dict[str, list] = {"after": [], "before": [], "axisymmetric": []}
+    warm(res, bif, hn, (before, "after"), before_kernel)
+    runs: dict[str, list] = {"after": [], before: [], "axisymmetric": []}
     for r in range(rounds):
-        for which in ("after", "before", "axisymmetric"):
+        for which in ("after", before, "axisymmetric"):
             if which == "axisymmetric":
                 t = axisymmetric(name)
                 runs[which].append({"cpu_s": t})
@@ -331,14 +331,14 @@ def compare(name: str, res, bif, hn, before_kernel=None, rounds: int = 2) -> flo
                            assemblies=fr.model.n_assemblies)
             runs[which].append(row)
             print(which, json.dumps(row), flush=True)
-    ref = runs["before"][0]
-    diff = max(abs(x[k] - ref[k]) / abs(ref[k]) for w in ("after", "before") for x in runs[w] for k in KEYS)
+    ref = runs[before][0]
+    diff = max(abs(x[k] - ref[k]) / abs(ref[k]) for w in ("after", before) for x in runs[w] for k in KEYS)
     axi = statistics.median(x["cpu_s"] for x in runs["axisymmetric"])
-    for w in ("before", "after"):
+    for w in (before, "after"):
         cpu = statistics.median(x["cpu_s"] for x in runs[w])
         print(f"{w}: followed {cpu:.2f} CPU-s (median of {rounds}), axisymmetric solve + check {axi:.3f} CPU-s: "
               f"{cpu / axi:.1f}x")
-    print(f"largest relative difference of the answers, every run against the first 'before': {diff:.3g}")
+    print(f"largest relative difference of the answers, every run against the first '{before}': {diff:.3g}")
     return diff
 
 
@@ -371,7 +371,7 @@ def main(argv=None) -> int:
     print(f"axisymmetric solve + check, the first call in this process: {t_first:.3f} CPU-s")
     hn = default_harmonics(bif.n, a.N or None)
     if a.compare:
-        compare(a.scene, res, bif, hn, before_kernel, a.rounds)
+        compare(a.scene, res, bif, hn, before_kernel, a.rounds, before)
         return 0
     warm(res, bif, hn, (before, "after"), before_kernel)
     whole, one, frs = {}, {}, {}
