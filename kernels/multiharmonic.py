@@ -350,7 +350,7 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
     same order, bit for bit; the rows of 2026-11-27 ran over one pair's 18 or 27 columns).
 
     ``Dq (nq, nphi, 9, 9)`` the pointwise ``W (d2psi + p d2J)``; ``bxq, byq, bnq (nq, nen)`` the
-    node values ``dN/dR, dN/dZ, N / R`` at each point; ``Dtp (npair, nq, 81)``, ``DB (9, 3 nen)``
+    node values ``dN/dR, dN/dZ, N / R`` at each point; ``Dtp (npair, nq, 81)``, ``DB (9, nen nc)``
     work arrays.
     """
     nq, nphi = Dq.shape[0], Dq.shape[1]
