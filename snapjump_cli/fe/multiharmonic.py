@@ -42,8 +42,8 @@ log = logging.getLogger(__name__)
 __all__ = ["MultiHarmonicModel", "component_index"]
 
 
-
 def _refs_of_a_pooled_array() -> int:
+    """``sys.getrefcount`` of an array held only by a list, read as the pool reads it."""
     pool = [np.zeros(1)]
     return sys.getrefcount(pool[0])
 
