@@ -2,6 +2,7 @@
 
     .venv/bin/python -m bench.follow_profile [SCENE] [--N N] [--repeat R] [--before KERNEL.py]
                                              [--reference] [--compare [--rounds R]] [--json PATH]
+    .venv/bin/python -m bench.follow_profile [SCENE] --step-grow G [G ...]
 
 ``SCENE`` is one of :data:`bench.follow_study.SCENES` (default ``B``). The scene is solved
 axisymmetrically, its bifurcation located, and its branch followed with the harmonics
@@ -34,6 +35,9 @@ axisymmetric solve and check, ``--rounds`` times (a bifurcation located in anoth
 differ at ~1e-9), and prints each run's answers (``dE_J``, ``dy_pole_m``, ``V_star_m3``,
 ``p_star_Pa``), CPU seconds, steps and assemblies, the medians, the ratios and the largest
 relative difference of the answers.
+
+``--step-grow G ...`` follows the branch with the continuation's step growth set to each ``G`` in
+turn (an experiment on the number of assemblies; the constant is not changed elsewhere).
 """
 from __future__ import annotations
 
@@ -348,6 +352,32 @@ def envelope_flops(mh) -> float:
     return float(np.sum(e * (e + 3.0)))
 
 
+def step_growth(res, bif, hn, grows: list[float]) -> None:
+    """An experiment, not a setting: the followed branch with the continuation's step growth
+    (:data:`snapjump_cli.fe.continuation.STEP_GROW`, shared with the axisymmetric trace) set to
+    each of ``grows`` in turn (restored afterwards); prints the steps, rejected steps, assemblies,
+    CPU and the answers' relative differences from the first run."""
+    import snapjump_cli.fe.continuation as cont
+    from snapjump_cli.fe.follow import follow_branch
+
+    saved = cont.STEP_GROW
+    first = None
+    try:
+        for g in grows:
+            cont.STEP_GROW = float(g)
+            t0 = time.process_time()
+            fr = follow_branch(res, bif, hn)
+            cpu = time.process_time() - t0
+            m = {k: fr.metrics.get(k) for k in KEYS}
+            first = first or m
+            diff = max(abs(m[k] - first[k]) / abs(first[k]) for k in KEYS)
+            print(f"step growth {g}: {len(fr.path.points) - 1} steps, {fr.path.n_rejected} rejected, "
+                  f"{fr.model.n_assemblies} assemblies, {cpu:.2f} CPU-s; answers differ from the first run's by "
+                  f"{diff:.2g} (relative)", flush=True)
+    finally:
+        cont.STEP_GROW = saved
+
+
 def main(argv=None) -> int:
     from snapjump_cli.fe.follow import default_harmonics
 
@@ -363,6 +393,8 @@ def main(argv=None) -> int:
     ap.add_argument("--compare", action="store_true",
                     help="only the whole branch, after and before alternated, with the axisymmetric solve")
     ap.add_argument("--rounds", type=int, default=2, help="alternations of --compare")
+    ap.add_argument("--step-grow", type=float, nargs="+", default=None,
+                    help="instead: the branch with the continuation's step growth set to each value in turn")
     ap.add_argument("--json", type=Path, default=None, help="also write the numbers here")
     a = ap.parse_args(argv)
     before_kernel = load_kernel(a.before) if a.before else None
@@ -370,6 +402,9 @@ def main(argv=None) -> int:
     res, bif, t_first = setup(a.scene)
     print(f"axisymmetric solve + check, the first call in this process: {t_first:.3f} CPU-s")
     hn = default_harmonics(bif.n, a.N or None)
+    if a.step_grow:
+        step_growth(res, bif, hn, a.step_grow)
+        return 0
     if a.compare:
         compare(a.scene, res, bif, hn, before_kernel, a.rounds, before)
         return 0
