@@ -336,24 +336,27 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
                      hn: np.ndarray, upto: int, Dtp: np.ndarray, DB: np.ndarray, Kh: np.ndarray) -> None:
     """The elastic tangent ``sum_q B_k^T Dt_kl B_l`` of one element, harmonic pair by pair
     (``k <= l``), into ``Kh`` in the *harmonic-major* element order: dof ``(k, i, a)`` (harmonic,
-    component a/b/c, node) at ``nen offset(k) + i nen + a``, so that a row of a block is contiguous
-    over the nodes and the loops below run over the 18 or 27 columns of a block (LLVM vectorises
-    them).
+    component a/b/c, node) at ``nen offset(k) + i nen + a``, so that the columns of every harmonic
+    ``l >= k`` are contiguous and the rows below run over all of them (126 - 18 k columns for
+    ``K = 5`` on Q9; LLVM vectorises them).
 
     Phase 3 (``upto >= 3``): the phi-moments ``Dtp[p, q] = sum_j WT[p, j] Dq[q, j]`` (flat 81).
-    Phase 4 (``upto >= 4``): per pair and point, ``DB = Dt B_l`` of every node (``DB[c, i nen +
-    b]``) and the rows ``B_k^T DB`` of every node of harmonic ``k`` (a node's B is sparse: its
-    columns a, b, c have 4, 3 and 4 non-zeros). Every sum is the one of
-    :func:`snapjump_kernels.multiharmonic_reference.mh_elements_reference` in the same order (the
-    same terms, bit for bit).
+    Phase 4 (``upto >= 4``): per harmonic ``k`` and point, ``DB = Dt_kl B_l`` of every node and
+    every ``l >= k`` side by side (``DB[c, nen offset(l) - nen offset(k) + i nen + b]``), then the
+    rows ``B_k^T DB`` of every node of harmonic ``k`` over all of them (a node's B is sparse: its
+    columns a, b, c have 4, 3 and 4 non-zeros). Every entry receives the terms of the points in
+    the order of ``q``, each summed as in
+    :func:`snapjump_kernels.multiharmonic_reference.mh_elements_reference` (the same terms in the
+    same order, bit for bit; the rows of 2026-11-27 ran over one pair's 18 or 27 columns).
 
     ``Dq (nq, nphi, 9, 9)`` the pointwise ``W (d2psi + p d2J)``; ``bxq, byq, bnq (nq, nen)`` the
-    node values ``dN/dR, dN/dZ, N / R`` at each point; ``Dtp (npair, nq, 81)``, ``DB (9, 3 nen)``
+    node values ``dN/dR, dN/dZ, N / R`` at each point; ``Dtp (npair, nq, 81)``, ``DB (9, nen nc)``
     work arrays.
     """
     nq, nphi = Dq.shape[0], Dq.shape[1]
     nen = bxq.shape[1]
     K = hn.shape[0]
+    nd = Kh.shape[0]
     Df = Dq.reshape(nq, nphi, 81)
     npair = K * (K + 1) // 2
     for p in range(npair):
@@ -369,21 +372,21 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
     if upto <= 3:
         return
     Kh[:, :] = 0.0
-    p = 0
     for k in range(K):
         nk = _ndof_k(k)
         fk = float(hn[k])
         r0 = nen * _offset(k)
-        for l in range(k, K):
-            nl = _ndof_k(l)
-            fl = float(hn[l])
-            c0 = nen * _offset(l)
-            m = nl * nen
-            for q in range(nq):
+        m = nd - r0  # the columns of every harmonic l >= k: contiguous in the harmonic-major order
+        for q in range(nq):
+            bx = bxq[q]
+            by = byq[q]
+            bn = bnq[q]
+            for l in range(k, K):
+                p = _pair_index(k, l, K)
+                nl = _ndof_k(l)
+                fl = float(hn[l])
+                c0 = nen * _offset(l) - r0
                 D = Dtp[p, q]
-                bx = bxq[q]
-                by = byq[q]
-                bn = bnq[q]
                 for c in range(9):
                     d0 = D[9 * c]
                     d1 = D[9 * c + 1]
@@ -394,41 +397,46 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
                     d6 = D[9 * c + 6]
                     d7 = D[9 * c + 7]
                     d8 = D[9 * c + 8]
-                    ra = DB[c, :nen]
+                    ra = DB[c, c0:c0 + nen]
                     for b in range(nen):
                         ra[b] = d0 * bx[b] + d1 * by[b] + d4 * bn[b] - d5 * (fl * bn[b])
-                    rb = DB[c, nen:2 * nen]
+                    rb = DB[c, c0 + nen:c0 + 2 * nen]
                     for b in range(nen):
                         rb[b] = d2 * bx[b] + d3 * by[b] - d8 * (fl * bn[b])
                     if nl > 2:
-                        rc = DB[c, 2 * nen:3 * nen]
+                        rc = DB[c, c0 + 2 * nen:c0 + 3 * nen]
                         for b in range(nen):
                             rc[b] = d4 * (fl * bn[b]) - d5 * bn[b] + d6 * bx[b] + d7 * by[b]
-                D0 = DB[0, :m]
-                D1 = DB[1, :m]
-                D2 = DB[2, :m]
-                D3 = DB[3, :m]
-                D4 = DB[4, :m]
-                D5 = DB[5, :m]
-                D6 = DB[6, :m]
-                D7 = DB[7, :m]
-                D8 = DB[8, :m]
-                for a in range(nen):
-                    bxa = bx[a]
-                    bya = by[a]
-                    bna = bn[a]
-                    nbna = fk * bna
-                    row = Kh[r0 + a, c0:c0 + m]
+            D0 = DB[0, :m]
+            D1 = DB[1, :m]
+            D2 = DB[2, :m]
+            D3 = DB[3, :m]
+            D4 = DB[4, :m]
+            D5 = DB[5, :m]
+            D6 = DB[6, :m]
+            D7 = DB[7, :m]
+            D8 = DB[8, :m]
+            for a in range(nen):
+                bxa = bx[a]
+                bya = by[a]
+                bna = bn[a]
+                nbna = fk * bna
+                row = Kh[r0 + a, r0:nd]
+                for x in range(m):
+                    row[x] += bxa * D0[x] + bya * D1[x] + bna * D4[x] - nbna * D5[x]
+                row = Kh[r0 + nen + a, r0:nd]
+                for x in range(m):
+                    row[x] += bxa * D2[x] + bya * D3[x] - nbna * D8[x]
+                if nk > 2:
+                    row = Kh[r0 + 2 * nen + a, r0:nd]
                     for x in range(m):
-                        row[x] += bxa * D0[x] + bya * D1[x] + bna * D4[x] - nbna * D5[x]
-                    row = Kh[r0 + nen + a, c0:c0 + m]
-                    for x in range(m):
-                        row[x] += bxa * D2[x] + bya * D3[x] - nbna * D8[x]
-                    if nk > 2:
-                        row = Kh[r0 + 2 * nen + a, c0:c0 + m]
-                        for x in range(m):
-                            row[x] += nbna * D4[x] - bna * D5[x] + bxa * D6[x] + bya * D7[x]
-            p += 1
+                        row[x] += nbna * D4[x] - bna * D5[x] + bxa * D6[x] + bya * D7[x]
+
+
+@njit(cache=True, inline="always")
+def _pair_index(k: int, l: int, K: int) -> int:
+    """Index of the harmonic pair ``(k, l)``, ``k <= l``, in the order ``k`` outer, ``l`` inner."""
+    return k * K - k * (k - 1) // 2 + (l - k)
 
 
 @njit(cache=True, error_model="numpy")
@@ -439,9 +447,12 @@ def _volumetric_tangent(e: int, dJq: np.ndarray, t: np.ndarray, Wq: np.ndarray, 
     """Add the volumetric-constraint stiffness ``sum_j w_j kappa G_j^T M^-1 G_j`` of element ``e``
     to its node-major tangent ``Ke`` (both triangles, each entry's terms in the order of
     :func:`snapjump_kernels.multiharmonic_reference.mh_elements_reference`). ``G_j`` is formed from
-    the sparse B (``B^T (dJ t)`` per node), each row of ``G^T H`` as one contiguous loop; the lower
-    triangle is accumulated transposed in ``KL`` (rows contiguous) and written back at the end.
-    ``Gv, Hv (npr, nd)``, ``KL (nd, nd)``, ``tmp (nd,)`` are work arrays."""
+    the sparse B (``B^T (dJ t)`` per node) and ``H_j = w_j kappa M^-1 G_j`` for every phi point
+    first; then each row ``i`` of the upper triangle receives the terms ``G_j[:, i]^T H_j`` of
+    every point in turn (``j`` in order, each summed over the pressure dofs from 0), the row
+    staying in the L1 cache (it was one pass over the whole element matrix per phi point). The
+    lower triangle is accumulated transposed in ``KL`` (rows contiguous) and written back at the
+    end. ``Gv, Hv (nphi, npr, nd)``, ``KL (nd, nd)``, ``tmp (nd,)`` are work arrays."""
     nd = Ke.shape[0]
     nq, nphi = dJq.shape[0], dJq.shape[1]
     npr = Np.shape[1]
@@ -452,7 +463,8 @@ def _volumetric_tangent(e: int, dJq: np.ndarray, t: np.ndarray, Wq: np.ndarray, 
         for jj in range(i + 1, nd):
             KL[i, jj] = Ke[jj, i]
     for j in range(nphi):
-        Gv[:, :] = 0.0
+        Gj = Gv[j]
+        Gj[:, :] = 0.0
         for q in range(nq):
             W = Wq[e, q]
             for k in range(K):
@@ -475,35 +487,53 @@ def _volumetric_tangent(e: int, dJq: np.ndarray, t: np.ndarray, Wq: np.ndarray, 
                     s1 = y2 * bx + y3 * by + y8 * (-n * bn)
                     for k2 in range(npr):
                         wn = W * Np[q, k2]
-                        Gv[k2, o] += wn * s0
-                        Gv[k2, o + 1] += wn * s1
+                        Gj[k2, o] += wn * s0
+                        Gj[k2, o + 1] += wn * s1
                     if k > 0:
                         s2 = y4 * (n * bn) + y5 * (-bn) + y6 * bx + y7 * by
                         for k2 in range(npr):
-                            Gv[k2, o + 2] += W * Np[q, k2] * s2
+                            Gj[k2, o + 2] += W * Np[q, k2] * s2
         Mi = Minvp[e, j] if imperfect else Minv[e]
+        Hj = Hv[j]
         for k2 in range(npr):
             for i in range(nd):
                 s = 0.0
                 for l2 in range(npr):
-                    s += Mi[k2, l2] * Gv[l2, i]
-                Hv[k2, i] = wphi[j] * ka * s
-        for i in range(nd):
-            tv = tmp[i:]
-            for x in range(nd - i):
-                tv[x] = 0.0
-            for k2 in range(npr):
-                gi = Gv[k2, i]
-                h = Hv[k2, i:]
-                for x in range(nd - i):
-                    tv[x] += gi * h[x]
-            row = Ke[i, i:]
-            for x in range(nd - i):
-                row[x] += tv[x]
-            rowl = KL[i, i + 1:]
-            tl = tmp[i + 1:]
-            for x in range(nd - i - 1):
-                rowl[x] += tl[x]
+                    s += Mi[k2, l2] * Gj[l2, i]
+                Hj[k2, i] = wphi[j] * ka * s
+    # row by row, every phi point's rank-npr term in turn (the row stays in the L1 cache); each
+    # entry receives the terms of the points in the order of j, each summed over k2 from 0
+    for i in range(nd):
+        ru = Ke[i, i:]
+        rl = KL[i, i:]  # KL[i, i] is not written back
+        w = nd - i
+        for j in range(nphi):
+            if npr == 3:
+                g0 = Gv[j, 0, i]
+                g1 = Gv[j, 1, i]
+                g2 = Gv[j, 2, i]
+                h0 = Hv[j, 0, i:]
+                h1 = Hv[j, 1, i:]
+                h2 = Hv[j, 2, i:]
+                for x in range(w):
+                    tv = 0.0
+                    tv += g0 * h0[x]
+                    tv += g1 * h1[x]
+                    tv += g2 * h2[x]
+                    ru[x] += tv
+                    rl[x] += tv
+            else:
+                tv = tmp[:w]
+                for x in range(w):
+                    tv[x] = 0.0
+                for k2 in range(npr):
+                    gi = Gv[j, k2, i]
+                    h = Hv[j, k2, i:]
+                    for x in range(w):
+                        tv[x] += gi * h[x]
+                for x in range(w):
+                    ru[x] += tv[x]
+                    rl[x] += tv[x]
     for i in range(nd):
         for jj in range(i + 1, nd):
             Ke[jj, i] = KL[i, jj]
@@ -550,6 +580,20 @@ def mh_elements_phases(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.
     (E, ok, re, Ke) : the energy, False if some point left the Gent domain, the element residuals
         (ne, nen nc) and tangents (ne, nen nc, nen nc; empty unless ``want >= 2``)
     """
+    return _mh_pass(A, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, hn, phis, wphi, want, Fi, Jimp,
+                    Minvp, upto, False, np.zeros((0, 0), np.int64), np.zeros((0, 0)), np.zeros((0, 0)))
+
+
+@njit(cache=True)
+def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, jm: np.ndarray,
+             kappa: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray, Wq: np.ndarray,
+             Np: np.ndarray, Minv: np.ndarray, hn: np.ndarray, phis: np.ndarray, wphi: np.ndarray,
+             want: int, Fi: np.ndarray, Jimp: np.ndarray, Minvp: np.ndarray, upto: int, fused: bool,
+             edofs: np.ndarray, ecoef: np.ndarray, ab: np.ndarray):
+    """The element pass of :func:`mh_elements_phases`; with ``fused`` (and ``want >= 2``) each
+    element's tangent is scattered into the band ``ab`` as soon as it is formed (as
+    :func:`snapjump_kernels.harmonics.scatter_band` with factor 1 would, element by element) and
+    not kept: the returned ``Ke`` is then one element's work array."""
     ne, nen = conn.shape
     nq = Wq.shape[1]
     npr = Np.shape[1]
@@ -558,7 +602,8 @@ def mh_elements_phases(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.
     nd = nen * nc
     nphi = phis.shape[0]
     re = np.zeros((ne, nd))
-    Ke = np.zeros((ne, nd, nd)) if want >= 2 else np.zeros((0, nd, nd))
+    fuse = fused and want >= 2
+    Ke = np.zeros(((1 if fuse else ne), nd, nd)) if want >= 2 else np.zeros((0, nd, nd))
     # trig table t[j, k, c]: cos n_k phi_j for c < 5, sin for c >= 5
     t = np.empty((nphi, K, 9))
     for j in range(nphi):
@@ -584,15 +629,15 @@ def mh_elements_phases(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.
     pel = np.empty((nphi, npr))
     Bn = np.empty((nen, K, 9, 3))
     S = np.empty((K, 9))
-    Gv = np.empty((npr, nd))
-    Hv = np.empty((npr, nd))
+    Gv = np.empty((nphi, npr, nd))
+    Hv = np.empty((nphi, npr, nd))
     bq = np.empty((nen, 3))
     hk = np.empty(nd, np.int64)  # harmonic index of each element dof
     # the tangent's work arrays (docstring of _elastic_tangent)
     npair = K * (K + 1) // 2
     WT = _pair_weights(t, wphi, K) if want >= 2 else np.empty((0, nphi, 81))
     Dtp = np.empty((npair, nq, 81))
-    DB = np.empty((9, 3 * nen))
+    DB = np.empty((9, nd))
     Kh = np.zeros((nd, nd))
     KL = np.empty((nd, nd))
     tmp = np.empty(nd)
@@ -721,7 +766,7 @@ def mh_elements_phases(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.
             continue
         # harmonic-major blocks -> node-major Ke; the blocks of harmonics k < l were formed once:
         # their transposes are the (l, k) blocks (as the element dofs' harmonics say)
-        Ke_e = Ke[e]
+        Ke_e = Ke[0] if fuse else Ke[e]
         for r in range(nd):
             pr = hperm[r]
             kr = hk[pr]
@@ -737,7 +782,55 @@ def mh_elements_phases(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.
             continue
         _volumetric_tangent(e, dJq, t, Wq, Np, Minv, Minvp, imperfect, wphi, ka, bxq, byq, bnq, hn, Gv, Hv, KL,
                             tmp, Ke_e)
+        if fuse and upto >= 5:
+            _scatter_element(Ke_e, edofs[e], ecoef[e], ab)
     return E, True, re, Ke
+
+
+@njit(cache=True, inline="always")
+def _scatter_element(Ke: np.ndarray, dofs: np.ndarray, coef: np.ndarray, ab: np.ndarray) -> None:
+    """``ab += P^T Ke P`` of one element into the lower band (the terms of
+    :func:`snapjump_kernels.harmonics.scatter_band` with factor 1, in its order)."""
+    nd = dofs.shape[0]
+    for i in range(nd):
+        di = dofs[i]
+        if di < 0:
+            continue
+        ci = coef[i] * 1.0
+        row = Ke[i]
+        for j in range(nd):
+            dj = dofs[j]
+            if dj < 0 or dj > di:
+                continue
+            ab[dj, di - dj] += ci * coef[j] * row[j]
+
+
+@njit(cache=True)
+def mh_assemble_band(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, jm: np.ndarray,
+                     kappa: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray, Wq: np.ndarray,
+                     Np: np.ndarray, Minv: np.ndarray, hn: np.ndarray, phis: np.ndarray, wphi: np.ndarray,
+                     Fi: np.ndarray, Jimp: np.ndarray, Minvp: np.ndarray, edofs: np.ndarray, ecoef: np.ndarray,
+                     ext: np.ndarray, ab: np.ndarray):
+    """Energy, element residuals and the tangent scattered into the lower band ``ab`` in one pass.
+
+    ``ab``'s envelope (``ab[j, :ext[j] + 1]``) is zeroed first (entries outside it are neither
+    read nor written: a band that was zero there stays so); then every element's tangent is
+    added as it is formed: the same band, bit for bit, as :func:`mh_elements` (``want = 2``)
+    followed by :func:`snapjump_kernels.harmonics.scatter_band` (factor 1), without the
+    ``(ne, nd, nd)`` element matrices in memory.
+
+    Returns
+    -------
+    (E, ok, re) : as :func:`mh_elements`; ``ab`` holds the elements' tangent (undefined if not ``ok``)
+    """
+    n = ab.shape[0]
+    for j in range(n):
+        col = ab[j, :ext[j] + 1]
+        for x in range(col.size):
+            col[x] = 0.0
+    E, ok, re, _ = _mh_pass(A, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, hn, phis, wphi, 2, Fi,
+                            Jimp, Minvp, 5, True, edofs, ecoef, ab)
+    return E, ok, re
 
 
 @njit(cache=True)

@@ -27,6 +27,7 @@ harmonic ``n >= 1`` vanishes, so it is the pole's own displacement.
 from __future__ import annotations
 
 import logging
+import sys
 import time
 
 import numpy as np
@@ -39,6 +40,16 @@ from snapjump_kernels.calls import envelope_extents, scatter_band
 log = logging.getLogger(__name__)
 
 __all__ = ["MultiHarmonicModel", "component_index"]
+
+
+def _refs_of_a_pooled_array() -> int:
+    """``sys.getrefcount`` of an array held only by a list, read as the pool reads it."""
+    pool = [np.zeros(1)]
+    return sys.getrefcount(pool[0])
+
+
+#: ``sys.getrefcount(pool[i])`` of an array that only the list ``pool`` holds
+_FREE_REFS = _refs_of_a_pooled_array()
 
 
 def component_index(k: int, comp: int) -> int:
@@ -69,6 +80,15 @@ class MultiHarmonicModel:
     """
 
     solver = "banded"
+    #: the tangent formed with its scatter fused into the element pass
+    #: (:func:`snapjump_kernels.multiharmonic.mh_assemble_band`) and factorised by
+    #: :func:`snapjump_kernels.multiharmonic_band.bordered_factor_into`, both into reused band
+    #: buffers: the same bands and factors bit for bit as with ``False`` (the element matrices,
+    #: :func:`~snapjump_kernels.calls.scatter_band` and :func:`~snapjump_cli.fe.model.factor_bordered`
+    #: into fresh arrays, as before 2026-11-28; kept for ``bench.follow_profile --compare``)
+    fused_assembly: bool = True
+    #: band buffers kept for reuse (each ``n (kl + 1)`` doubles; more are allocated when all are in use)
+    pool_size: int = 6
 
     def __init__(self, model, hn, n_phi: int | None = None, free_body: bool | None = None,
                  gauge: list[tuple[int, int]] = (), imperfection: np.ndarray | None = None) -> None:
@@ -169,6 +189,36 @@ class MultiHarmonicModel:
             self.Minvp = np.ascontiguousarray(np.linalg.inv(Mp))
         self.n_assemblies = self.n_residuals = self.n_factorizations = 0
         self.t_assembly = self.t_factor = 0.0
+        self._pool: list[np.ndarray] = []
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["_pool"] = []  # buffers, not state
+        return state
+
+    def release_buffers(self) -> None:
+        """Drop the reused band buffers (a followed branch of design B, ``N = 4``, keeps 4 of
+        ~15 MB while the model lives); they are allocated again when needed."""
+        self._pool.clear()
+
+    def _band_buffer(self) -> np.ndarray:
+        """A band array ``(n, kl + 1)`` that nothing else refers to, zero outside the envelope
+        ``band_ext`` (its envelope holds anything: the kernels that fill it write all of it).
+
+        A buffer of the pool is free when the pool holds the only reference to it: a
+        :class:`~snapjump_cli.fe.model.Linearization` or a
+        :class:`~snapjump_cli.fe.model.BorderedSolver` still using it holds it or a view of it
+        (a view refers to it as its base), so a band in use is never handed out again. Reusing
+        the buffers saves allocating, zeroing and faulting in ~15 MB per assembly and
+        factorisation (design B, ``N = 4``)."""
+        pool = self._pool
+        for i in range(len(pool)):
+            if sys.getrefcount(pool[i]) <= _FREE_REFS:
+                return pool[i]
+        ab = np.zeros((self.n, self.kl + 1))
+        if len(pool) < self.pool_size:
+            pool.append(ab)
+        return ab
 
     # ---- vectors -------------------------------------------------------------------------------
     def amplitudes(self, u: np.ndarray) -> np.ndarray:
@@ -233,15 +283,22 @@ class MultiHarmonicModel:
 
     # ---- evaluations ---------------------------------------------------------------------------
     def _evaluate(self, u: np.ndarray, p: float, want: int):
-        from snapjump_kernels.multiharmonic import mh_cavity, mh_elements, scatter_vector
+        from snapjump_kernels.multiharmonic import mh_assemble_band, mh_cavity, mh_elements, scatter_vector
 
         check_time()  # the design's CPU-time limit (snapjump_cli.fe.limits)
         t0 = time.perf_counter()
         M = self.base
         A = np.ascontiguousarray(self.total_amplitudes(u))
-        E, ok, re, Ke = mh_elements(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
-                                    M.Minv, self.hn, self.phis, self.wphi, max(want, 0), self.Fi, self.Jimp,
-                                    self.Minvp)
+        fused = want >= 2 and self.fused_assembly
+        if fused:  # the elements' tangent scattered into a band as it is formed
+            ab = self._band_buffer()
+            E, ok, re = mh_assemble_band(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
+                                         M.Minv, self.hn, self.phis, self.wphi, self.Fi, self.Jimp, self.Minvp,
+                                         self.edofs, self.ecoef, self.band_ext, ab)
+        else:
+            E, ok, re, Ke = mh_elements(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
+                                        M.Minv, self.hn, self.phis, self.wphi, max(want, 0), self.Fi, self.Jimp,
+                                        self.Minvp)
         if not ok:
             return None
         Vf, ge, He = mh_cavity(M.X, A, M.edges, self.hn, self.phis, self.wphi, want)
@@ -253,8 +310,9 @@ class MultiHarmonicModel:
             scatter_vector(ge, self.gdofs, self.gcoef, 1.0, g)
             R -= p * g
         if want >= 2:
-            ab = np.zeros((self.n, self.kl + 1))
-            scatter_band(Ke, self.edofs, self.ecoef, 1.0, ab)
+            if not fused:
+                ab = np.zeros((self.n, self.kl + 1))
+                scatter_band(Ke, self.edofs, self.ecoef, 1.0, ab)
             scatter_band(He, self.gdofs, self.gcoef, -float(p), ab)
             data = ab.ravel()
             self.n_assemblies += 1
@@ -313,8 +371,26 @@ class MultiHarmonicModel:
         return np.array([V, p, u[self.pole_dof]]), dz, np.array([0.0, 1.0, 0.0])
 
     def _factor(self, data, b, c_u, c_p) -> BorderedSolver | None:
-        """The bordered band factorisation (:func:`snapjump_cli.fe.model.factor_bordered`)."""
-        return factor_bordered(self, data, b, c_u, c_p)
+        """The bordered band factorisation (as :func:`snapjump_cli.fe.model.factor_bordered`, whose
+        factors it returns bit for bit; with :attr:`fused_assembly`, into a reused band buffer)."""
+        if not self.fused_assembly:
+            return factor_bordered(self, data, b, c_u, c_p)
+        from snapjump_kernels.multiharmonic_band import bordered_factor_into
+
+        t0 = time.perf_counter()
+        n = self.n
+        try:
+            K = data.reshape(n, self.kl + 1)
+            fac = self._band_buffer()
+            ok, nneg, Kib, schur = bordered_factor_into(K, self.band_ext, np.ascontiguousarray(b, dtype=float),
+                                                        np.ascontiguousarray(c_u, dtype=float), float(c_p), fac)
+            if not ok or not np.isfinite(schur) or schur == 0.0:
+                return None
+            s = BorderedSolver(fac, K, b, c_u, float(c_p), n, nneg, self.band_ext, Kib, schur)
+        finally:
+            self.t_factor += time.perf_counter() - t0
+        self.n_factorizations += 1
+        return s
 
     def stiffness_matrix(self, u: np.ndarray, p: float):
         """The tangent alone (scipy CSR), for tests and eigenvalues."""

@@ -1,0 +1,181 @@
+"""The multi-harmonic model's band assembly and factorisation (docs/harmonics.md, section 10.4).
+
+``kernels/multiharmonic_band.py``'s :func:`envelope_ldlt` and :func:`bordered_factor_into` do the
+arithmetic of :func:`snapjump_kernels.banded.band_ldlt` and ``bordered_factor`` term by term in
+the same order (only the loops are arranged differently, and the factors go into a buffer the
+caller keeps): they must return the same factors, inertia, ``K^-1 b`` and Schur complement *bit
+for bit*, which the tests check with ``array_equal`` (and, independently, against dense algebra).
+The fused assembly (:func:`snapjump_kernels.multiharmonic.mh_assemble_band`) must give the band
+that the element matrices scattered by ``scatter_band`` give, also bit for bit, and the model's
+reused band buffers must never hand out a band still in use.
+"""
+from __future__ import annotations
+
+import gc
+
+import numpy as np
+import pytest
+
+from snapjump_cli.fe.multiharmonic import MultiHarmonicModel
+from snapjump_kernels.banded import band_ldlt, bordered_factor
+from snapjump_kernels.multiharmonic_band import bordered_factor_into, envelope_ldlt
+from tests.unit.test_banded import _extents_of, _random_profile_matrix, _to_band
+from tests.unit.test_harmonics_fd import _model, _state
+from tests.unit.test_imperfection import _imperfection
+from tests.unit.test_multiharmonic import _smooth_modes
+
+
+def _profile(n: int, kl: int, seed: int, shift: float):
+    A = _random_profile_matrix(n, kl, seed, shift)
+    return A, _to_band(A, kl), _extents_of(A, kl)
+
+
+@pytest.mark.parametrize("n, kl, seed", [(120, 9, 3), (97, 23, 5), (61, 60, 7), (6, 5, 1), (13, 2, 2)])
+@pytest.mark.parametrize("shift", [8.0, 0.5, -1.5])  # positive definite / a few / many negative eigenvalues
+def test_envelope_ldlt_is_band_ldlt_bit_for_bit(n, kl, seed, shift):
+    A, ab, ext = _profile(n, kl, seed, shift)
+    f0, f1 = ab.copy(), ab.copy()
+    ok0, neg0 = band_ldlt(f0, ext)
+    ok1, neg1 = envelope_ldlt(f1, ext)
+    assert ok0 and ok1
+    assert neg1 == neg0 == int(np.sum(np.linalg.eigvalsh(A) < 0))  # the inertia (Sylvester)
+    assert np.array_equal(f1, f0)
+    if shift < 8.0:
+        assert neg1 > 0  # indefinite indeed
+
+
+def test_envelope_ldlt_reports_a_zero_pivot_as_band_ldlt_does():
+    A = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 1.0], [0.0, 1.0, 2.0]])  # the second pivot is 0
+    ab = _to_band(A, 2)
+    ext = _extents_of(A, 2)
+    assert envelope_ldlt(ab.copy(), ext)[0] is False
+    assert band_ldlt(ab.copy(), ext)[0] is False
+
+
+@pytest.mark.parametrize("shift", [8.0, 0.5])
+def test_bordered_factor_into_is_bordered_factor_and_solves(shift):
+    from snapjump_cli.fe.model import BorderedSolver
+
+    n, kl = 150, 17
+    A, ab, ext = _profile(n, kl, 11, shift)
+    rng = np.random.default_rng(2)
+    b, c, d = rng.standard_normal(n), rng.standard_normal(n), 0.3
+    ok0, neg0, fac0, Kib0, s0 = bordered_factor(ab, ext, b, c, d)
+    fac = np.zeros_like(ab)
+    ok1, neg1, Kib1, s1 = bordered_factor_into(ab, ext, b, c, d, fac)
+    assert ok0 and ok1 and neg0 == neg1
+    assert np.array_equal(fac, fac0) and np.array_equal(Kib1, Kib0) and s1 == s0
+    # the factors solve the bordered system (against dense algebra)
+    Bm = np.block([[A, b[:, None]], [c[None, :], np.array([[d]])]])
+    rhs = rng.standard_normal(n + 1)
+    x = BorderedSolver(fac, ab, b, c, d, n, neg1, ext, Kib1, s1).solve(rhs)
+    x_dense = np.linalg.solve(Bm, rhs)
+    assert np.linalg.norm(x - x_dense) <= 1e-12 * np.linalg.norm(x_dense) * np.linalg.cond(Bm) ** 0.5
+
+
+def test_bordered_solve_at_a_limit_point():
+    """``K`` singular to ~1e-9 of its scale (a limit point under pressure control), the bordered
+    matrix regular (its border sees the null vector): the new factors solve it as the old ones do,
+    bit for bit, and as dense algebra does."""
+    from snapjump_cli.fe.model import BorderedSolver
+
+    n, kl = 140, 12
+    A0, _, ext = _profile(n, kl, 17, 0.5)
+    lam, V = np.linalg.eigh(A0)
+    k = int(np.argmin(np.abs(lam)))
+    scale = np.abs(lam).max()
+    A = A0 - (lam[k] - 1e-9 * scale) * np.eye(n)  # one eigenvalue 1e-9 of the scale
+    ab = _to_band(A, kl)
+    v = V[:, k]
+    rng = np.random.default_rng(5)
+    b = v + 0.1 * rng.standard_normal(n)
+    c = v + 0.1 * rng.standard_normal(n)
+    d = 0.0
+    ok0, neg0, fac0, Kib0, s0 = bordered_factor(ab, ext, b, c, d)
+    fac = np.zeros_like(ab)
+    ok1, neg1, Kib1, s1 = bordered_factor_into(ab, ext, b, c, d, fac)
+    assert ok0 and ok1 and neg1 == neg0 == int(np.sum(np.linalg.eigvalsh(A) < 0))
+    assert np.array_equal(fac, fac0) and np.array_equal(Kib1, Kib0) and s1 == s0
+    rhs = rng.standard_normal(n + 1)
+    x1 = BorderedSolver(fac, ab, b, c, d, n, neg1, ext, Kib1, s1).solve(rhs)
+    x0 = BorderedSolver(fac0, ab, b, c, d, n, neg0, ext, Kib0, s0).solve(rhs)
+    assert np.array_equal(x1, x0)
+    Bm = np.block([[A, b[:, None]], [c[None, :], np.array([[d]])]])
+    assert np.linalg.cond(Bm) < 1e-6 / 1e-9  # regular, though K is nearly singular
+    x_dense = np.linalg.solve(Bm, rhs)
+    assert np.linalg.norm(x1 - x_dense) <= 1e-9 * np.linalg.norm(x_dense)
+
+
+def _mh_state(order: int, hn, imperfect: bool):
+    M = _model(order)
+    mh = MultiHarmonicModel(M, hn)
+    if imperfect:
+        mh = MultiHarmonicModel(M, hn, imperfection=_imperfection(mh, 0.04))
+    rng = np.random.default_rng(3 + order + len(hn))
+    U = mh.embed(_state(M, 4), _smooth_modes(M, hn, 0.03)) + 1e-3 * rng.standard_normal(mh.n)
+    return mh, U
+
+
+@pytest.mark.parametrize("order", [1, 2])
+@pytest.mark.parametrize("hn", [[0], [0, 1, 2], [0, 2, 4, 6], [0, 1, 2, 3, 4]])
+@pytest.mark.parametrize("imperfect", [False, True])
+def test_fused_assembly_and_factorisation_are_the_unfused_ones_bit_for_bit(order, hn, imperfect):
+    mh, U = _mh_state(order, hn, imperfect)
+    p = 0.37
+    assert MultiHarmonicModel.fused_assembly
+    new = mh.linearize(U, p)
+    try:
+        MultiHarmonicModel.fused_assembly = False
+        old = mh.linearize(U, p)
+        rng = np.random.default_rng(1)
+        c_u, c_p = rng.standard_normal(mh.n), 0.2
+        s_old = old.factor(c_u, c_p)
+        # harmonic 1 of a free body without a gauge: singular (its rigid modes); then shifted
+        shift = 0.0 if s_old is not None else 1e-3 * float(np.abs(old.diag_abs()).max())
+        if s_old is None:
+            s_old = old.factor(c_u, c_p, shift)
+    finally:
+        MultiHarmonicModel.fused_assembly = True
+    assert new.E == old.E and new.V == old.V
+    assert np.array_equal(new.R, old.R) and np.array_equal(new.g, old.g)
+    assert np.abs(old.data).max() > 0 and np.array_equal(new.data, old.data)
+    s_new = new.factor(c_u, c_p, shift)
+    assert s_new is not None and s_old is not None
+    assert s_new.n_negative == s_old.n_negative and s_new.schur == s_old.schur
+    assert np.array_equal(s_new.fac, s_old.fac) and np.array_equal(s_new.Kib, s_old.Kib)
+    rhs = rng.standard_normal(mh.n + 1)
+    assert np.array_equal(s_new.solve(rhs), s_old.solve(rhs))
+
+
+def test_band_buffers_in_use_are_not_handed_out_again():
+    mh, U = _mh_state(2, [0, 2, 4], False)  # no rigid mode (harmonic 1): the tangent is regular
+    p = 0.2
+    lin1 = mh.linearize(U, p)
+    first = lin1.data.copy()
+    lin2 = mh.linearize(U + 1e-3, p)  # lin1's band is still referred to: a new buffer
+    assert not np.shares_memory(lin1.data, lin2.data)
+    assert np.array_equal(lin1.data, first)
+    c_u = np.ones(mh.n)
+    s1 = lin1.factor(c_u, 0.0)
+    for arr in (lin1.data, lin2.data):
+        assert not np.shares_memory(s1.fac, arr)
+    fac1 = s1.fac.copy()
+    lin3 = mh.linearize(U - 1e-3, p)
+    s3 = lin3.factor(c_u, 0.0)
+    assert np.array_equal(s1.fac, fac1) and np.array_equal(lin1.data, first)  # untouched
+    for arr in (lin1.data, lin2.data, s1.fac, s3.fac):
+        assert arr is s3.fac or not np.shares_memory(s3.fac, arr)
+    # a band no longer referred to is reused, and is then the band of the new state
+    addr = lin2.data.__array_interface__["data"][0]
+    del lin2
+    gc.collect()
+    lin4 = mh.linearize(U + 2e-3, p)
+    assert lin4.data.__array_interface__["data"][0] == addr
+    try:
+        MultiHarmonicModel.fused_assembly = False
+        ref = mh.linearize(U + 2e-3, p)
+    finally:
+        MultiHarmonicModel.fused_assembly = True
+    assert np.array_equal(lin4.data, ref.data)
+    # the band outside the envelope is zero (a reused buffer included): the stiffness is exact
+    assert (abs(lin4.stiffness() - ref.stiffness())).max() == 0.0
