@@ -353,29 +353,23 @@ def envelope_flops(mh) -> float:
 
 
 def step_growth(res, bif, hn, grows: list[float]) -> None:
-    """An experiment, not a setting: the followed branch with the continuation's step growth
-    (:data:`snapjump_cli.fe.continuation.STEP_GROW`, shared with the axisymmetric trace) set to
-    each of ``grows`` in turn (restored afterwards); prints the steps, rejected steps, assemblies,
-    CPU and the answers' relative differences from the first run."""
-    import snapjump_cli.fe.continuation as cont
+    """The followed branch with the continuation's step growth (``follow_branch(step_grow=...)``,
+    default :data:`snapjump_cli.fe.follow.FOLLOW_STEP_GROW`; the axisymmetric trace's is 1.6) set
+    to each of ``grows`` in turn; prints the steps, rejected steps, assemblies, CPU and the
+    answers' relative differences from the first run."""
     from snapjump_cli.fe.follow import follow_branch
 
-    saved = cont.STEP_GROW
     first = None
-    try:
-        for g in grows:
-            cont.STEP_GROW = float(g)
-            t0 = time.process_time()
-            fr = follow_branch(res, bif, hn)
-            cpu = time.process_time() - t0
-            m = {k: fr.metrics.get(k) for k in KEYS}
-            first = first or m
-            diff = max(abs(m[k] - first[k]) / abs(first[k]) for k in KEYS)
-            print(f"step growth {g}: {len(fr.path.points) - 1} steps, {fr.path.n_rejected} rejected, "
-                  f"{fr.model.n_assemblies} assemblies, {cpu:.2f} CPU-s; answers differ from the first run's by "
-                  f"{diff:.2g} (relative)", flush=True)
-    finally:
-        cont.STEP_GROW = saved
+    for g in grows:
+        t0 = time.process_time()
+        fr = follow_branch(res, bif, hn, step_grow=float(g))
+        cpu = time.process_time() - t0
+        m = {k: fr.metrics.get(k) for k in KEYS}
+        first = first or m
+        diff = max(abs(m[k] - first[k]) / abs(first[k]) for k in KEYS)
+        print(f"step growth {g}: {len(fr.path.points) - 1} steps, {fr.path.n_rejected} rejected, "
+              f"{fr.model.n_assemblies} assemblies, {cpu:.2f} CPU-s; answers differ from the first run's by "
+              f"{diff:.2g} (relative)", flush=True)
 
 
 def main(argv=None) -> int:

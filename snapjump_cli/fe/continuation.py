@@ -43,12 +43,13 @@ log = logging.getLogger(__name__)
 
 __all__ = ["Problem", "PathPoint", "Path", "ContinuationFailed", "ContinuationSettings", "trace", "Tracer"]
 
-#: Step control after an accepted step: the next step is ``STEP_GROW`` times longer when Newton
+#: Step control after an accepted step: the next step is ``STEP_GROW`` times longer (the default
+#: of ``ContinuationSettings.step_grow``) when Newton
 #: took at most ``n_opt`` iterations, ``STEP_KEEP`` times up to ``n_opt + 2`` and ``STEP_SHRINK``
 #: times beyond; the growth is capped so that the next step turns by about ``TURN_AIM`` of
 #: ``max_turn_deg``, and never falls below ``STEP_FACTOR_MIN``. A rejected step is cut by
 #: ``STEP_CUT`` and tried again.
-STEP_GROW = 1.6
+STEP_GROW = ContinuationSettings.step_grow
 STEP_KEEP = 1.0
 STEP_SHRINK = 0.6
 TURN_AIM = 0.5
@@ -179,7 +180,7 @@ def trace(
                 # Newton's iteration count hardly depends on the step while the predictor is in
                 # its basin: grow while it converges in <= n_opt iterations, shrink beyond
                 its = max(new.newton, 1)
-                grow = STEP_GROW if its <= cfg.n_opt else (STEP_KEEP if its <= cfg.n_opt + 2 else STEP_SHRINK)
+                grow = cfg.step_grow if its <= cfg.n_opt else (STEP_KEEP if its <= cfg.n_opt + 2 else STEP_SHRINK)
                 if ang > 0:
                     grow = min(grow, TURN_AIM * cfg.max_turn_deg / ang)
                 ds = min(cfg.ds_max, ds * max(STEP_FACTOR_MIN, grow))

@@ -271,6 +271,11 @@ MICRO_FOLD_DE = 1e-2
 #: :class:`BranchTracker`: "back on the axisymmetric path" means every harmonic ``n >= 1`` below
 #: this fraction of its largest amplitude on the branch.
 REJOIN_FRAC = 0.25
+#: Step growth of the followed branch's continuation (the axisymmetric trace's is 1.6): on design B
+#: and the Fig. S16 cap a third of the branch's Riks corrections failed at 1.6 and were cut back;
+#: at 1.2 the branch takes 16-18 % fewer assemblies, with answers equal to 1.5e-13
+#: (``python -m bench.follow_profile B --step-grow 1.6 1.2``).
+FOLLOW_STEP_GROW = 1.2
 #: Folds whose lower state, found off the branch, releases less than ``MICRO_FOLD_DE``: inflation
 #: goes on from that lower state, at most this many times.
 MAX_RESTARTS = 3
@@ -362,7 +367,8 @@ def micro_energy(result, micro: float) -> float:
 
 
 def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: int | None = None,
-                  micro: float = MICRO_FOLD_DE, max_steps: int | None = None) -> FollowResult:
+                  micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
+                  step_grow: float = FOLLOW_STEP_GROW) -> FollowResult:
     """Trace the branch of ``bif`` with the harmonics ``hn`` (default :func:`default_harmonics`)
     from the bifurcation through its volume limit to the lower state at that volume.
 
@@ -374,6 +380,7 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     micro : a fold of the branch releasing less than this fraction of the axisymmetric snap's
         energy is traced through (``micro_folds``), not reported as the snap
     max_steps : bound on the branch's continuation steps (default: the axisymmetric trace's)
+    step_grow : the continuation's step growth (:data:`FOLLOW_STEP_GROW`)
 
     Returns
     -------
@@ -387,7 +394,7 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     mh = MultiHarmonicModel(base, hn, n_phi=n_phi, gauge=harmonic1_gauge(base, bif.n, bif.u))
     U_c = mh.embed(bif.u)
     Phi = mh.embed(np.zeros(base.n), {bif.n: bif.mode})
-    cfg = replace(tr0.cfg, fused=False, mixed_tangent=False)
+    cfg = replace(tr0.cfg, fused=False, mixed_tangent=False, step_grow=float(step_grow))
     if max_steps is not None:
         cfg = replace(cfg, max_steps=int(max_steps))
     tr = Tracer(mh, cfg)
@@ -440,6 +447,7 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
         fr.lower_method, fr.lower_note = low.method, low.note or low.message
     fr.metrics = _branch_metrics(fr, sc)
     fr.metrics["follow_wall_s"] = time.perf_counter() - t0
+    mh.release_buffers()  # the result keeps the model (plots, shapes): not its ~60 MB of band buffers
     return fr
 
 

@@ -86,6 +86,9 @@ class ContinuationSettings:
         in the median (often growing), and iterating on to ``max_newton`` cost ~9 element passes
         per failed step (``lab/newton_study.py contraction``)
     mixed_tangent : linearise with the auxiliary field carried along the path, if the problem has one
+    step_grow : growth of the next step after a step whose Newton took at most ``n_opt`` iterations
+        (:data:`snapjump_cli.fe.continuation.STEP_GROW` by default; a followed branch grows more
+        slowly, :data:`snapjump_cli.fe.follow.FOLLOW_STEP_GROW`)
     split_steps : a step that turned more than ``max_turn_deg`` is kept, with its half-way point
         added, when each half turns less (else it is rejected and the step halved); the converged
         end point is not thrown away
@@ -109,6 +112,7 @@ class ContinuationSettings:
     theta_max: float = 0.5
     split_steps: bool = True
     mixed_tangent: bool = True
+    step_grow: float = 1.6
 
     @classmethod
     def from_solver(cls, solver: SolverSettings, scales: tuple[float, float, float], u_unit: float = 1.0,
