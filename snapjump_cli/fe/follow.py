@@ -600,6 +600,14 @@ def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | Non
             "dE: not the snap, and the branch beyond it was not traced")) if x)
         out["follow_wall_s"] = time.perf_counter() - t0
         return out, fr
+    if fm.get("dy_pole_m") is not None and not fm["dy_pole_m"] > 0.0:
+        # the pole moves up in the followed snap: no jump the mass-spring model can describe (a sweep
+        # row with it fails its range check and would lose the axisymmetric answer as well)
+        out["follow_note"] = "; ".join(x for x in (fm.get("follow_note"), (
+            f"the followed snap moves the pole up (dy_pole {fm['dy_pole_m']:.3g} m, dE {fm['dE_J']:.3g} J): "
+            "not used as the answer")) if x)
+        out["follow_wall_s"] = time.perf_counter() - t0
+        return out, fr
     out["followed"] = True
     for k in fm:
         if k not in out or k in _REPLACED:

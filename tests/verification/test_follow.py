@@ -150,6 +150,9 @@ def test_a_fold_that_releases_almost_nothing_is_not_the_answer(cap, monkeypatch)
     fake["dE_J"] = 0.5 * dE_axi  # a real snap is reported
     out, _ = follow.followed_metrics(res, chk)
     assert out["followed"] is True and out["dE_J"] == 0.5 * dE_axi
+    fake["dy_pole_m"] = -1.6e-3  # ... unless its pole moves up: the axisymmetric answer stays, with the reason
+    out, _ = follow.followed_metrics(res, chk)
+    assert out["followed"] is False and "moves the pole up" in out["follow_note"] and out.get("dE_J") is None
 
 
 def test_the_axisymmetric_state_at_a_volume_is_offered_only_where_it_is_stable(cap):
