@@ -98,8 +98,8 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
             check_writable(plots_dir / name, BadInput, overwrite=overwrite)
         try:
             import matplotlib  # noqa: F401
-        except ImportError as e:
-            raise click.ClickException(f"--plots needs matplotlib (pip install 'snapjump[plots]'): {e}") from None
+        except ImportError:
+            raise BadInput("--plots needs matplotlib, which is not installed (pip install 'snapjump[plots]')") from None
     try:
         ranked = rank_results(df, params, exclude_asymmetric=exclude_asymmetric)
     except RankInputError as e:

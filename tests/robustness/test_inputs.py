@@ -125,3 +125,11 @@ def test_special_files_are_refused_as_inputs(tmp_path, capsys):
     spec.write_text("bounds: {eta_i: [5, 8], theta_i: 80, eta_o: 12, theta_o: 82, mu_ratio: 5.8}\n")
     code, _, err = run_cli(capsys, "optimize", str(spec), "--from", str(fifo), "-o", str(tmp_path / "o.parquet"))
     assert code == 2 and "got a special file" in err
+
+
+def test_rank_plots_without_matplotlib_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, monkeypatch, results_file):
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import matplotlib -> ImportError
+    out = tmp_path / "ranked.parquet"
+    code, _, err = run_cli(capsys, "rank", str(results_file), "-o", str(out), "--plots", str(tmp_path / "p"))
+    assert code == 2 and "--plots needs matplotlib" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists() and not (tmp_path / "p").exists()
