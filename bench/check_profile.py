@@ -71,8 +71,13 @@ class PhaseTimer:
         self.calls: dict[str, int] = {k: 0 for k in ORDER}
         self._stack: list[float] = []  # the callee time accumulated by each open call
 
+    def add(self, phase: str, dt: float) -> None:
+        """Count one call of ``phase`` taking ``dt`` CPU seconds of its own."""
+        self.cpu[phase] += dt
+        self.calls[phase] += 1
+
     def wrap(self, phase: str, f):
-        """``f``, timed into ``phase``."""
+        """``f``, timed into ``phase`` (:meth:`add`)."""
 
         def timed(*args, **kwargs):
             self._stack.append(0.0)
@@ -82,8 +87,7 @@ class PhaseTimer:
             finally:
                 dt = time.process_time() - t0
                 inner = self._stack.pop()
-                self.cpu[phase] += dt - inner
-                self.calls[phase] += 1
+                self.add(phase, dt - inner)
                 if self._stack:
                     self._stack[-1] += dt
 

@@ -42,6 +42,8 @@ import math  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+from bench.check_profile import PhaseTimer  # noqa: E402
+
 REPO = Path(__file__).resolve().parents[1]
 GRID = REPO / "configs" / "paper_grid.yaml"
 ANSWERS = ("status", "dE_J", "dy_pole_m", "h_imp_m", "p_star_Pa", "V_star_m3", "snaps", "self_crossing",
@@ -50,8 +52,9 @@ ANSWERS = ("status", "dE_J", "dy_pole_m", "h_imp_m", "p_star_Pa", "V_star_m3", "
 PHASES = ("mesh", "trace to V*", "trace after V*", "lower state", "metrics", "check", "other")
 
 
-class Clock:
-    """Exclusive process-CPU time per (solve, phase)."""
+class Clock(PhaseTimer):
+    """Exclusive process-CPU time per (solve, phase) (:class:`bench.check_profile.PhaseTimer`'s
+    wrapping, keyed by the solve as well)."""
 
     def __init__(self) -> None:
         self.cpu: dict[tuple[str, str], float] = {}
@@ -61,21 +64,6 @@ class Clock:
     def add(self, phase: str, dt: float) -> None:
         key = (self.solve, phase)
         self.cpu[key] = self.cpu.get(key, 0.0) + dt
-
-    def wrap(self, phase: str, f):
-        def timed(*args, **kwargs):
-            self._stack.append(0.0)
-            t0 = time.process_time()
-            try:
-                return f(*args, **kwargs)
-            finally:
-                dt = time.process_time() - t0
-                inner = self._stack.pop()
-                self.add(phase, dt - inner)
-                if self._stack:
-                    self._stack[-1] += dt
-
-        return timed
 
 
 def install(clock: Clock) -> None:
