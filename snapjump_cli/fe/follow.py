@@ -46,7 +46,7 @@ from snapjump_cli.fe.continuation import (
     trace,
 )
 from snapjump_cli.fe.harmonics import HarmonicOperator, harmonic_operator
-from snapjump_cli.fe.lower_state import find_lower_state
+from snapjump_cli.fe.lower_state import constrained_instability, find_lower_state
 from snapjump_cli.fe.margins import eig_near
 from snapjump_cli.fe.metrics import path_p_dV, snap_sequence
 from snapjump_cli.fe.multiharmonic import MultiHarmonicModel
@@ -455,8 +455,6 @@ def axisym_state_at(result, mh: MultiHarmonicModel, tr: Tracer, V: float) -> Pat
     """The axisymmetric path's state at scaled volume ``V`` (before its volume limit) as a state of
     the multi-harmonic model ``mh`` (traced by ``tr``), if it is stable there under volume control
     within ``mh``'s harmonics; else ``None``."""
-    from snapjump_cli.fe.lower_state import constrained_instability
-
     st0 = result.states
     pts = result.path.points[: (st0.k_before if st0 is not None and st0.k_before is not None else
                                 len(result.path.points) - 1) + 1]
