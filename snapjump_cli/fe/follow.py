@@ -55,7 +55,7 @@ from snapjump_cli.fe.tracer import start_point
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Bifurcation", "FollowResult", "locate_bifurcation", "follow_branch", "default_harmonics",
+__all__ = ["Bifurcation", "FollowResult", "locate_bifurcation", "follow_branch", "trace_branch", "default_harmonics",
            "FOLLOW_KEYS", "multiharmonic_snap_metrics", "BranchTracker", "followed_metrics", "apply_followed",
            "lowest_eigen", "ground_height", "branch_curve", "harmonic1_gauge", "trace_through_micro_folds",
            "ThroughFolds", "axisym_state_at", "tracker_bounds", "micro_energy"]
@@ -389,11 +389,30 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     """
     t0 = time.perf_counter()
     base = result.model
-    tr0 = result.tracer
     hn = default_harmonics(bif.n) if hn is None else list(hn)
     mh = MultiHarmonicModel(base, hn, n_phi=n_phi, gauge=harmonic1_gauge(base, bif.n, bif.u))
     U_c = mh.embed(bif.u)
     Phi = mh.embed(np.zeros(base.n), {bif.n: bif.mode})
+    fr = trace_branch(result, bif, mh, U_c, bif.p, Phi, [int(n) for n in mh.hn[1:]], micro=micro,
+                      max_steps=max_steps, step_grow=step_grow)
+    fr.metrics["follow_wall_s"] = time.perf_counter() - t0
+    return fr
+
+
+def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarray, p_c: float, Phi: np.ndarray,
+                 asym_harmonics: list[int], micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
+                 step_grow: float = FOLLOW_STEP_GROW) -> FollowResult:
+    """Trace the branch of the model ``mh`` that leaves the equilibrium ``(U_c, p_c)`` along
+    ``Phi`` (a bifurcation point and its critical mode, as free vectors of ``mh``) through its volume
+    limit to the lower state at that volume (:func:`follow_branch` for a branch of the axisymmetric
+    path, :func:`snapjump_cli.fe.secondary.follow_secondary` for one of a followed branch).
+
+    ``asym_harmonics``: the harmonics whose amplitudes measure the distance from the branch left
+    behind (the post-snap trace stops when it passes back through it: :class:`BranchTracker`);
+    ``bif``: the bifurcation from the axisymmetric path that the answer is reported under; the
+    other parameters as in :func:`follow_branch`.
+    """
+    tr0 = result.tracer
     cfg = replace(tr0.cfg, fused=False, mixed_tangent=False, step_grow=float(step_grow))
     if max_steps is not None:
         cfg = replace(cfg, max_steps=int(max_steps))
@@ -402,15 +421,15 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     if alpha <= 0.0:
         raise ValueError("following a branch needs u_scale > 0 (the arc length must see the displacement)")
     du_ds = Phi / (alpha * float(np.linalg.norm(Phi)))
-    z_c = tr.zeta(U_c, bif.p)[0]
-    start = PathPoint(U_c, bif.p, z_c, np.zeros(len(z_c)), du_ds, 0.0, 0.0)
+    z_c = tr.zeta(U_c, p_c)[0]
+    start = PathPoint(U_c, p_c, z_c, np.zeros(len(z_c)), du_ds, 0.0, 0.0)
     sc = tr0.sc
     p_stop, V_stop, post = tracker_bounds(result)
     micro_dE = micro_energy(result, micro)
     phi_unit = Phi / float(np.linalg.norm(Phi))
     amplitudes = {
         "mode_amplitude": lambda u: float(u @ phi_unit),
-        "asym_amplitude": lambda u: max(float(np.abs(mh.harmonic_part(u, int(n))).max()) for n in mh.hn[1:]),
+        "asym_amplitude": lambda u: max(float(np.abs(mh.harmonic_part(u, int(n))).max()) for n in asym_harmonics),
     }
 
     def run(first: PathPoint, kind: str) -> tuple[Path, BranchTracker, str]:
@@ -446,7 +465,6 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     if st.upper is not None and low is not None:
         fr.lower_method, fr.lower_note = low.method, low.note or low.message
     fr.metrics = _branch_metrics(fr, sc)
-    fr.metrics["follow_wall_s"] = time.perf_counter() - t0
     mh.release_buffers()  # the result keeps the model (plots, shapes): not its ~60 MB of band buffers
     return fr
 

@@ -1,0 +1,279 @@
+"""Stability of a followed branch against the harmonics it does not keep (secondary bifurcations).
+
+A branch of critical harmonic ``n_c`` is traced with the harmonics ``0, n_c, 2 n_c, ...``
+(:func:`snapjump_cli.fe.follow.default_harmonics`): a subspace that the equations leave invariant,
+so the branch is an exact solution of the full problem. It need not be *stable* in the full
+problem. At a state whose displacement has only multiples of ``n_c``, the second variation
+decouples into classes of harmonics by their residue modulo ``n_c`` (Bloch): the class of 0 is the
+branch's own tangent, and the other classes (``n = 1, 2, 4, 5, ...`` for ``n_c = 3``; the odd
+harmonics for ``n_c = 2``) are perturbations the branch's model cannot see. When one of them
+loses stability before the branch's own volume limit, the actuator leaves the branch there (a
+secondary bifurcation) and the followed snap does not happen as traced.
+
+:func:`branch_stability` counts, at states of a followed branch, the unstable modes under volume
+control in a model with every harmonic ``0, 1, ..., N`` and in the branch's own model: the
+difference is the number of unstable modes outside the branch's subspace. Harmonic 1 carries the
+rigid translation across the axis and the tilt of a free body (exact zero modes at an
+equilibrium); the gauge of :func:`snapjump_cli.fe.follow.harmonic1_gauge` removes them.
+"""
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from snapjump_cli.fe.descent import constrained_negatives
+from snapjump_cli.fe.multiharmonic import MultiHarmonicModel, component_index
+
+log = logging.getLogger(__name__)
+
+__all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
+           "extra_eigen", "locate_secondary", "follow_secondary", "first_secondary_volume"]
+
+
+def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray | None = None) -> MultiHarmonicModel:
+    """The model with every harmonic ``0, 1, ..., N`` (default: the branch's highest) on the same
+    axisymmetric model as ``mh``, harmonic 1's rigid modes gauged out at the axisymmetric state
+    ``u_axi`` (default: the stress-free state), its phi rule made of the branch's points (so that
+    a state of the branch, :func:`lift`-ed, is an equilibrium of both models alike)."""
+    from snapjump_cli.fe.follow import harmonic1_gauge
+
+    base = mh.base
+    N = int(mh.hn[-1]) if N is None else int(N)
+    if N < int(mh.hn[-1]):
+        raise ValueError(f"N = {N} is below the branch's highest harmonic {int(mh.hn[-1])}")
+    u0 = np.zeros(base.n) if u_axi is None else u_axi
+    # phi rule: the branch's points (trapezoidal, spacing pi / (n_1 m)) repeated over [0, pi], so
+    # that a lifted state has the branch's energy and residual to round-off and the harmonics
+    # outside the branch decouple exactly; as fine as the full model's own default at least
+    n1 = int(mh.hn[1]) if len(mh.hn) > 1 else 1
+    step = n1 * max(mh.n_phi, 1)
+    n_phi = step * math.ceil((2 * N + 2) / step)
+    return MultiHarmonicModel(base, list(range(N + 1)), n_phi=n_phi, gauge=harmonic1_gauge(base, 1, u0))
+
+
+def lift(mh: MultiHarmonicModel, full: MultiHarmonicModel, u: np.ndarray) -> np.ndarray:
+    """A state of ``mh`` as a free vector of ``full`` (whose harmonics contain ``mh``'s): the same
+    nodal amplitudes, zero in the harmonics ``mh`` does not keep."""
+    A = mh.amplitudes(u)
+    B = np.zeros((A.shape[0], full.nc))
+    for k, n in enumerate(mh.hn):
+        kf = int(np.searchsorted(full.hn, n))
+        if kf >= len(full.hn) or full.hn[kf] != n:
+            raise ValueError(f"harmonic {int(n)} of the branch is not kept by the full model")
+        w = 2 if n == 0 else 3
+        B[:, component_index(kf, 0):component_index(kf, 0) + w] = A[:, component_index(k, 0):component_index(k, 0) + w]
+    return full.free_vector(B)
+
+
+def unstable_modes(model: MultiHarmonicModel, u: np.ndarray, p: float) -> int:
+    """Unstable modes of the equilibrium ``(u, p)`` of ``model`` under volume control (negative
+    eigenvalues of the tangent restricted to ``dV/du . du = 0``, from the bordered ``LDL^T``);
+    -1 outside the material domain or when the factorisation fails."""
+    lin = model.linearize(u, p)
+    if lin is None:
+        return -1
+    s = lin.factor(lin.g, 0.0)
+    return constrained_negatives(s, lin.g)
+
+
+@dataclass
+class SecondaryCheck:
+    """The branch's states checked against the full harmonics: per state its index on the path,
+    cavity volume (m³), pressure (Pa) and the unstable modes in the branch's model (``own``) and in
+    the full one (``full``); the first state with more in the full model (``first``: index into
+    these lists, ``None`` if none)."""
+
+    N: int
+    index: list[int] = field(default_factory=list)
+    V_m3: list[float] = field(default_factory=list)
+    p_Pa: list[float] = field(default_factory=list)
+    own: list[int] = field(default_factory=list)
+    full: list[int] = field(default_factory=list)
+    first: int | None = None
+
+    @property
+    def extra(self) -> list[int]:
+        """Unstable modes outside the branch's subspace, per checked state."""
+        return [f - o if f >= 0 and o >= 0 else -1 for f, o in zip(self.full, self.own)]
+
+
+def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None = None,
+                     stop_at_first: bool = False) -> SecondaryCheck:
+    """Count the unstable modes of a followed branch's states outside the branch's subspace.
+
+    Parameters
+    ----------
+    fr : a :class:`snapjump_cli.fe.follow.FollowResult`
+    N : highest harmonic of the full model (default: the branch's highest)
+    stride : check every ``stride``-th path point (the upper state is always checked)
+    upto : last path index checked (default: the branch's upper state, else its last point)
+    stop_at_first : stop at the first state with an extra unstable mode
+
+    Returns
+    -------
+    SecondaryCheck
+    """
+    mh, pts = fr.model, fr.path.points
+    full = full_model(mh, N, fr.bif.u)
+    st = fr.states
+    if upto is None:
+        upto = st.k_before if st is not None and st.k_before is not None else len(pts) - 1
+    idx = list(range(0, upto + 1, max(1, int(stride))))
+    if idx[-1] != upto:
+        idx.append(upto)
+    L3, S = mh.L**3, mh.S
+    out = SecondaryCheck(N=int(full.hn[-1]))
+    try:
+        for i in idx:
+            pt = pts[i]
+            own = unstable_modes(mh, pt.u, pt.p)
+            uf = lift(mh, full, pt.u)
+            nf = unstable_modes(full, uf, pt.p)
+            out.index.append(i)
+            out.V_m3.append(float(mh.volume(pt.u) * L3))
+            out.p_Pa.append(float(pt.p * S))
+            out.own.append(own)
+            out.full.append(nf)
+            if out.first is None and nf >= 0 and own >= 0 and nf > own:
+                out.first = len(out.index) - 1
+                log.info("branch of harmonic %d: %d unstable mode(s) outside its harmonics at V = %.4g m^3 "
+                         "(path point %d)", fr.bif.n, nf - own, out.V_m3[-1], i)
+                if stop_at_first:
+                    break
+    finally:
+        full.release_buffers()
+    return out
+
+
+def first_secondary_volume(chk: SecondaryCheck) -> float:
+    """The cavity volume (m³) of the first state with an extra unstable mode (nan if none)."""
+    return chk.V_m3[chk.first] if chk.first is not None else math.nan
+
+
+def extra_harmonics(mh: MultiHarmonicModel, full: MultiHarmonicModel) -> list[int]:
+    """The harmonics of ``full`` that ``mh`` does not keep."""
+    own = set(int(n) for n in mh.hn)
+    return [int(n) for n in full.hn if int(n) not in own]
+
+
+def extra_dofs(mh: MultiHarmonicModel, full: MultiHarmonicModel) -> np.ndarray:
+    """The free dofs of ``full`` that belong to the harmonics ``mh`` does not keep (sorted)."""
+    cols = [component_index(k, c) for k, n in enumerate(full.hn) if int(n) not in set(int(m) for m in mh.hn)
+            for c in range(3)]
+    d = full.dofmap[:, cols]
+    return np.unique(d[d >= 0])
+
+
+def extra_eigen(full: MultiHarmonicModel, u: np.ndarray, p: float, dofs: np.ndarray, scale: float = 1.0):
+    """The smallest eigenvalue of the tangent of ``full`` at ``(u, p)`` restricted to ``dofs`` (the
+    harmonics outside a branch's subspace, decoupled from it at a state of the branch), divided by
+    ``scale``, and its eigenvector as a free vector of ``full``; ``None`` outside the domain."""
+    import scipy.sparse.linalg as spla
+
+    lin = full.linearize(u, p)
+    if lin is None:
+        return None
+    K = lin.stiffness().tocsr()[dofs][:, dofs].tocsc()
+    d = np.abs(K.diagonal())
+    sigma = -1e-6 * float(np.median(d))  # below the eigenvalue near zero; nearest to it = smallest
+    v0 = np.random.default_rng(0).standard_normal(K.shape[0])  # fixed: reproducible answers
+    vals, vecs = spla.eigsh(K, k=3, sigma=sigma, which="LM", v0=v0)
+    i = int(np.argmin(vals))
+    x = np.zeros(full.n)
+    x[dofs] = vecs[:, i]
+    return float(vals[i]) / scale, x
+
+
+@dataclass
+class Secondary:
+    """A secondary bifurcation of a followed branch: the branch's state there (a point of its
+    path), the critical mode as a free vector of the full model, its dominant harmonic and the
+    eigenvalue left at the located point."""
+
+    point: object
+    full: MultiHarmonicModel
+    mode: np.ndarray
+    n: int
+    eig: float
+    V_m3: float
+    p_Pa: float
+
+
+def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: float = 1e-7,
+                     max_iter: int = 30) -> Secondary | None:
+    """The secondary bifurcation that :func:`branch_stability` bracketed (``chk.first``): the
+    consecutive path points on either side of it, then the zero of the smallest eigenvalue of the
+    harmonics outside the branch (:func:`extra_eigen`, relative to its value at the stable side) on
+    that step (:func:`snapjump_cli.fe.snap.root_on_step`); ``None`` without a bracket (the branch
+    unstable outside its subspace from its first point)."""
+    from snapjump_cli.fe.snap import root_on_step
+
+    if chk.first is None or chk.first == 0:
+        return None
+    mh, pts = fr.model, fr.path.points
+    dofs = extra_dofs(mh, full)
+
+    def extra(i: int) -> int:
+        own = unstable_modes(mh, pts[i].u, pts[i].p)
+        return unstable_modes(full, lift(mh, full, pts[i].u), pts[i].p) - own
+
+    j0, j1 = chk.index[chk.first - 1], chk.index[chk.first]
+    for j in range(j0 + 1, j1):  # the first point of the stride with an extra unstable mode
+        if extra(j) > 0:
+            j1 = j
+            break
+    a, b = pts[j1 - 1], pts[j1]
+    a_prev = pts[j1 - 2] if j1 >= 2 else None
+    ea = extra_eigen(full, lift(mh, full, a.u), a.p, dofs)
+    if ea is None or not ea[0] > 0.0:
+        return None
+    scale = ea[0]
+    cache: dict = {}
+
+    def f(q) -> float:
+        e = extra_eigen(full, lift(mh, full, q.u), q.p, dofs, scale)
+        if e is None:
+            return math.nan
+        cache[id(q)] = e
+        return e[0]
+
+    if not f(b) < 0.0:
+        return None
+    root = root_on_step(fr.tracer, a, b, a_prev, f, tol, max_iter)
+    if id(root) not in cache:
+        f(root)
+    eig, mode = cache[id(root)]
+    amps = {n: float(np.abs(full.harmonic_part(mode, n)).max()) for n in extra_harmonics(mh, full)}
+    n_dom = max(amps, key=amps.get)
+    sc = fr.tracer.sc
+    return Secondary(root, full, mode, int(n_dom), float(eig), float(root.zeta[0] * sc[0] * mh.L**3),
+                     float(root.p * mh.S))
+
+
+def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
+    """Check a followed branch against the harmonics it does not keep and, if it loses stability
+    to them before its volume limit, trace the branch that leaves it there in the model with every
+    harmonic ``0..N`` (:func:`snapjump_cli.fe.follow.trace_branch`).
+
+    Returns
+    -------
+    (FollowResult or None, SecondaryCheck, Secondary or None)
+        the secondary branch (``None`` if the branch stays stable or the point was not located),
+        the stability check and the located point
+    """
+    from snapjump_cli.fe.follow import trace_branch
+
+    chk = branch_stability(fr, N, stride=stride, stop_at_first=True)
+    if chk.first is None:
+        return None, chk, None
+    full = full_model(fr.model, N, fr.bif.u)
+    sec = locate_secondary(fr, chk, full)
+    if sec is None:
+        full.release_buffers()
+        return None, chk, None
+    fs = trace_branch(result, fr.bif, full, lift(fr.model, full, sec.point.u), sec.point.p, sec.mode,
+                      extra_harmonics(fr.model, full), **kw)
+    return fs, chk, sec
