@@ -63,7 +63,7 @@ __all__ = ["Bifurcation", "FollowResult", "locate_bifurcation", "follow_branch",
 #: Keys :func:`followed_metrics` adds to a design's metrics (SI units).
 FOLLOW_KEYS: tuple[str, ...] = (
     "followed", "follow_n", "follow_N", "follow_kind", "follow_V_bif_m3", "follow_p_bif_Pa",
-    "follow_lower_method", "follow_dE_rel_diff", "follow_wall_s", "follow_note",
+    "follow_sec_n", "follow_sec_V_m3", "follow_sec_p_Pa", "follow_lower_method", "follow_dE_rel_diff", "follow_wall_s", "follow_note",
     "axisym_dE_J", "axisym_dy_pole_m", "axisym_h_imp_m", "axisym_V_star_m3", "axisym_p_star_Pa",
 )
 
@@ -175,17 +175,31 @@ class FollowResult:
     failure: str = ""
     micro_folds: list = field(default_factory=list)  # (V, dE) of folds traced through (scaled)
     metrics: dict = field(default_factory=dict)
+    #: for a branch that leaves another followed branch at a secondary bifurcation: that branch
+    #: (traced up to its snap or its end) and the located point
+    #: (:class:`snapjump_cli.fe.secondary.Secondary`)
+    parent: "FollowResult | None" = None
+    secondary: object = None
 
 
 def branch_curve(fr: FollowResult) -> dict:
     """The followed branch in SI units for plots: ``V_m3``, ``p_Pa`` per traced point (from the
-    bifurcation) and, for a snap, ``snap_V_m3`` / ``snap_p_Pa`` (upper state, the branch after
-    it, lower state) and ``kind``."""
+    bifurcation; for a branch that left another at a secondary bifurcation, that branch up to it
+    first, and ``n_sec``, ``V_sec_m3``) and, for a snap, ``snap_V_m3`` / ``snap_p_Pa`` (upper
+    state, the branch after it, lower state) and ``kind``."""
     mh, sc = fr.model, fr.tracer.sc
     L3, S = mh.L**3, mh.S
     pts = fr.path.points
-    out = {"V_m3": np.array([pt.zeta[0] * sc[0] for pt in pts]) * L3,
-           "p_Pa": np.array([pt.p for pt in pts]) * S, "kind": fr.kind, "n": fr.bif.n, "N": int(mh.hn[-1])}
+    V = np.array([pt.zeta[0] * sc[0] for pt in pts]) * L3
+    p = np.array([pt.p for pt in pts]) * S
+    sec = fr.secondary
+    if fr.parent is not None and sec is not None:  # the branch left behind, up to the secondary bifurcation
+        head = fr.parent.path.points[: sec.index + 1] + [sec.point]
+        sp = fr.parent.tracer.sc
+        V = np.concatenate([np.array([pt.zeta[0] * sp[0] for pt in head]) * L3, V])
+        p = np.concatenate([np.array([pt.p for pt in head]) * S, p])
+    out = {"V_m3": V, "p_Pa": p, "kind": fr.kind, "n": fr.bif.n, "N": int(mh.hn[-1]),
+           "n_sec": sec.n if sec is not None else None, "V_sec_m3": sec.V_m3 if sec is not None else None}
     st = fr.states
     if st.upper is not None and st.lower is not None:
         seq = snap_sequence(fr.path, st)
@@ -579,7 +593,8 @@ def _axisym_answer(m: dict, note: str = "") -> dict:
     return out
 
 
-def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | None = None) -> tuple[dict, FollowResult | None]:
+def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | None = None,
+                     secondary: bool = True) -> tuple[dict, FollowResult | None]:
     """The design's answer with the followed branch (the keys of :data:`FOLLOW_KEYS` and the
     followed ``dE_J``, ``dy_pole_m``, ``h_imp_m``, ``V_star_m3``, ``p_star_Pa``), given the
     axisymmetric ``result`` and its harmonic ``check``.
@@ -587,7 +602,11 @@ def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | Non
     A design whose check finds no harmonic unstable before ``V*`` keeps its axisymmetric answer
     (``followed`` False, the two sets equal). Otherwise the branch of the first unstable harmonic
     is traced; if it cannot be followed to a snap the axisymmetric answer is kept and
-    ``follow_note`` says why.
+    ``follow_note`` says why. With ``secondary``, a branch that keeps only multiples of
+    ``n_c >= 2`` is checked against the other harmonics up to its snap
+    (:func:`snapjump_cli.fe.secondary.follow_secondary`); where it loses stability to them first,
+    the branch that leaves it there is traced with every harmonic and its snap is the answer
+    (``follow_sec_n``, ``follow_sec_V_m3``).
     """
     m = result.metrics
     out = _axisym_answer(m)
@@ -600,8 +619,13 @@ def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | Non
         out["follow_note"] = f"bifurcation of harmonic {n} not located"
         return out, None
     fr = follow_branch(result, bif, default_harmonics(n, N), n_phi=n_phi)
+    note_sec = ""
+    if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:
+        fr, note_sec = _leave_at_secondary(result, fr)
     fm = fr.metrics
     out.update({k: v for k, v in fm.items() if k in FOLLOW_KEYS})
+    if note_sec:
+        out["follow_note"] = "; ".join(x for x in (note_sec, out.get("follow_note")) if x)
     if fm.get("dE_J") is None:
         out["follow_note"] = fm.get("follow_note") or "the followed branch did not reach a snap"
         out["follow_wall_s"] = time.perf_counter() - t0
@@ -630,6 +654,28 @@ def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | Non
             out[k] = fm[k]
     out["follow_wall_s"] = time.perf_counter() - t0
     return out, fr
+
+
+def _leave_at_secondary(result, fr: FollowResult) -> tuple[FollowResult, str]:
+    """The branch the actuator takes when the followed branch ``fr`` loses stability outside its
+    harmonics before its snap (:func:`snapjump_cli.fe.secondary.follow_secondary`), with a note;
+    ``fr`` itself (and no note) when it does not. A secondary branch that cannot be traced to a
+    snap is returned all the same: the design then keeps its axisymmetric answer."""
+    from snapjump_cli.fe.secondary import follow_secondary
+
+    fs, chk, sec = follow_secondary(result, fr)
+    if chk.first is None:
+        return fr, ""
+    n = fr.bif.n
+    if sec is None:
+        fr.metrics.update(dE_J=None, follow_sec_V_m3=chk.V_m3[chk.first])
+        return fr, (f"the branch of harmonic {n} is unstable outside its harmonics at V = {chk.V_m3[chk.first]:.4g} m^3 "
+                    f"(harmonics up to {chk.N}), and the secondary bifurcation was not located")
+    fs.parent, fs.secondary = fr, sec
+    fs.metrics.update(follow_sec_n=sec.n, follow_sec_V_m3=sec.V_m3, follow_sec_p_Pa=sec.p_Pa,
+                      follow_wall_s=(fr.metrics.get("follow_wall_s") or 0.0))
+    return fs, (f"the branch of harmonic {n} loses stability to harmonic {sec.n} at V = {sec.V_m3:.4g} m^3, "
+                f"before its own snap: the branch that leaves it there is traced with harmonics 0-{chk.N}")
 
 
 #: The row keys a followed answer replaces (the axisymmetric values of the first five stay in

@@ -108,7 +108,8 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
     ----------
     fr : a :class:`snapjump_cli.fe.follow.FollowResult`
     N : highest harmonic of the full model (default: the branch's highest)
-    stride : check every ``stride``-th path point (the upper state is always checked)
+    stride : check every ``stride``-th path point after the bifurcation point (the upper state is
+        always checked)
     upto : last path index checked (default: the branch's upper state, else its last point)
     stop_at_first : stop at the first state with an extra unstable mode
 
@@ -121,7 +122,11 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
     st = fr.states
     if upto is None:
         upto = st.k_before if st is not None and st.k_before is not None else len(pts) - 1
-    idx = list(range(0, upto + 1, max(1, int(stride))))
+    # from the first point after the bifurcation: at the bifurcation point itself the critical
+    # eigenvalue is zero, and its sign (so the count in either model) is round-off
+    idx = list(range(1, upto + 1, max(1, int(stride))))
+    if not idx:
+        return SecondaryCheck(N=int(full.hn[-1]))
     if idx[-1] != upto:
         idx.append(upto)
     L3, S = mh.L**3, mh.S
@@ -190,10 +195,11 @@ def extra_eigen(full: MultiHarmonicModel, u: np.ndarray, p: float, dofs: np.ndar
 @dataclass
 class Secondary:
     """A secondary bifurcation of a followed branch: the branch's state there (a point of its
-    path), the critical mode as a free vector of the full model, its dominant harmonic and the
+    path's step from ``index`` to ``index + 1``), the critical mode as a free vector of the full model, its dominant harmonic and the
     eigenvalue left at the located point."""
 
     point: object
+    index: int  # the last point of the branch's path before it
     full: MultiHarmonicModel
     mode: np.ndarray
     n: int
@@ -249,7 +255,7 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
     amps = {n: float(np.abs(full.harmonic_part(mode, n)).max()) for n in extra_harmonics(mh, full)}
     n_dom = max(amps, key=amps.get)
     sc = fr.tracer.sc
-    return Secondary(root, full, mode, int(n_dom), float(eig), float(root.zeta[0] * sc[0] * mh.L**3),
+    return Secondary(root, j1 - 1, full, mode, int(n_dom), float(eig), float(root.zeta[0] * sc[0] * mh.L**3),
                      float(root.p * mh.S))
 
 

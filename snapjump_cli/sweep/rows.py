@@ -69,29 +69,31 @@ RESULT_KEYS: tuple[str, ...] = (
     "V_inner_solid_m3", "V_outer_solid_m3",
     "mesh_sensitive", "dE_J_coarse", "dy_pole_m_coarse", "mesh_check",
     "asym_first", "asym_n", "asym_V_m3", "asym_p_Pa", "asym_lower_stable",
-    "followed", "follow_n", "follow_N", "follow_kind", "follow_V_bif_m3", "follow_note",
-    "axisym_dE_J", "axisym_dy_pole_m", "axisym_h_imp_m", "axisym_V_star_m3", "axisym_p_star_Pa",
+    "followed", "follow_n", "follow_N", "follow_kind", "follow_V_bif_m3", "follow_sec_n", "follow_sec_V_m3",
+    "follow_note", "axisym_dE_J", "axisym_dy_pole_m", "axisym_h_imp_m", "axisym_V_star_m3", "axisym_p_star_Pa",
     "asym_margin", "asym_margin_n", "asym_margin_V_m3",
 )
 BOOL_RESULT_KEYS: frozenset[str] = frozenset({"snaps", "self_crossing", "mesh_sensitive", "asym_first",
                                               "asym_lower_stable", "followed"})
 STR_RESULT_KEYS: frozenset[str] = frozenset({"lower_state_method", "mesh_check", "follow_kind", "follow_note"})
 INT_RESULT_KEYS: frozenset[str] = frozenset({"n_steps", "n_newton", "n_nodes", "n_elements", "n_dofs", "asym_n",
-                                             "follow_n", "follow_N", "asym_margin_n"})
+                                             "follow_n", "follow_N", "follow_sec_n", "asym_margin_n"})
 #: Float metrics that may be null in an ok row (set only after a mesh-sensitivity re-solve, or only
 #: by the harmonic check, ``solver.harmonics > 0``, and then only when a harmonic lost stability).
 OPTIONAL_FLOAT_KEYS: frozenset[str] = frozenset({"dE_J_coarse", "dy_pole_m_coarse", "asym_V_m3", "asym_p_Pa",
-                                                 "follow_V_bif_m3", "axisym_dE_J", "axisym_dy_pole_m",
+                                                 "follow_V_bif_m3", "follow_sec_V_m3", "axisym_dE_J", "axisym_dy_pole_m",
                                                  "axisym_h_imp_m", "axisym_V_star_m3", "axisym_p_star_Pa",
                                                  "asym_margin", "asym_margin_V_m3"})
 #: The keys of the harmonic check (all null when it is off).
 ASYM_KEYS: tuple[str, ...] = ("asym_first", "asym_n", "asym_V_m3", "asym_p_Pa", "asym_lower_stable")
 #: The keys of the followed branch (``solver.follow``; all null when it is off): ``followed`` says
 #: whether the row's dE_J, dy_pole_m, h_imp_m, V_star_m3, p_star_Pa (and the keys derived from
-#: them) describe the branch that bifurcates from the axisymmetric path; the axisymmetric answer
-#: is kept in the ``axisym_*`` keys.
+#: them) describe the branch that bifurcates from the axisymmetric path (or, when that branch loses
+#: stability to other harmonics first, the branch that leaves it there: ``follow_sec_n``, the
+#: dominant harmonic of that mode, and ``follow_sec_V_m3``, the cavity volume there); the
+#: axisymmetric answer is kept in the ``axisym_*`` keys.
 FOLLOW_ROW_KEYS: tuple[str, ...] = ("followed", "follow_n", "follow_N", "follow_kind", "follow_V_bif_m3",
-                                    "follow_note", "axisym_dE_J", "axisym_dy_pole_m", "axisym_h_imp_m",
+                                    "follow_sec_n", "follow_sec_V_m3", "follow_note", "axisym_dE_J", "axisym_dy_pole_m", "axisym_h_imp_m",
                                     "axisym_V_star_m3", "axisym_p_star_Pa")
 #: The keys of a snap under air (``fluid: air``, :mod:`snapjump_cli.fe.air_snap`): the fluid, the gas and
 #: the pressures, volumes and energies of the air snap, and the water snap's answers; ``fluid`` is

@@ -359,7 +359,7 @@ def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "",
     the path and the vertical line ``V = V*``), the volume limit point (black) and the isochoric
     point on the lower branch (white) marked. ``branch`` (:func:`snapjump_cli.fe.follow.branch_curve`):
     the followed non-axisymmetric branch, drawn from its bifurcation with its own snap shaded, as
-    in the paper's Fig. S16."""
+    in the paper's Fig. S16 (and where it left the first branch, for a secondary bifurcation)."""
     plt = _pyplot()
     L, mu, V0 = curve["L_m"], curve["mu_Pa"], curve["V0_m3"]
     x = (np.asarray(curve["V_m3"]) - V0) / L**3
@@ -381,6 +381,10 @@ def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "",
         ax.plot(bx, by, "-", color="tab:orange", lw=1.4,
                 label=f"followed branch (n = {branch['n']}, {branch['kind'] or 'no snap'}, N = {branch['N']})")
         ax.plot(bx[:1], by[:1], "D", mfc="tab:orange", mec="k", ms=6, label="bifurcation")
+        if branch.get("V_sec_m3") is not None:  # where the followed branch left the first one
+            k = int(np.argmin(np.abs(np.asarray(branch["V_m3"]) - branch["V_sec_m3"])))
+            ax.plot(bx[k], by[k], "v", mfc="tab:red", mec="k", ms=7,
+                    label=f"secondary bifurcation (n = {branch['n_sec']})")
         if "snap_V_m3" in branch:
             sx = (np.asarray(branch["snap_V_m3"]) - V0) / L**3
             sy = np.asarray(branch["snap_p_Pa"]) / mu
