@@ -1,10 +1,13 @@
 """The followed branches of the named scenes, with the N-convergence (docs/harmonics.md, section 10).
 
-    python -m bench.follow_study [SCENE ...] [--out bench/out/follow_study.json]
+    python -m bench.follow_study [SCENE ...] [--N N ...] [--no-secondary] [--out bench/out/follow_study.json]
 
 For each scene: the axisymmetric solve (default mesh), the harmonic check (n <= 4), and when a
-harmonic goes first the followed branch with N = 4 n_c and with N + max(2, n_c) harmonics; CPU
-seconds of each part. Prints one markdown table row per scene and writes the numbers as JSON.
+harmonic goes first the followed branch with N = 4 n_c and with N + max(2, n_c) harmonics (or
+``--N``); for n_c >= 2 each branch is checked against the harmonics it does not keep and, where it
+loses stability to them first, the branch leaving it is traced with every harmonic 0..N
+(``secondary``; docs/harmonics.md section 10.7). CPU seconds of each part. Prints one JSON line
+per run and per scene and writes the numbers as JSON.
 """
 from __future__ import annotations
 
@@ -42,8 +45,9 @@ def solve_checked_scene(name: str) -> tuple:
     return res, check_harmonics(res, 4), t_axi
 
 
-def run(name: str) -> dict:
+def run(name: str, Ns: list[int] | None = None, secondary: bool = True) -> dict:
     from snapjump_cli.fe.follow import default_harmonics, follow_branch, locate_bifurcation
+    from snapjump_cli.fe.secondary import follow_secondary
 
     res, chk, t_axi = solve_checked_scene(name)
     m = res.metrics
@@ -57,7 +61,7 @@ def run(name: str) -> dict:
     bif = locate_bifurcation(res, n)
     out["cpu_locate_s"] = time.process_time() - t0
     N1 = 4 * n
-    for N in (N1, N1 + max(2, n)):
+    for N in (Ns or (N1, N1 + max(2, n))):
         t0 = time.process_time()
         fr = follow_branch(res, bif, default_harmonics(n, N))
         fm = fr.metrics
@@ -66,8 +70,20 @@ def run(name: str) -> dict:
                                       "follow_micro_folds", "follow_V_bif_m3")}
         row.update(N=N, first_kind=fr.first_kind, cpu_s=time.process_time() - t0, steps=len(fr.path.points) - 1,
                    assemblies=fr.model.n_assemblies, ndof=fr.model.n)
+        if secondary and n >= 2:  # the branch against the harmonics it does not keep
+            t0 = time.process_time()
+            fs, chk, sec = follow_secondary(res, fr)
+            row["secondary"] = None if sec is None else {
+                "n": sec.n, "V_m3": sec.V_m3, "p_Pa": sec.p_Pa, "V_rel_axisym": sec.V_m3 / m["V_star_m3"],
+                "kind": fs.kind, "cpu_s": time.process_time() - t0, "steps": len(fs.path.points) - 1,
+                "ndof": fs.model.n, **{k: fs.metrics.get(k) for k in ("dE_J", "dE_path_J", "follow_dE_rel_diff",
+                                                                      "dy_pole_m", "h_imp_m", "V_star_m3",
+                                                                      "p_star_Pa", "follow_lower_method",
+                                                                      "follow_note")}}
+            row["secondary_check"] = {"first_V_m3": chk.V_m3[chk.first] if chk.first is not None else None,
+                                      "states": len(chk.index), "N": chk.N}
         out["runs"].append(row)
-        print(json.dumps({"scene": name, **row}), file=sys.stderr, flush=True)
+        print(json.dumps({"scene": name, **row}, default=float), file=sys.stderr, flush=True)
     return out
 
 
@@ -75,10 +91,14 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scenes", nargs="*", default=list(SCENES))
     ap.add_argument("--out", type=Path, default=Path("bench/out/follow_study.json"))
+    ap.add_argument("--N", type=int, nargs="+", default=None,
+                    help="the harmonics kept, each run (default: 4 n_c and 4 n_c + max(2, n_c))")
+    ap.add_argument("--no-secondary", action="store_true",
+                    help="do not check a branch of n_c >= 2 against the other harmonics")
     a = ap.parse_args(argv)
     rows = []
     for name in a.scenes:
-        r = run(name)
+        r = run(name, a.N, not a.no_secondary)
         rows.append(r)
         a.out.parent.mkdir(parents=True, exist_ok=True)
         a.out.write_text(json.dumps(rows, indent=1, default=float))
