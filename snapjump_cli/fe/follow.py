@@ -627,7 +627,7 @@ def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | Non
     if note_sec:
         out["follow_note"] = "; ".join(x for x in (note_sec, out.get("follow_note")) if x)
     if fm.get("dE_J") is None:
-        out["follow_note"] = fm.get("follow_note") or "the followed branch did not reach a snap"
+        out["follow_note"] = out.get("follow_note") or "the followed branch did not reach a snap"
         out["follow_wall_s"] = time.perf_counter() - t0
         return out, fr
     dE_axi = m.get("dE_J")
@@ -635,7 +635,7 @@ def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | Non
         # a fold whose lower state was found off the branch (so the tracker could not trace through
         # it) and that releases almost nothing: the actuator goes on along the branch to a later
         # snap that was not traced, so this is not the design's answer
-        out["follow_note"] = "; ".join(x for x in (fm.get("follow_note"), (
+        out["follow_note"] = "; ".join(x for x in (out.get("follow_note"), (
             f"the branch's first fold releases {fm['dE_J']:.3g} J, < {MICRO_FOLD_DE:g} of the axisymmetric "
             "dE: not the snap, and the branch beyond it was not traced")) if x)
         out["follow_wall_s"] = time.perf_counter() - t0
@@ -643,7 +643,7 @@ def followed_metrics(result, check: dict, N: int | None = None, n_phi: int | Non
     if fm.get("dy_pole_m") is not None and not fm["dy_pole_m"] > 0.0:
         # the pole moves up in the followed snap: no jump the mass-spring model can describe (a sweep
         # row with it fails its range check and would lose the axisymmetric answer as well)
-        out["follow_note"] = "; ".join(x for x in (fm.get("follow_note"), (
+        out["follow_note"] = "; ".join(x for x in (out.get("follow_note"), (
             f"the followed snap moves the pole up (dy_pole {fm['dy_pole_m']:.3g} m, dE {fm['dE_J']:.3g} J): "
             "not used as the answer")) if x)
         out["follow_wall_s"] = time.perf_counter() - t0
@@ -670,10 +670,15 @@ def _leave_at_secondary(result, fr: FollowResult) -> tuple[FollowResult, str]:
     if sec is None:
         fr.metrics.update(dE_J=None, follow_sec_V_m3=chk.V_m3[chk.first])
         return fr, (f"the branch of harmonic {n} is unstable outside its harmonics at V = {chk.V_m3[chk.first]:.4g} m^3 "
-                    f"(harmonics up to {chk.N}), and the secondary bifurcation was not located")
+                    f"(harmonics up to {chk.N}) and no secondary bifurcation was located before it (the actuator "
+                    "may reach that state by a jump past a fold of the branch): not traced further")
     fs.parent, fs.secondary = fr, sec
     fs.metrics.update(follow_sec_n=sec.n, follow_sec_V_m3=sec.V_m3, follow_sec_p_Pa=sec.p_Pa,
                       follow_wall_s=(fr.metrics.get("follow_wall_s") or 0.0))
+    if fs.kind == "jump":
+        return fs, (f"the branch of harmonic {n} folds at V = {fs.metrics.get('V_star_m3') or math.nan:.4g} m^3 and "
+                    f"the state it jumps to on the branch is unstable in harmonic {sec.n}: the jump goes on, at "
+                    f"that volume, to a state with every harmonic 0-{chk.N} (energy descent)")
     return fs, (f"the branch of harmonic {n} loses stability to harmonic {sec.n} at V = {sec.V_m3:.4g} m^3, "
                 f"before its own snap: the branch that leaves it there is traced with harmonics 0-{chk.N}")
 

@@ -30,7 +30,8 @@ from snapjump_cli.fe.multiharmonic import MultiHarmonicModel, component_index
 log = logging.getLogger(__name__)
 
 __all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
-           "extra_eigen", "locate_secondary", "follow_secondary", "first_secondary_volume"]
+           "extra_eigen", "locate_secondary", "follow_secondary", "first_secondary_volume", "visited_points",
+           "first_extra", "jump_off_branch"]
 
 
 def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray | None = None) -> MultiHarmonicModel:
@@ -100,6 +101,23 @@ class SecondaryCheck:
         return [f - o if f >= 0 and o >= 0 else -1 for f, o in zip(self.full, self.own)]
 
 
+def visited_points(fr, upto: int) -> list[int]:
+    """The path points of a followed branch that the actuator passes through under volume control,
+    up to index ``upto``: those at which the cavity volume is a new high (inflation only adds
+    volume; past a fold traced through, the actuator jumps to the branch's state at the same
+    volume further on, and the points between are never reached). From the first point after
+    the bifurcation: at the bifurcation point itself the critical eigenvalue is zero, and its
+    sign (so the count of either model) is round-off."""
+    pts = fr.path.points
+    out, top = [], pts[0].zeta[0] if pts else 0.0
+    for i in range(1, min(upto, len(pts) - 1) + 1):
+        V = pts[i].zeta[0]
+        if V >= top:
+            out.append(i)
+            top = V
+    return out
+
+
 def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None = None,
                      stop_at_first: bool = False) -> SecondaryCheck:
     """Count the unstable modes of a followed branch's states outside the branch's subspace.
@@ -108,8 +126,8 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
     ----------
     fr : a :class:`snapjump_cli.fe.follow.FollowResult`
     N : highest harmonic of the full model (default: the branch's highest)
-    stride : check every ``stride``-th path point after the bifurcation point (the upper state is
-        always checked)
+    stride : check every ``stride``-th point the actuator passes through (:func:`visited_points`;
+        the upper state is always checked)
     upto : last path index checked (default: the branch's upper state, else its last point)
     stop_at_first : stop at the first state with an extra unstable mode
 
@@ -122,9 +140,7 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
     st = fr.states
     if upto is None:
         upto = st.k_before if st is not None and st.k_before is not None else len(pts) - 1
-    # from the first point after the bifurcation: at the bifurcation point itself the critical
-    # eigenvalue is zero, and its sign (so the count in either model) is round-off
-    idx = list(range(1, upto + 1, max(1, int(stride))))
+    idx = visited_points(fr, upto)[:: max(1, int(stride))]
     if not idx:
         return SecondaryCheck(N=int(full.hn[-1]))
     if idx[-1] != upto:
@@ -209,28 +225,22 @@ class Secondary:
 
 
 def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: float = 1e-7,
-                     max_iter: int = 30) -> Secondary | None:
+                     max_iter: int = 30, first: int | None = None) -> Secondary | None:
     """The secondary bifurcation that :func:`branch_stability` bracketed (``chk.first``): the
-    consecutive path points on either side of it, then the zero of the smallest eigenvalue of the
-    harmonics outside the branch (:func:`extra_eigen`, relative to its value at the stable side) on
-    that step (:func:`snapjump_cli.fe.snap.root_on_step`); ``None`` without a bracket (the branch
-    unstable outside its subspace from its first point)."""
+    consecutive path points on either side of it (``first``: the first point with an extra
+    unstable mode, :func:`first_extra`, when already known), then the zero of the smallest
+    eigenvalue of the harmonics outside the branch (:func:`extra_eigen`, relative to its value at
+    the stable side) on that step (:func:`snapjump_cli.fe.snap.root_on_step`); ``None`` without a
+    bracket of two consecutive points the actuator passes through (:func:`visited_points`)."""
     from snapjump_cli.fe.snap import root_on_step
 
-    if chk.first is None or chk.first == 0:
+    if chk.first is None:
         return None
     mh, pts = fr.model, fr.path.points
     dofs = extra_dofs(mh, full)
-
-    def extra(i: int) -> int:
-        own = unstable_modes(mh, pts[i].u, pts[i].p)
-        return unstable_modes(full, lift(mh, full, pts[i].u), pts[i].p) - own
-
-    j0, j1 = chk.index[chk.first - 1], chk.index[chk.first]
-    for j in range(j0 + 1, j1):  # the first point of the stride with an extra unstable mode
-        if extra(j) > 0:
-            j1 = j
-            break
+    j1 = first_extra(fr, chk, full) if first is None else first
+    if j1 - 1 not in set(visited_points(fr, j1)) | {0}:
+        return None  # reached by a jump past a fold: no bifurcation on the step before it
     a, b = pts[j1 - 1], pts[j1]
     a_prev = pts[j1 - 2] if j1 >= 2 else None
     ea = extra_eigen(full, lift(mh, full, a.u), a.p, dofs)
@@ -268,7 +278,10 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
     -------
     (FollowResult or None, SecondaryCheck, Secondary or None)
         the secondary branch (``None`` if the branch stays stable or the point was not located),
-        the stability check and the located point
+        the stability check and the located point. When the first state with an extra unstable
+        mode is one the actuator reaches by a jump past a fold of the branch
+        (:func:`visited_points`), there is no secondary bifurcation to locate: the jump itself
+        goes on outside the branch (:func:`jump_off_branch`).
     """
     from snapjump_cli.fe.follow import trace_branch
 
@@ -276,10 +289,89 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
     if chk.first is None:
         return None, chk, None
     full = full_model(fr.model, N, fr.bif.u)
-    sec = locate_secondary(fr, chk, full)
+    j1 = first_extra(fr, chk, full)
+    if j1 - 1 not in set(visited_points(fr, j1)) | {0}:
+        # reached by a jump past a fold of the branch, and already unstable outside it
+        return jump_off_branch(result, fr, chk, full, j1)
+    sec = locate_secondary(fr, chk, full, first=j1)
     if sec is None:
         full.release_buffers()
         return None, chk, None
     fs = trace_branch(result, fr.bif, full, lift(fr.model, full, sec.point.u), sec.point.p, sec.mode,
                       extra_harmonics(fr.model, full), **kw)
     return fs, chk, sec
+
+
+def first_extra(fr, chk: SecondaryCheck, full: MultiHarmonicModel) -> int:
+    """The path index of the first point the actuator passes through (:func:`visited_points`)
+    with an unstable mode outside the branch: between the last point :func:`branch_stability`
+    checked without one and the first it found with one (``chk.first``)."""
+    mh, pts = fr.model, fr.path.points
+    j0 = chk.index[chk.first - 1] if chk.first > 0 else 0
+    j1 = chk.index[chk.first]
+    for j in visited_points(fr, j1):
+        if j0 < j < j1 and (unstable_modes(full, lift(mh, full, pts[j].u), pts[j].p)
+                            - unstable_modes(mh, pts[j].u, pts[j].p)) > 0:
+            return j
+    return j1
+
+
+#: The jump off a branch starts from the landing state displaced along its unstable mode outside
+#: the branch by this fraction of the state's largest nodal displacement (the symmetric subspace
+#: is invariant under the descent: without it the descent would stay on the branch).
+JUMP_KICK = 1e-3
+
+
+def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, landing: int):
+    """The snap of an actuator that jumps past a fold of the followed branch onto a state of the
+    branch (``landing``) that is unstable outside the branch's harmonics: the jump goes on, at the
+    fold's volume, to the state that an energy descent at fixed volume in the model with every
+    harmonic reaches from the landing state displaced along its unstable mode
+    (:func:`snapjump_cli.fe.descent.descend_at_volume`). The upper state is the fold: the last
+    state the actuator passes through before the landing state.
+
+    Returns
+    -------
+    (FollowResult or None, SecondaryCheck, Secondary or None)
+        as :func:`follow_secondary`: the snap (``kind`` ``"jump"``, its path the upper state
+        alone, ``parent`` the branch) and the landing state as the ``Secondary`` (``index`` the
+        fold's path index)
+    """
+    from dataclasses import replace
+
+    from snapjump_cli.fe.descent import descend_at_volume
+    from snapjump_cli.fe.follow import FollowResult, _branch_metrics
+    from snapjump_cli.fe.path import Path, PathPoint
+    from snapjump_cli.fe.snap import SnapStates
+    from snapjump_cli.fe.tracer import Tracer
+
+    mh, pts = fr.model, fr.path.points
+    visited = [j for j in visited_points(fr, landing) if j < landing]
+    k_up = visited[-1] if visited else 0
+    up_b, land = pts[k_up], pts[landing]
+    cfg = replace(fr.tracer.cfg)
+    tr = Tracer(full, cfg)
+    U = lift(mh, full, up_b.u)
+    z = tr.zeta(U, up_b.p)[0]
+    upper = PathPoint(U, up_b.p, z, up_b.tangent.copy(), lift(mh, full, up_b.du_ds), up_b.dp_ds, 0.0)
+    dofs = extra_dofs(mh, full)
+    L = lift(mh, full, land.u)
+    e = extra_eigen(full, L, land.p, dofs)
+    if e is None or not e[0] < 0.0:
+        full.release_buffers()
+        return None, chk, None
+    eig, mode = e
+    amp = float(np.abs(full.amplitudes(L)).max())
+    mode = mode * (JUMP_KICK * amp / float(np.abs(full.amplitudes(mode)).max()))
+    start = PathPoint(L + mode, land.p, tr.zeta(L + mode, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)
+    low, msg = descend_at_volume(tr, upper, start=start)
+    amps = {n: float(np.abs(full.harmonic_part(mode, n)).max()) for n in extra_harmonics(mh, full)}
+    sc = fr.tracer.sc
+    sec = Secondary(land, k_up, full, mode, int(max(amps, key=amps.get)), float(eig),
+                    float(land.zeta[0] * sc[0] * mh.L**3), float(land.p * mh.S))
+    st = SnapStates(k_before=0, upper=upper, lower=low, lower_method="descent" if low is not None else "")
+    out = FollowResult(fr.bif, full, Path(points=[upper]), st, tr, "jump", fr.first_kind, lower_method="descent",
+                       lower_note=msg, failure="" if low is not None else msg, parent=fr, secondary=sec)
+    out.metrics = _branch_metrics(out, sc)
+    full.release_buffers()
+    return out, chk, sec

@@ -1,44 +1,69 @@
 """A followed branch that loses stability outside its harmonics (snapjump_cli.fe.secondary).
 
-A clamped cap (30 deg, eta = 80, one element through the thickness) loses stability first in
-harmonic 3; its branch (harmonics 0, 3, 6) rises far beyond the axisymmetric V*, but in the
-model with every harmonic 0..6 it becomes unstable in the other Bloch class (1, 2, 4, 5) on the
-way. The followed answer must be that of the branch that leaves it there:
+Two caps at one element through the thickness, whose first harmonic to go unstable is 3 and whose
+branch (harmonics 0, 3, 6) rises far beyond the axisymmetric V* but, in the model with every
+harmonic 0..6, is unstable on the way in the other Bloch class (1, 2, 4, 5):
 
-* the secondary bifurcation is bracketed by the branch's path points (no extra unstable mode
-  before, one after) and located where the extra eigenvalue is zero;
-* the secondary branch starts on the first branch, its states are equilibria of the full model,
-  and the amplitude of the other harmonics grows along it;
-* its snap comes before the first branch's volume limit, its dE two ways agree, and the row keys
-  (``follow_sec_n``, ``follow_sec_V_m3``, the note) say what happened.
+* the Fig. S16 ring-roller cap (70 deg, eta 12.5): the branch rises from its bifurcation and
+  loses stability in harmonic 2 on the way. The secondary bifurcation is bracketed by two
+  consecutive path points (no extra unstable mode before, one after) and located where the extra
+  eigenvalue is zero; the branch leaving it starts on the first branch, its states are equilibria
+  of the full model, and the amplitude of the other harmonics grows along it.
+* the clamped cap (30 deg, eta 80): the branch turns back in volume at once (a fold at its
+  bifurcation), and the state on the branch that the actuator jumps to at that volume is already
+  unstable in harmonic 2. The jump goes on outside the branch: the lower state is found at the
+  fold's volume by an energy descent with every harmonic, it is stable there, it releases energy
+  and it is not on the branch; the row keys and the note say what happened, and the plot draws
+  it.
 """
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.follow import branch_curve, followed_metrics
+from snapjump_cli.fe.follow import branch_curve, default_harmonics, follow_branch, followed_metrics, locate_bifurcation
 from snapjump_cli.fe.harmonics import check_harmonics
-from snapjump_cli.fe.secondary import extra_dofs, extra_eigen, extra_harmonics, lift, unstable_modes
+from snapjump_cli.fe.secondary import (
+    extra_dofs,
+    extra_eigen,
+    extra_harmonics,
+    follow_secondary,
+    lift,
+    unstable_modes,
+    visited_points,
+)
 from snapjump_cli.fe.solve import solve_scene
 from snapjump_cli.geometry.caps import CapScene
 from snapjump_cli.settings import MeshSettings, SolverSettings
 
 
-@pytest.fixture(scope="module")
-def followed():
-    res = solve_scene(CapScene(theta_deg=30.0, eta=80.0, bc="clamped"), MeshSettings(nt=1, aspect=2.0),
-                      SolverSettings())
+def _solved(theta, eta, bc):
+    res = solve_scene(CapScene(theta_deg=theta, eta=eta, bc=bc), MeshSettings(nt=1, aspect=2.0), SolverSettings())
     chk = check_harmonics(res, 4)
     assert chk["asym_first"] and chk["asym_n"] == 3
+    return res, chk
+
+
+@pytest.fixture(scope="module")
+def located():
+    """The S16 ring-roller cap: the branch, and the first steps of the branch leaving it."""
+    res, chk = _solved(70.0, 12.5, "ring-roller")
+    fr = follow_branch(res, locate_bifurcation(res, 3), default_harmonics(3, 6))
+    fs, c, sec = follow_secondary(res, fr, max_steps=8)
+    return res, fr, fs, sec
+
+
+@pytest.fixture(scope="module")
+def jumped():
+    """The clamped cap: the followed answer."""
+    res, chk = _solved(30.0, 80.0, "clamped")
     out, fs = followed_metrics(res, chk, N=6)
     return res, out, fs
 
 
-def test_the_secondary_bifurcation_is_bracketed_and_located(followed):
-    res, out, fs = followed
-    fr, sec = fs.parent, fs.secondary
-    assert fr is not None and sec is not None
+def test_the_secondary_bifurcation_is_bracketed_and_located(located):
+    res, fr, fs, sec = located
+    assert sec is not None and fs.kind != "jump"
     assert list(fr.model.hn) == [0, 3, 6] and list(fs.model.hn) == list(range(7))
     full = fs.model
     assert sec.n in extra_harmonics(fr.model, full)
@@ -47,18 +72,19 @@ def test_the_secondary_bifurcation_is_bracketed_and_located(followed):
     def extra(pt):
         return unstable_modes(full, lift(fr.model, full, pt.u), pt.p) - unstable_modes(fr.model, pt.u, pt.p)
 
+    # the actuator passes through both points of the bracket, the first stable outside the branch
+    assert {sec.index, sec.index + 1} <= set(visited_points(fr, sec.index + 1)) | {0}
     assert extra(pts[sec.index]) == 0 and extra(pts[sec.index + 1]) > 0
     ex = extra_dofs(fr.model, full)
     e_a = extra_eigen(full, lift(fr.model, full, pts[sec.index].u), pts[sec.index].p, ex)[0]
     e_c = extra_eigen(full, lift(fr.model, full, sec.point.u), sec.point.p, ex)[0]
     assert e_a > 0 and abs(e_c) < 1e-6 * e_a
-    # before the first branch's own volume limit
-    assert fr.states.upper is not None and sec.index < fr.states.k_before
+    assert fr.states.upper is not None and sec.index < fr.states.k_before  # before the branch's own snap
 
 
-def test_the_secondary_branch_leaves_along_the_other_harmonics(followed):
-    res, out, fs = followed
-    fr, sec, full = fs.parent, fs.secondary, fs.model
+def test_the_secondary_branch_leaves_along_the_other_harmonics(located):
+    res, fr, fs, sec = located
+    full = fs.model
     start = fs.path.points[0]
     np.testing.assert_allclose(start.u, lift(fr.model, full, sec.point.u), rtol=0, atol=1e-14)
     others = extra_harmonics(fr.model, full)
@@ -67,23 +93,47 @@ def test_the_secondary_branch_leaves_along_the_other_harmonics(followed):
         return max(float(np.abs(full.harmonic_part(u, n)).max()) for n in others)
 
     amps = [amplitude(pt.u) for pt in fs.path.points[:6]]
-    assert amps[0] == 0.0 and all(b > a for a, b in zip(amps, amps[1:]))
+    assert len(amps) == 6 and amps[0] == 0.0 and all(b > a for a, b in zip(amps, amps[1:]))
     for pt in fs.path.points[1:6]:  # equilibria of the model with every harmonic
         lin = full.linearize(pt.u, pt.p)
         assert np.linalg.norm(lin.R) < 1e-6 * abs(pt.p) * np.linalg.norm(lin.g)
 
 
-def test_its_snap_is_the_answer(followed):
-    res, out, fs = followed
-    fr, sec = fs.parent, fs.secondary
-    assert out["followed"] and out["follow_n"] == 3 and out["follow_N"] == 6
+def test_a_jump_onto_a_state_unstable_outside_the_branch_goes_on_outside_it(jumped):
+    res, out, fs = jumped
+    fr, sec, full = fs.parent, fs.secondary, fs.model
+    assert fs.kind == "jump" and fr.first_kind == "subcritical"
+    landing = next(i for i, pt in enumerate(fr.path.points) if pt is sec.point)
+    assert landing - 1 not in set(visited_points(fr, landing))  # reached by a jump, not along the branch
+    assert unstable_modes(full, lift(fr.model, full, sec.point.u), sec.point.p) > unstable_modes(
+        fr.model, sec.point.u, sec.point.p)
+    up, lo = fs.states.upper, fs.states.lower
+    assert lo is not None and fs.states.lower_method == "descent"
+    assert full.volume(lo.u) == pytest.approx(full.volume(up.u), rel=1e-8)  # at the fold's volume
+    lin = full.linearize(lo.u, lo.p)
+    assert unstable_modes(full, lo.u, lo.p) == 0  # stable with every harmonic
+    assert np.linalg.norm(lin.R) < 1e-6 * abs(lo.p) * np.linalg.norm(lin.g)
+    assert max(float(np.abs(full.harmonic_part(lo.u, n)).max()) for n in extra_harmonics(fr.model, full)) > 1e-3 * \
+        float(np.abs(full.amplitudes(lo.u)).max())  # off the branch
+    assert full.energy(up.u) - full.energy(lo.u) > 0
+
+
+def test_the_row_says_what_happened(jumped):
+    res, out, fs = jumped
+    sec = fs.secondary
+    assert out["followed"] and out["follow_n"] == 3 and out["follow_N"] == 6 and out["follow_kind"] == "jump"
     assert out["follow_sec_n"] == sec.n and out["follow_sec_V_m3"] == pytest.approx(sec.V_m3, rel=1e-12)
-    assert "loses stability to harmonic" in out["follow_note"]
-    # the snap happens on the secondary branch, before the first branch's volume limit
-    assert sec.V_m3 <= out["V_star_m3"] < fr.metrics["V_star_m3"]
+    assert "jumps to on the branch is unstable in harmonic" in out["follow_note"]
     assert out["dE_J"] > 0 and out["dy_pole_m"] > 0
-    if out.get("dE_path_J") is not None:
-        assert out["dE_path_J"] == pytest.approx(out["dE_J"], rel=1e-4)
-    # the plotted branch: the first branch up to the secondary bifurcation, then the second
+    assert out["V_star_m3"] < fs.parent.metrics["V_star_m3"]  # before the branch's own volume limit
     bc = branch_curve(fs)
     assert bc["n_sec"] == sec.n and len(bc["V_m3"]) == sec.index + 2 + len(fs.path.points)
+
+
+def test_the_plot_draws_both_branches_and_the_secondary_point(jumped, tmp_path):
+    pytest.importorskip("matplotlib")
+    from snapjump_cli.viz.figures import plot_pv_curve
+
+    res, out, fs = jumped
+    png = plot_pv_curve(res.curve, dict(res.metrics, **out), tmp_path / "pv.png", title="jump", branch=branch_curve(fs))
+    assert png.stat().st_size > 10_000
