@@ -145,13 +145,14 @@ def test_a_fold_that_releases_almost_nothing_is_not_the_answer(cap, monkeypatch)
     fake = {"dE_J": 1e-4 * dE_axi, "dy_pole_m": 1e-8, "follow_kind": "supercritical", "follow_note": ""}
     monkeypatch.setattr(follow, "locate_bifurcation", lambda result, n: SimpleNamespace(n=n))
     monkeypatch.setattr(follow, "follow_branch", lambda *a, **k: SimpleNamespace(metrics=dict(fake)))
-    out, _ = follow.followed_metrics(res, chk)
+    # (a fake branch: no model to check against the other harmonics, section 10.7)
+    out, _ = follow.followed_metrics(res, chk, secondary=False)
     assert out["followed"] is False and "releases" in out["follow_note"]
     fake["dE_J"] = 0.5 * dE_axi  # a real snap is reported
-    out, _ = follow.followed_metrics(res, chk)
+    out, _ = follow.followed_metrics(res, chk, secondary=False)
     assert out["followed"] is True and out["dE_J"] == 0.5 * dE_axi
     fake["dy_pole_m"] = -1.6e-3  # ... unless its pole moves up: the axisymmetric answer stays, with the reason
-    out, _ = follow.followed_metrics(res, chk)
+    out, _ = follow.followed_metrics(res, chk, secondary=False)
     assert out["followed"] is False and "moves the pole up" in out["follow_note"] and out.get("dE_J") is None
 
 
