@@ -82,9 +82,10 @@ CPU_S_PER_DESIGN = 0.2
 #: 480-design sample, ``python -m bench.check_profile``).
 CHECK_FACTOR = 1.3
 #: With ``solver.follow``: the share of designs that go asymmetric first (72 % of the paper grid)
-#: and the CPU seconds of one followed branch (~100 on the stratified followed sample,
-#: docs/harmonics.md section 10.4, of the order of 100x the axisymmetric solve).
-FOLLOW_SHARE, FOLLOW_CPU_S = 0.72, 100.0
+#: and the CPU seconds of one followed design (~100 for an ``n = 1`` branch of the stratified
+#: followed sample, docs/harmonics.md section 10.4; ~350 for an ``n = 2`` branch left for ``n = 1``
+#: on the way, section 10.7; the grid's mix of 2292 and 629 gives ~150).
+FOLLOW_SHARE, FOLLOW_CPU_S = 0.72, 150.0
 
 
 @dataclass
