@@ -299,6 +299,7 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
         return None, chk, None
     fs = trace_branch(result, fr.bif, full, lift(fr.model, full, sec.point.u), sec.point.p, sec.mode,
                       extra_harmonics(fr.model, full), **kw)
+    fs.parent, fs.secondary = fr, sec
     return fs, chk, sec
 
 

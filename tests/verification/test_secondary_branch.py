@@ -130,10 +130,16 @@ def test_the_row_says_what_happened(jumped):
     assert bc["n_sec"] == sec.n and len(bc["V_m3"]) == sec.index + 2 + len(fs.path.points)
 
 
-def test_the_plot_draws_both_branches_and_the_secondary_point(jumped, tmp_path):
+def test_the_plot_draws_both_branches_and_the_secondary_point(jumped, located, tmp_path):
     pytest.importorskip("matplotlib")
     from snapjump_cli.viz.figures import plot_pv_curve
 
     res, out, fs = jumped
     png = plot_pv_curve(res.curve, dict(res.metrics, **out), tmp_path / "pv.png", title="jump", branch=branch_curve(fs))
+    assert png.stat().st_size > 10_000
+    res, fr, fs, sec = located  # a branch leaving at a located point, not traced to a snap here
+    bc = branch_curve(fs)
+    assert len(bc["V_m3"]) == sec.index + 2 + len(fs.path.points) and bc["V_sec_m3"] == sec.V_m3
+    metrics = dict(res.metrics, dE_J=res.metrics["dE_J"], axisym_dE_J=res.metrics["dE_J"])
+    png = plot_pv_curve(res.curve, metrics, tmp_path / "pv2.png", title="located", branch=bc)
     assert png.stat().st_size > 10_000
