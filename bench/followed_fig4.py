@@ -1,7 +1,7 @@
 """Fig. 4A/4C of the paper grid with the followed answers of the designs whose branch was followed.
 
     .venv/bin/python -m bench.followed_fig4 results/paper_grid.parquet \\
-        results/follow_strata.parquet.parts results/follow_strata_n2.parquet.parts [--plots DIR]
+        results/follow_strata.parquet.parts@n=1 results/follow_strata_n2.parquet.parts [--plots DIR]
 
 The grid (a sweep with the harmonic check, ``solver: {harmonics: 4}``) gives every design's
 axisymmetric answer and whether it goes asymmetric first; each further file (a sweep with
@@ -30,6 +30,18 @@ import numpy as np
 import pandas as pd
 
 PARAMS = ["eta_i", "theta_i_deg", "eta_o", "theta_o_deg", "mu_ratio"]
+
+
+def read_followed(spec: str) -> pd.DataFrame:
+    """A followed table given as ``PATH`` or ``PATH@n=K`` (only its rows whose critical harmonic
+    ``follow_n`` is ``K``: e.g. the ``n = 1`` rows of a sample whose ``n = 2`` rows a later run
+    replaces)."""
+    path, _, cond = spec.partition("@")
+    key, _, value = cond.partition("=")
+    if cond and (key != "n" or not value.isdigit()):
+        raise SystemExit(f"{spec}: the filter must be @n=K (an integer K), got @{cond}")
+    df = read_any(Path(path))
+    return df[df["follow_n"].astype("float64") == float(value)] if cond else df
 
 
 def read_any(path: Path) -> pd.DataFrame:
@@ -116,14 +128,16 @@ def report(ranked: pd.DataFrame, top: int = 20) -> list[str]:
 def main(argv: Iterable[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.followed_fig4", description=__doc__.split("\n\n")[0])
     ap.add_argument("grid", type=Path, help="the grid's result table (with the harmonic check)")
-    ap.add_argument("followed", type=Path, nargs="+", help="result tables (or .parts folders) with followed rows")
+    ap.add_argument("followed", nargs="+",
+                    help="result tables (or .parts folders) with followed rows; PATH@n=K keeps only the rows "
+                         "whose critical harmonic is K")
     ap.add_argument("--plots", type=Path, default=None, metavar="DIR", help="write the figures into DIR")
     ap.add_argument("--top", type=int, default=20)
     a = ap.parse_args(None if argv is None else list(argv))
     from snapjump_cli.jump.rank import rank_results
 
     grid = read_any(a.grid)
-    merged, n, missing = merge(grid, [read_any(p) for p in a.followed])
+    merged, n, missing = merge(grid, [read_followed(p) for p in a.followed])
     print(f"{len(grid)} grid rows; {n} replaced by their followed answer"
           + (f"; {missing} followed rows are not designs of the grid (ignored)" if missing else ""))
     ranked = rank_results(merged)

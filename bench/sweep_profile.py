@@ -38,11 +38,10 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):  # one
 
 import argparse  # noqa: E402
 import json  # noqa: E402
-import math  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from bench.check_profile import PhaseTimer  # noqa: E402
+from bench.check_profile import PhaseTimer, _clean  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 GRID = REPO / "configs" / "paper_grid.yaml"
@@ -130,14 +129,6 @@ def pick(grid: Path, n_path: int, n_descent: int, seed: int):
     desc = ok[ok.lower_state_method == "descent"].sample(
         n=min(n_descent, (ok.lower_state_method == "descent").sum()), random_state=seed)
     return [("path", r) for _, r in path.iterrows()] + [("descent", r) for _, r in desc.iterrows()]
-
-
-def _clean(v):
-    if hasattr(v, "item"):
-        v = v.item()
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    return v
 
 
 def dispatch_ab(grid: Path, n_path: int, seed: int, repeat: int) -> int:

@@ -672,8 +672,7 @@ def _leave_at_secondary(result, fr: FollowResult) -> tuple[FollowResult, str]:
         return fr, (f"the branch of harmonic {n} is unstable outside its harmonics at V = {chk.V_m3[chk.first]:.4g} m^3 "
                     f"(harmonics up to {chk.N}) and no secondary bifurcation was located before it (the actuator "
                     "may reach that state by a jump past a fold of the branch): not traced further")
-    fs.metrics.update(follow_sec_n=sec.n, follow_sec_V_m3=sec.V_m3, follow_sec_p_Pa=sec.p_Pa,
-                      follow_wall_s=(fr.metrics.get("follow_wall_s") or 0.0))
+    fs.metrics.update(follow_sec_n=sec.n, follow_sec_V_m3=sec.V_m3, follow_sec_p_Pa=sec.p_Pa)
     if fs.kind == "jump":
         return fs, (f"the branch of harmonic {n} folds at V = {fs.metrics.get('V_star_m3') or math.nan:.4g} m^3 and "
                     f"the state it jumps to on the branch is unstable in harmonic {sec.n}: the jump goes on, at "

@@ -30,8 +30,8 @@ from snapjump_cli.fe.multiharmonic import MultiHarmonicModel, component_index
 log = logging.getLogger(__name__)
 
 __all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
-           "extra_eigen", "locate_secondary", "follow_secondary", "first_secondary_volume", "visited_points",
-           "first_extra", "jump_off_branch"]
+           "extra_eigen", "locate_secondary", "follow_secondary", "visited_points",
+           "first_extra", "jump_off_branch", "reached_along"]
 
 
 def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray | None = None) -> MultiHarmonicModel:
@@ -95,11 +95,6 @@ class SecondaryCheck:
     full: list[int] = field(default_factory=list)
     first: int | None = None
 
-    @property
-    def extra(self) -> list[int]:
-        """Unstable modes outside the branch's subspace, per checked state."""
-        return [f - o if f >= 0 and o >= 0 else -1 for f, o in zip(self.full, self.own)]
-
 
 def visited_points(fr, upto: int) -> list[int]:
     """The path points of a followed branch that the actuator passes through under volume control,
@@ -118,8 +113,14 @@ def visited_points(fr, upto: int) -> list[int]:
     return out
 
 
+def reached_along(fr, j: int) -> bool:
+    """Whether the actuator reaches path point ``j`` of the branch from point ``j - 1`` (both
+    visited, :func:`visited_points`; the bifurcation point counts), not by a jump past a fold."""
+    return j - 1 in set(visited_points(fr, j)) | {0}
+
+
 def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None = None,
-                     stop_at_first: bool = False) -> SecondaryCheck:
+                     stop_at_first: bool = False, full: MultiHarmonicModel | None = None) -> SecondaryCheck:
     """Count the unstable modes of a followed branch's states outside the branch's subspace.
 
     Parameters
@@ -130,13 +131,14 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
         the upper state is always checked)
     upto : last path index checked (default: the branch's upper state, else its last point)
     stop_at_first : stop at the first state with an extra unstable mode
+    full : the model with every harmonic (default: :func:`full_model` of the branch, ``N``)
 
     Returns
     -------
     SecondaryCheck
     """
     mh, pts = fr.model, fr.path.points
-    full = full_model(mh, N, fr.bif.u)
+    full = full_model(mh, N, fr.bif.u) if full is None else full
     st = fr.states
     if upto is None:
         upto = st.k_before if st is not None and st.k_before is not None else len(pts) - 1
@@ -169,11 +171,6 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
     return out
 
 
-def first_secondary_volume(chk: SecondaryCheck) -> float:
-    """The cavity volume (m³) of the first state with an extra unstable mode (nan if none)."""
-    return chk.V_m3[chk.first] if chk.first is not None else math.nan
-
-
 def extra_harmonics(mh: MultiHarmonicModel, full: MultiHarmonicModel) -> list[int]:
     """The harmonics of ``full`` that ``mh`` does not keep."""
     own = set(int(n) for n in mh.hn)
@@ -182,8 +179,8 @@ def extra_harmonics(mh: MultiHarmonicModel, full: MultiHarmonicModel) -> list[in
 
 def extra_dofs(mh: MultiHarmonicModel, full: MultiHarmonicModel) -> np.ndarray:
     """The free dofs of ``full`` that belong to the harmonics ``mh`` does not keep (sorted)."""
-    cols = [component_index(k, c) for k, n in enumerate(full.hn) if int(n) not in set(int(m) for m in mh.hn)
-            for c in range(3)]
+    others = set(extra_harmonics(mh, full))
+    cols = [component_index(k, c) for k, n in enumerate(full.hn) if int(n) in others for c in range(3)]
     d = full.dofmap[:, cols]
     return np.unique(d[d >= 0])
 
@@ -239,7 +236,7 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
     mh, pts = fr.model, fr.path.points
     dofs = extra_dofs(mh, full)
     j1 = first_extra(fr, chk, full) if first is None else first
-    if j1 - 1 not in set(visited_points(fr, j1)) | {0}:
+    if not reached_along(fr, j1):
         return None  # reached by a jump past a fold: no bifurcation on the step before it
     a, b = pts[j1 - 1], pts[j1]
     a_prev = pts[j1 - 2] if j1 >= 2 else None
@@ -285,12 +282,12 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
     """
     from snapjump_cli.fe.follow import trace_branch
 
-    chk = branch_stability(fr, N, stride=stride, stop_at_first=True)
+    full = full_model(fr.model, N, fr.bif.u)
+    chk = branch_stability(fr, stride=stride, stop_at_first=True, full=full)
     if chk.first is None:
         return None, chk, None
-    full = full_model(fr.model, N, fr.bif.u)
     j1 = first_extra(fr, chk, full)
-    if j1 - 1 not in set(visited_points(fr, j1)) | {0}:
+    if not reached_along(fr, j1):
         # reached by a jump past a fold of the branch, and already unstable outside it
         return jump_off_branch(result, fr, chk, full, j1)
     sec = locate_secondary(fr, chk, full, first=j1)
@@ -338,8 +335,6 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
         alone, ``parent`` the branch) and the landing state as the ``Secondary`` (``index`` the
         fold's path index)
     """
-    from dataclasses import replace
-
     from snapjump_cli.fe.descent import descend_at_volume
     from snapjump_cli.fe.follow import FollowResult, _branch_metrics
     from snapjump_cli.fe.path import Path, PathPoint
@@ -350,8 +345,7 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     visited = [j for j in visited_points(fr, landing) if j < landing]
     k_up = visited[-1] if visited else 0
     up_b, land = pts[k_up], pts[landing]
-    cfg = replace(fr.tracer.cfg)
-    tr = Tracer(full, cfg)
+    tr = Tracer(full, fr.tracer.cfg)
     U = lift(mh, full, up_b.u)
     z = tr.zeta(U, up_b.p)[0]
     upper = PathPoint(U, up_b.p, z, up_b.tangent.copy(), lift(mh, full, up_b.du_ds), up_b.dp_ds, 0.0)
