@@ -204,14 +204,17 @@ def _text(scene, m: dict) -> str:
         else:
             lines.append("asymmetric mode  none up to V* (harmonics checked)")
         if m.get("followed"):
-            lines.append(f"followed branch  n = {m['follow_n']} ({m['follow_kind']}, harmonics up to {m['follow_N']}) "
+            sec = m.get("follow_sec_n") is not None
+            kind = "" if sec else f"{m['follow_kind']}, "  # (after a secondary: that branch's kind, below)
+            lines.append(f"followed branch  n = {m['follow_n']} ({kind}harmonics up to {m['follow_N']}) "
                          f"from V = {m['follow_V_bif_m3'] * 1e6:.5g} ml: the snap above is the followed one; "
                          f"axisymmetric dE {m['axisym_dE_J'] * 1e3:.6g} mJ, dy_pole {m['axisym_dy_pole_m'] * 1e3:.5g} mm, "
                          f"V* {m['axisym_V_star_m3'] * 1e6:.5g} ml")
-            if m.get("follow_sec_n") is not None:
+            if sec:
                 lines.append(f"secondary        the branch of n = {m['follow_n']} loses stability to n = "
                              f"{m['follow_sec_n']} at V = {m['follow_sec_V_m3'] * 1e6:.5g} ml, before its own snap: "
-                             "the snap above is that of the branch leaving it there (every harmonic kept)")
+                             f"the snap above is that of the branch leaving it there ({m['follow_kind']}, every "
+                             "harmonic kept)")
         elif m.get("followed") is False and m.get("follow_note"):
             lines.append(f"followed branch  not followed: {m['follow_note']}")
         if m.get("asym_lower_stable") is not None:

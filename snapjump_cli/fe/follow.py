@@ -186,7 +186,9 @@ def branch_curve(fr: FollowResult) -> dict:
     """The followed branch in SI units for plots: ``V_m3``, ``p_Pa`` per traced point (from the
     bifurcation; for a branch that left another at a secondary bifurcation, that branch up to it
     first, and ``n_sec``, ``V_sec_m3``) and, for a snap, ``snap_V_m3`` / ``snap_p_Pa`` (upper
-    state, the branch after it, lower state) and ``kind``."""
+    state, the branch after it, lower state) and ``kind`` (that of the branch whose snap it is: the
+    secondary branch's after a secondary bifurcation, where ``parent_kind`` is how the first branch
+    left the axisymmetric path)."""
     mh, sc = fr.model, fr.tracer.sc
     L3, S = mh.L**3, mh.S
     pts = fr.path.points
@@ -198,8 +200,10 @@ def branch_curve(fr: FollowResult) -> dict:
         sp = fr.parent.tracer.sc
         V = np.concatenate([np.array([pt.zeta[0] * sp[0] for pt in head]) * L3, V])
         p = np.concatenate([np.array([pt.p for pt in head]) * S, p])
+    parent_kind = (fr.parent.first_kind or fr.parent.kind) if fr.parent is not None else None
     out = {"V_m3": V, "p_Pa": p, "kind": fr.kind, "n": fr.bif.n, "N": int(mh.hn[-1]),
-           "n_sec": sec.n if sec is not None else None, "V_sec_m3": sec.V_m3 if sec is not None else None}
+           "n_sec": sec.n if sec is not None else None, "V_sec_m3": sec.V_m3 if sec is not None else None,
+           "parent_kind": parent_kind}
     st = fr.states
     if st.upper is not None and st.lower is not None:
         seq = snap_sequence(fr.path, st)

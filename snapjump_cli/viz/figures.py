@@ -378,8 +378,12 @@ def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "",
     if axisym:
         bx = (np.asarray(branch["V_m3"]) - V0) / L**3
         by = np.asarray(branch["p_Pa"]) / mu
-        ax.plot(bx, by, "-", color="tab:orange", lw=1.4,
-                label=f"followed branch (n = {branch['n']}, {branch['kind'] or 'no snap'}, N = {branch['N']})")
+        if branch.get("n_sec") is not None:  # the first branch, then the one leaving it
+            what = (f"n = {branch['n']} ({branch.get('parent_kind') or '?'}), then n = {branch['n_sec']} "
+                    f"({branch['kind'] or 'no snap'}), N = {branch['N']}")
+        else:
+            what = f"n = {branch['n']}, {branch['kind'] or 'no snap'}, N = {branch['N']}"
+        ax.plot(bx, by, "-", color="tab:orange", lw=1.4, label=f"followed branch ({what})")
         ax.plot(bx[:1], by[:1], "D", mfc="tab:orange", mec="k", ms=6, label="bifurcation")
         if branch.get("V_sec_m3") is not None:  # where the followed branch left the first one
             k = int(np.argmin(np.abs(np.asarray(branch["V_m3"]) - branch["V_sec_m3"])))

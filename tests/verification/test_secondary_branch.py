@@ -58,6 +58,7 @@ def jumped():
     """The clamped cap: the followed answer."""
     res, chk = _solved(30.0, 80.0, "clamped")
     out, fs = followed_metrics(res, chk, N=6)
+    res.metrics.update({k: chk[k] for k in ("asym_first", "asym_n", "asym_V_m3", "asym_p_Pa", "asym_lower_stable")})
     return res, out, fs
 
 
@@ -128,6 +129,14 @@ def test_the_row_says_what_happened(jumped):
     assert out["V_star_m3"] < fs.parent.metrics["V_star_m3"]  # before the branch's own volume limit
     bc = branch_curve(fs)
     assert bc["n_sec"] == sec.n and len(bc["V_m3"]) == sec.index + 2 + len(fs.path.points)
+    # the kinds of both branches: the n = 3 branch's own (how it left the axisymmetric path), then the jump
+    assert bc["kind"] == "jump" and bc["parent_kind"] == (fs.parent.first_kind or fs.parent.kind) != "jump"
+    from snapjump_cli.commands.curve import _text
+
+    text = _text(None, dict(res.metrics, **out))
+    followed = next(ln for ln in text.splitlines() if ln.startswith("followed branch"))
+    assert "n = 3 (harmonics up to 6)" in followed and "jump" not in followed
+    assert "leaving it there (jump, every harmonic kept)" in text
 
 
 def test_the_plot_draws_both_branches_and_the_secondary_point(jumped, located, tmp_path):
