@@ -12,6 +12,16 @@ REPO = Path(__file__).resolve().parents[1]
 PAPER_GRID = REPO / "configs" / "paper_grid.yaml"
 
 
+def json_value(v):
+    """A result value as JSON takes it: numpy scalars as Python ones, NaN and infinities as ``None``
+    (the benchmarks' row files)."""
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, float) and not np.isfinite(v):
+        return None
+    return v
+
+
 @dataclass(frozen=True)
 class Case:
     """One benchmark scene.

@@ -46,6 +46,8 @@ import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+from bench.cases import json_value  # noqa: E402
+
 REPO = Path(__file__).resolve().parents[1]
 POINTS = REPO / "bench" / "harmonics_sample" / "points.csv"
 GRID = REPO / "configs" / "paper_grid.yaml"
@@ -121,14 +123,6 @@ def sample(limit: int | None) -> list[dict]:
     return out[:limit] if limit else out
 
 
-def _clean(v):
-    if hasattr(v, "item"):
-        v = v.item()
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    return v
-
-
 def run(limit: int | None, n_max: int, out: Path | None, designs: list[str] | None = None, repeat: int = 1) -> int:
     from snapjump_cli.fe.harmonics import check_harmonics
     from snapjump_cli.fe.solve import SolveFailed, solve_checked, warm_up
@@ -184,7 +178,7 @@ def run(limit: int | None, n_max: int, out: Path | None, designs: list[str] | No
         t_check += t3 - t2
         n_states += repeat * h["asym_states_checked"]
         row.update(status="ok" if res.metrics.get("snaps") else "no_snap", solve_cpu_s=t1 - t0, check_cpu_s=t3 - t2)
-        row.update({k: _clean(h.get(k)) for k in EXACT + CLOSE})
+        row.update({k: json_value(h.get(k)) for k in EXACT + CLOSE})
         rows.append(row)
     timer.cpu["Python glue"] = t_check - sum(v for k, v in timer.cpu.items() if k != "Python glue")
     checked = [r for r in rows if "check_cpu_s" in r]

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import time
@@ -36,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.cases import PAPER_GRID, REPO, cap_cases
+from bench.cases import PAPER_GRID, REPO, cap_cases, json_value
 
 BASELINE = Path(__file__).resolve().parent / "regression" / "baseline.json"
 #: Rows whose baseline answer was shown to be wrong, with the reason (``id -> reason``): reported,
@@ -103,14 +102,6 @@ def scenes(n_grid: int, seed: int) -> list[dict]:
     return out
 
 
-def _clean(v):
-    if isinstance(v, (np.floating, np.integer, np.bool_)):
-        v = v.item()
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    return v
-
-
 def solve_one(sc: dict, phases: bool = False) -> dict:
     """Solve one regression scene; returns its row (flags, metrics, counts, wall time).
     ``phases``: through the Python corrector, whose timers split assembly and factorisation."""
@@ -149,7 +140,7 @@ def solve_one(sc: dict, phases: bool = False) -> dict:
             row.update(status="failed", error=str(e)[:500])
     row["wall_s"] = time.perf_counter() - t0
     keep = ("id", "kind", "wall_s") + FLAGS + METRICS + EXTRA
-    return {k: _clean(row.get(k)) for k in keep}
+    return {k: json_value(row.get(k)) for k in keep}
 
 
 def solve_all(items: list[dict], n_jobs: int, phases: bool = False) -> list[dict]:

@@ -41,7 +41,8 @@ import json  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from bench.check_profile import PhaseTimer, _clean  # noqa: E402
+from bench.cases import json_value  # noqa: E402
+from bench.check_profile import PhaseTimer  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 GRID = REPO / "configs" / "paper_grid.yaml"
@@ -235,7 +236,7 @@ def main(argv: list[str] | None = None) -> int:
             t["phases"][k] = t["phases"].get(k, 0.0) + v
         rows.append({"key": str(r.key), "kind": kind, "cpu_s": dt,
                      "phases": {f"{s}/{p}": v for (s, p), v in clock.cpu.items()},
-                     **{k: _clean(m.get(k)) for k in ANSWERS}})
+                     **{k: json_value(m.get(k)) for k in ANSWERS}})
     print(f"load average {os.getloadavg()[0]:.2f}; grid {a.grid}; seed {a.seed}")
     for kind, t in totals.items():
         n = t["n"]
