@@ -168,7 +168,7 @@ class FollowResult:
     path: Path
     states: SnapStates
     tracer: Tracer
-    kind: str  # "supercritical", "subcritical" or "" (no snap on the branch)
+    kind: str  # "supercritical", "subcritical", "jump" (a jump off a branch, secondary.jump_off_branch) or ""
     first_kind: str = ""  # how the branch leaves the bifurcation (before folds traced through)
     lower_method: str = ""
     lower_note: str = ""
@@ -672,8 +672,9 @@ def _leave_at_secondary(result, fr: FollowResult) -> tuple[FollowResult, str]:
         return fr, ""
     n = fr.bif.n
     if sec is None:
-        fr.metrics.update(dE_J=None, follow_sec_V_m3=chk.V_m3[chk.first])
-        return fr, (f"the branch of harmonic {n} is unstable outside its harmonics at V = {chk.V_m3[chk.first]:.4g} m^3 "
+        V1 = chk.first_V_m3 if chk.first_V_m3 is not None else chk.V_m3[chk.first]
+        fr.metrics.update(dE_J=None, follow_sec_V_m3=V1)
+        return fr, (f"the branch of harmonic {n} is unstable outside its harmonics at V = {V1:.4g} m^3 "
                     f"(harmonics up to {chk.N}) and no secondary bifurcation was located before it (the actuator "
                     "may reach that state by a jump past a fold of the branch): not traced further")
     fs.metrics.update(follow_sec_n=sec.n, follow_sec_V_m3=sec.V_m3, follow_sec_p_Pa=sec.p_Pa)

@@ -31,7 +31,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
            "extra_eigen", "locate_secondary", "follow_secondary", "visited_points",
-           "first_extra", "jump_off_branch", "reached_along"]
+           "first_extra", "jump_off_branch", "reached_along", "extra_harmonics", "JUMP_KICK"]
 
 
 def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray | None = None) -> MultiHarmonicModel:
@@ -85,7 +85,8 @@ class SecondaryCheck:
     """The branch's states checked against the full harmonics: per state its index on the path,
     cavity volume (m³), pressure (Pa) and the unstable modes in the branch's model (``own``) and in
     the full one (``full``); the first state with more in the full model (``first``: index into
-    these lists, ``None`` if none)."""
+    these lists, ``None`` if none; the counts are -1 where a factorisation failed, and such a state
+    counts as neither stable nor unstable)."""
 
     N: int
     index: list[int] = field(default_factory=list)
@@ -94,6 +95,11 @@ class SecondaryCheck:
     own: list[int] = field(default_factory=list)
     full: list[int] = field(default_factory=list)
     first: int | None = None
+    #: the first point the actuator passes through with an extra unstable mode (a path index,
+    #: :func:`first_extra`; ``chk.first`` is only the first such point of the checked sample) and
+    #: its cavity volume (m³), once known
+    first_point: int | None = None
+    first_V_m3: float | None = None
 
 
 def visited_points(fr, upto: int) -> list[int]:
@@ -168,6 +174,7 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
                     break
     finally:
         full.release_buffers()
+        mh.release_buffers()  # (the branch's model refills its pool here; its result keeps the model)
     return out
 
 
@@ -185,24 +192,62 @@ def extra_dofs(mh: MultiHarmonicModel, full: MultiHarmonicModel) -> np.ndarray:
     return np.unique(d[d >= 0])
 
 
-def extra_eigen(full: MultiHarmonicModel, u: np.ndarray, p: float, dofs: np.ndarray, scale: float = 1.0):
+def extra_eigen(full: MultiHarmonicModel, u: np.ndarray, p: float, dofs: np.ndarray, scale: float = 1.0,
+                max_shifts: int = 12):
     """The smallest eigenvalue of the tangent of ``full`` at ``(u, p)`` restricted to ``dofs`` (the
     harmonics outside a branch's subspace, decoupled from it at a state of the branch), divided by
-    ``scale``, and its eigenvector as a free vector of ``full``; ``None`` outside the domain."""
+    ``scale``, and its eigenvector as a free vector of ``full``; ``None`` outside the domain.
+
+    Shift-invert Lanczos finds the eigenvalues nearest a shift just below zero (the smallest when
+    none is far below zero). The number of negative eigenvalues (the inertia of the block's
+    ``LDL^T``, which Sylvester's law makes exact) tells whether one was missed: then the shift moves
+    down, each time to four times the lowest eigenvalue found or the shift, until every negative
+    eigenvalue has been found (at most ``max_shifts`` times; then ``None``)."""
+    import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
     lin = full.linearize(u, p)
     if lin is None:
         return None
     K = lin.stiffness().tocsr()[dofs][:, dofs].tocsc()
+    n_neg = _negative_eigenvalues(K)
     d = np.abs(K.diagonal())
     sigma = -1e-6 * float(np.median(d))  # below the eigenvalue near zero; nearest to it = smallest
     v0 = np.random.default_rng(0).standard_normal(K.shape[0])  # fixed: reproducible answers
-    vals, vecs = spla.eigsh(K, k=3, sigma=sigma, which="LM", v0=v0)
+    I = sp.identity(K.shape[0], format="csc")
+    for _ in range(max_shifts):
+        vals, vecs = spla.eigsh(K, k=min(3, K.shape[0] - 1), sigma=sigma, which="LM", v0=v0)
+        lo = float(vals.min())
+        if n_neg < 0 or (int(np.sum(vals < 0.0)) >= min(n_neg, len(vals))
+                         and (n_neg <= len(vals) or _negative_eigenvalues(K - (lo - 1e-9 * abs(lo)) * I) == 0)):
+            break  # (every negative eigenvalue found, or none below the lowest found)
+        sigma = -4.0 * max(abs(lo), abs(sigma))  # further down: nearer the most negative ones
+    else:
+        log.warning("extra_eigen: %d negative eigenvalue(s) not reached by shift-invert", n_neg)
+        return None
     i = int(np.argmin(vals))
     x = np.zeros(full.n)
     x[dofs] = vecs[:, i]
     return float(vals[i]) / scale, x
+
+
+def _negative_eigenvalues(K) -> int:
+    """Negative eigenvalues of the sparse symmetric ``K`` (Sylvester: the negative pivots of its
+    band ``LDL^T``, :func:`snapjump_kernels.banded.band_ldlt`, in the order of its rows, which keep
+    the full model's node order); -1 if a pivot is zero to round-off."""
+    from snapjump_kernels.band_layout import envelope_extents
+    from snapjump_kernels.calls import band_ldlt
+
+    C = K.tocoo()
+    low = C.row >= C.col
+    r, c, v = C.row[low], C.col[low], C.data[low]
+    n = K.shape[0]
+    kl = int((r - c).max()) if len(r) else 0
+    ab = np.zeros((n, kl + 1))
+    np.add.at(ab, (c, r - c), v)  # A[i, j] = ab[j, i - j]
+    ext = envelope_extents(C.row, C.col, n, kl)
+    ok, n_neg = band_ldlt(ab, ext)
+    return int(n_neg) if ok else -1
 
 
 @dataclass
@@ -259,6 +304,10 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
     if id(root) not in cache:
         f(root)
     eig, mode = cache[id(root)]
+    if not abs(eig) < 100.0 * tol:  # root_on_step returns its last point on b's side if it does not converge
+        log.warning("secondary bifurcation of the branch of harmonic %d not converged (relative eigenvalue "
+                    "%.2e between path points %d and %d): not located", fr.bif.n, eig, j1 - 1, j1)
+        return None
     amps = {n: float(np.abs(full.harmonic_part(mode, n)).max()) for n in extra_harmonics(mh, full)}
     n_dom = max(amps, key=amps.get)
     sc = fr.tracer.sc
@@ -290,7 +339,10 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
     if not reached_along(fr, j1):
         # reached by a jump past a fold of the branch, and already unstable outside it
         return jump_off_branch(result, fr, chk, full, j1)
-    sec = locate_secondary(fr, chk, full, first=j1)
+    try:
+        sec = locate_secondary(fr, chk, full, first=j1)
+    finally:
+        fr.model.release_buffers()
     if sec is None:
         full.release_buffers()
         return None, chk, None
@@ -307,10 +359,18 @@ def first_extra(fr, chk: SecondaryCheck, full: MultiHarmonicModel) -> int:
     mh, pts = fr.model, fr.path.points
     j0 = chk.index[chk.first - 1] if chk.first > 0 else 0
     j1 = chk.index[chk.first]
-    for j in visited_points(fr, j1):
-        if j0 < j < j1 and (unstable_modes(full, lift(mh, full, pts[j].u), pts[j].p)
-                            - unstable_modes(mh, pts[j].u, pts[j].p)) > 0:
-            return j
+    try:
+        for j in visited_points(fr, j1):
+            if j0 < j < j1:
+                own = unstable_modes(mh, pts[j].u, pts[j].p)
+                nf = unstable_modes(full, lift(mh, full, pts[j].u), pts[j].p)
+                if nf >= 0 and own >= 0 and nf > own:  # (-1: a failed count, as in branch_stability)
+                    j1 = j
+                    break
+    finally:
+        mh.release_buffers()
+    chk.first_point = j1
+    chk.first_V_m3 = float(mh.volume(pts[j1].u) * mh.L**3)
     return j1
 
 

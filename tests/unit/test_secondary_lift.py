@@ -78,8 +78,45 @@ def test_the_extra_eigenvalue_changes_sign_where_the_odd_harmonics_lose_stabilit
     full = full_model(mh, 4)
     ex = extra_dofs(mh, full)
     pts = cap.path.points[: cap.states.k_before + 1]
+    n_neg_max = 0
     for pt in pts[:: max(1, len(pts) // 6)]:
         odd = harmonic_operator(M, 1).inertia(pt.u, pt.p) + harmonic_operator(M, 3).inertia(pt.u, pt.p)
-        eig, mode = extra_eigen(full, lift(mh, full, mh.embed(pt.u)), pt.p, ex)
+        U = lift(mh, full, mh.embed(pt.u))
+        eig, mode = extra_eigen(full, U, pt.p, ex)
         assert (eig < 0) == (odd > 0)
         assert np.all(mode[np.setdiff1d(np.arange(full.n), ex)] == 0.0)
+        # the smallest eigenvalue of the block, not only one near zero: against the dense spectrum
+        K = full.linearize(U, pt.p).stiffness().toarray()[np.ix_(ex, ex)]
+        w = np.linalg.eigvalsh(K)
+        assert eig == pytest.approx(w[0], rel=1e-8, abs=1e-12 * np.abs(w).max())
+        n_neg_max = max(n_neg_max, int(np.sum(w < 0)))
+    assert n_neg_max >= 2  # a state with several negative eigenvalues was among them
+
+
+def test_the_extra_eigenvalue_is_the_smallest_even_far_below_zero():
+    """Shift-invert near zero alone would return the eigenvalue nearest zero: with one far below
+    the others (-5 against 1..3) the inertia sends the shift down to it."""
+    import scipy.sparse as sp
+
+    class Lin:
+        def __init__(self, K):
+            self.K = K
+
+        def stiffness(self):
+            return self.K
+
+    class Block:  # the model interface extra_eigen uses: linearize(u, p).stiffness() and n
+        def __init__(self, K):
+            self.K, self.n = K, K.shape[0]
+
+        def linearize(self, u, p):
+            return Lin(self.K)
+
+    rng = np.random.default_rng(3)
+    Q, _ = np.linalg.qr(rng.standard_normal((40, 40)))
+    for spectrum in ([-5.0, *np.linspace(1.0, 3.0, 39)], [-5.0, -4.0, -3.0, -2.0, -0.01, *np.linspace(1e-3, 3.0, 35)],
+                     list(np.linspace(0.5, 3.0, 40))):
+        K = sp.csc_matrix((Q * np.array(spectrum)) @ Q.T)
+        eig, mode = extra_eigen(Block(K), None, 0.0, np.arange(40))
+        assert eig == pytest.approx(min(spectrum), rel=1e-9)
+        assert abs(mode @ K @ mode - eig * (mode @ mode)) < 1e-8 * abs(eig)
