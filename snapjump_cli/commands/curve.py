@@ -210,7 +210,11 @@ def _text(scene, m: dict) -> str:
                          f"from V = {m['follow_V_bif_m3'] * 1e6:.5g} ml: the snap above is the followed one; "
                          f"axisymmetric dE {m['axisym_dE_J'] * 1e3:.6g} mJ, dy_pole {m['axisym_dy_pole_m'] * 1e3:.5g} mm, "
                          f"V* {m['axisym_V_star_m3'] * 1e6:.5g} ml")
-            if sec:
+            if sec and m.get("follow_kind") == "jump":
+                lines.append(f"secondary        the branch of n = {m['follow_n']} folds at V* and the state it jumps "
+                             f"to there is unstable in n = {m['follow_sec_n']}: the jump goes on at that volume to "
+                             "the state above (every harmonic kept, energy descent)")
+            elif sec:
                 lines.append(f"secondary        the branch of n = {m['follow_n']} loses stability to n = "
                              f"{m['follow_sec_n']} at V = {m['follow_sec_V_m3'] * 1e6:.5g} ml, before its own snap: "
                              f"the snap above is that of the branch leaving it there ({m['follow_kind']}, every "

@@ -160,6 +160,19 @@ def harmonic1_gauge(base, n: int, u: np.ndarray) -> list[tuple[int, int]]:
 
 
 @dataclass
+class FoldJump:
+    """A fold of a followed branch that the actuator jumps past before inflation goes on: the last
+    path point before the fold (``k``), the fold (its upper state), the state it lands on at the
+    fold's volume, and that state's path index when it is a path point (a restart from a lower
+    state found off the branch) or ``None`` (a lower state on the path, between two points)."""
+
+    k: int
+    upper: PathPoint
+    landing: PathPoint
+    landing_index: int | None = None
+
+
+@dataclass
 class FollowResult:
     """A followed branch: its path (from the bifurcation), snap states and model."""
 
@@ -180,12 +193,15 @@ class FollowResult:
     #: (:class:`snapjump_cli.fe.secondary.Secondary`)
     parent: "FollowResult | None" = None
     secondary: object = None
+    #: the folds traced through on the way to the snap (:class:`FoldJump`, in path order)
+    folds: list = field(default_factory=list)
 
 
 def branch_curve(fr: FollowResult) -> dict:
     """The followed branch in SI units for plots: ``V_m3``, ``p_Pa`` per traced point (from the
     bifurcation; for a branch that left another at a secondary bifurcation, that branch up to it
-    first, and ``n_sec``, ``V_sec_m3``) and, for a snap, ``snap_V_m3`` / ``snap_p_Pa`` (upper
+    first, and ``n_sec``, ``V_sec_m3``; for a jump off a branch, that branch up to the fold, and
+    ``n_sec``, ``landing_V_m3``, ``landing_p_Pa``: the state it lands on) and, for a snap, ``snap_V_m3`` / ``snap_p_Pa`` (upper
     state, the branch after it, lower state) and ``kind`` (that of the branch whose snap it is: the
     secondary branch's after a secondary bifurcation, where ``parent_kind`` is how the first branch
     left the axisymmetric path)."""
@@ -195,15 +211,21 @@ def branch_curve(fr: FollowResult) -> dict:
     V = np.array([pt.zeta[0] * sc[0] for pt in pts]) * L3
     p = np.array([pt.p for pt in pts]) * S
     sec = fr.secondary
-    if fr.parent is not None and sec is not None:  # the branch left behind, up to the secondary bifurcation
-        head = fr.parent.path.points[: sec.index + 1] + [sec.point]
+    jump = fr.kind == "jump"
+    if fr.parent is not None and sec is not None:
+        # the branch left behind: up to the secondary bifurcation, or (a jump) up to the fold, whose
+        # state the jump's own path starts from
+        head = fr.parent.path.points[: sec.index + 1] + ([] if jump else [sec.point])
         sp = fr.parent.tracer.sc
         V = np.concatenate([np.array([pt.zeta[0] * sp[0] for pt in head]) * L3, V])
         p = np.concatenate([np.array([pt.p for pt in head]) * S, p])
     parent_kind = (fr.parent.first_kind or fr.parent.kind) if fr.parent is not None else None
     out = {"V_m3": V, "p_Pa": p, "kind": fr.kind, "n": fr.bif.n, "N": int(mh.hn[-1]),
-           "n_sec": sec.n if sec is not None else None, "V_sec_m3": sec.V_m3 if sec is not None else None,
+           "n_sec": sec.n if sec is not None else None,
+           "V_sec_m3": sec.V_m3 if sec is not None and not jump else None,
            "parent_kind": parent_kind}
+    if jump and sec is not None:  # the state the jump lands on, unstable outside the branch
+        out["landing_V_m3"], out["landing_p_Pa"] = sec.V_m3, sec.p_Pa
     st = fr.states
     if st.upper is not None and st.lower is not None:
         seq = snap_sequence(fr.path, st)
@@ -236,6 +258,8 @@ class BranchTracker(SnapTracker):
     first_kind: str = ""  # the verdict of the first step (before any fold was traced through)
     micro_dE: float = 0.0
     micro_folds: list = field(default_factory=list)
+    #: ``(k_before, upper, lower)`` of each micro-fold traced through (indices into this trace's path)
+    fold_states: list = field(default_factory=list)
     mode_amplitude: Callable[[np.ndarray], float] | None = None
     asym_amplitude: Callable[[np.ndarray], float] | None = None
     _asym_max: float = 0.0
@@ -275,6 +299,7 @@ class BranchTracker(SnapTracker):
             dE = pb.energy(st.upper.u) - pb.energy(st.lower.u)
             if dE < self.micro_dE:
                 self.micro_folds.append((float(st.upper.zeta[0]), float(dE)))
+                self.fold_states.append((int(st.k_before), st.upper, st.lower))
                 log.debug("branch: fold at V = %.9g releases %.3g < %.3g: traced on", st.upper.zeta[0], dE,
                           self.micro_dE)
                 self.states = SnapStates(p_max=st.p_max)
@@ -312,6 +337,7 @@ class ThroughFolds:
     micro_folds: list
     restarts: int
     first_kind: str
+    folds: list = field(default_factory=list)  # every fold traced through (:class:`FoldJump`)
 
 
 def trace_through_micro_folds(run: Callable, start: PathPoint, lower_state: Callable, energy: Callable,
@@ -331,6 +357,8 @@ def trace_through_micro_folds(run: Callable, start: PathPoint, lower_state: Call
     first_kind, micro_folds = tracker.first_kind, list(tracker.micro_folds)
     kept: list[PathPoint] = []  # the branch before the restarts (up to each restart's fold)
     restarts, low = 0, None
+    folds: list[FoldJump] = []
+    off = 0  # where the current trace starts in the joined path
     while True:
         st = tracker.states
         low = lower_state(tracker, path, failure or path.stop_reason) if st.upper is not None else None
@@ -349,6 +377,9 @@ def trace_through_micro_folds(run: Callable, start: PathPoint, lower_state: Call
             failure = f"no path from the lower state of a fold releasing {dE:.3g}: {exc}"
             break
         kept += path.points[: st.k_before + 1]
+        folds += [FoldJump(k + off, up, lo) for k, up, lo in getattr(tracker, "fold_states", ()) if k <= st.k_before]
+        folds.append(FoldJump(st.k_before + off, st.upper, first, len(kept)))  # lands on the restart's first point
+        off = len(kept)
         restarts += 1
         path, tracker, failure = run(first)
         micro_folds += tracker.micro_folds
@@ -360,7 +391,10 @@ def trace_through_micro_folds(run: Callable, start: PathPoint, lower_state: Call
         for k in ("k_before", "k_return"):
             if getattr(st, k) is not None:
                 setattr(st, k, getattr(st, k) + offset)
-    return ThroughFolds(path, tracker, failure, low, micro_folds, restarts, first_kind)
+    st = tracker.states
+    last = st.k_before if st.upper is not None and st.k_before is not None else len(path.points) - 1
+    folds += [FoldJump(k + off, up, lo) for k, up, lo in getattr(tracker, "fold_states", ()) if k + off <= last]
+    return ThroughFolds(path, tracker, failure, low, micro_folds, restarts, first_kind, folds)
 
 
 def tracker_bounds(result, post_snap_steps: int | None = None) -> tuple[float, float, int]:
@@ -479,7 +513,8 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     st = tracker.states
     kind = (tracker.kind if not tb.restarts else "supercritical") if st.upper is not None else ""
     first_kind = tb.first_kind
-    fr = FollowResult(bif, mh, path, st, tr, kind, first_kind, failure=failure, micro_folds=micro_folds)
+    fr = FollowResult(bif, mh, path, st, tr, kind, first_kind, failure=failure, micro_folds=micro_folds,
+                      folds=tb.folds)
     if st.upper is not None and low is not None:
         fr.lower_method, fr.lower_note = low.method, low.note or low.message
     fr.metrics = _branch_metrics(fr, sc)

@@ -31,7 +31,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
            "extra_eigen", "locate_secondary", "follow_secondary", "visited_points",
-           "first_extra", "jump_off_branch", "reached_along", "extra_harmonics", "JUMP_KICK"]
+           "first_extra", "jump_off_branch", "reached_along", "jump_before", "extra_harmonics", "JUMP_KICK"]
 
 
 def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray | None = None) -> MultiHarmonicModel:
@@ -106,23 +106,40 @@ def visited_points(fr, upto: int) -> list[int]:
     """The path points of a followed branch that the actuator passes through under volume control,
     up to index ``upto``: those at which the cavity volume is a new high (inflation only adds
     volume; past a fold traced through, the actuator jumps to the branch's state at the same
-    volume further on, and the points between are never reached). From the first point after
-    the bifurcation: at the bifurcation point itself the critical eigenvalue is zero, and its
-    sign (so the count of either model) is round-off."""
+    volume further on, and the points between are never reached). A fold recorded on the branch
+    (``fr.folds``, :class:`snapjump_cli.fe.follow.FoldJump`) raises the high to its own volume,
+    which lies between two path points, and the state a restart lands on counts as passed
+    through. From the first point after the bifurcation: at the bifurcation point itself the
+    critical eigenvalue is zero, and its sign (so the count of either model) is round-off."""
     pts = fr.path.points
+    folds = getattr(fr, "folds", None) or []
+    fold_top = {f.k: float(f.upper.zeta[0]) for f in folds}
+    landings = {f.landing_index for f in folds if f.landing_index is not None}
     out, top = [], pts[0].zeta[0] if pts else 0.0
     for i in range(1, min(upto, len(pts) - 1) + 1):
+        if i - 1 in fold_top:
+            top = max(top, fold_top[i - 1])
         V = pts[i].zeta[0]
-        if V >= top:
+        if V >= top or i in landings:
             out.append(i)
-            top = V
+            top = max(top, V)
     return out
 
 
 def reached_along(fr, j: int) -> bool:
     """Whether the actuator reaches path point ``j`` of the branch from point ``j - 1`` (both
-    visited, :func:`visited_points`; the bifurcation point counts), not by a jump past a fold."""
+    visited, :func:`visited_points`; the bifurcation point counts), not by a jump past a fold
+    (nor by the jump onto the first point of a restarted trace, ``fr.folds``)."""
+    if any(f.landing_index == j for f in (getattr(fr, "folds", None) or [])):
+        return False
     return j - 1 in set(visited_points(fr, j)) | {0}
+
+
+def jump_before(fr, j: int):
+    """The recorded fold (:class:`snapjump_cli.fe.follow.FoldJump`) the actuator jumps past last
+    before reaching path point ``j``, or ``None``."""
+    before = [f for f in (getattr(fr, "folds", None) or []) if f.k < j]
+    return before[-1] if before else None
 
 
 def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None = None,
@@ -267,13 +284,15 @@ class Secondary:
 
 
 def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: float = 1e-7,
-                     max_iter: int = 30, first: int | None = None) -> Secondary | None:
+                     max_iter: int = 30, first: int | None = None, start=None) -> Secondary | None:
     """The secondary bifurcation that :func:`branch_stability` bracketed (``chk.first``): the
     consecutive path points on either side of it (``first``: the first point with an extra
     unstable mode, :func:`first_extra`, when already known), then the zero of the smallest
     eigenvalue of the harmonics outside the branch (:func:`extra_eigen`, relative to its value at
     the stable side) on that step (:func:`snapjump_cli.fe.snap.root_on_step`); ``None`` without a
-    bracket of two consecutive points the actuator passes through (:func:`visited_points`)."""
+    bracket of two consecutive points the actuator passes through (:func:`visited_points`).
+    ``start``: the stable state the bracket starts from instead of the point before ``first`` (the
+    state a jump past a fold lands on, on the path between that point and ``first``)."""
     from snapjump_cli.fe.snap import root_on_step
 
     if chk.first is None:
@@ -281,10 +300,15 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
     mh, pts = fr.model, fr.path.points
     dofs = extra_dofs(mh, full)
     j1 = first_extra(fr, chk, full) if first is None else first
-    if not reached_along(fr, j1):
-        return None  # reached by a jump past a fold: no bifurcation on the step before it
-    a, b = pts[j1 - 1], pts[j1]
-    a_prev = pts[j1 - 2] if j1 >= 2 else None
+    if start is not None:
+        a, b, a_prev = start, pts[j1], None
+        if not b.s > a.s:
+            return None
+    else:
+        if not reached_along(fr, j1):
+            return None  # reached by a jump past a fold: no bifurcation on the step before it
+        a, b = pts[j1 - 1], pts[j1]
+        a_prev = pts[j1 - 2] if j1 >= 2 else None
     ea = extra_eigen(full, lift(mh, full, a.u), a.p, dofs)
     if ea is None or not ea[0] > 0.0:
         return None
@@ -336,11 +360,22 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
     if chk.first is None:
         return None, chk, None
     j1 = first_extra(fr, chk, full)
+    start = None
     if not reached_along(fr, j1):
-        # reached by a jump past a fold of the branch, and already unstable outside it
-        return jump_off_branch(result, fr, chk, full, j1)
+        # reached by a jump past a fold of the branch: if the state it lands on is unstable
+        # outside the branch the jump goes on; if not, the loss of stability lies on the path
+        # between that state and j1 (a landing between two path points, a micro-fold traced through)
+        jump = jump_before(fr, j1)
+        if jump is not None and (j1 != jump.landing_index if jump.landing_index is not None
+                                 else any(jump.k < j < j1 for j in visited_points(fr, j1))):
+            jump = None  # (another fold, not recorded, lies between: the path points tell)
+        land = jump.landing if jump is not None else fr.path.points[j1]
+        e = extra_eigen(full, lift(fr.model, full, land.u), land.p, extra_dofs(fr.model, full))
+        if jump is None or jump.landing_index is not None or e is None or e[0] < 0.0:
+            return jump_off_branch(result, fr, chk, full, j1, jump, eigen=e)
+        start = land
     try:
-        sec = locate_secondary(fr, chk, full, first=j1)
+        sec = locate_secondary(fr, chk, full, first=j1, start=start)
     finally:
         fr.model.release_buffers()
     if sec is None:
@@ -380,13 +415,17 @@ def first_extra(fr, chk: SecondaryCheck, full: MultiHarmonicModel) -> int:
 JUMP_KICK = 1e-3
 
 
-def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, landing: int):
+def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, landing: int, jump=None,
+                    eigen=None):
     """The snap of an actuator that jumps past a fold of the followed branch onto a state of the
     branch (``landing``) that is unstable outside the branch's harmonics: the jump goes on, at the
     fold's volume, to the state that an energy descent at fixed volume in the model with every
     harmonic reaches from the landing state displaced along its unstable mode
     (:func:`snapjump_cli.fe.descent.descend_at_volume`). The upper state is the fold: the last
-    state the actuator passes through before the landing state.
+    state the actuator passes through before the landing state: the recorded fold ``jump``
+    (:class:`snapjump_cli.fe.follow.FoldJump`, with the state it lands on) when the branch's trace
+    located it, else the last path point passed through before ``landing``. ``eigen``: the landing
+    state's :func:`extra_eigen`, if already computed.
 
     Returns
     -------
@@ -402,16 +441,19 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     from snapjump_cli.fe.tracer import Tracer
 
     mh, pts = fr.model, fr.path.points
-    visited = [j for j in visited_points(fr, landing) if j < landing]
-    k_up = visited[-1] if visited else 0
-    up_b, land = pts[k_up], pts[landing]
+    if jump is not None:
+        k_up, up_b, land = jump.k, jump.upper, jump.landing
+    else:
+        visited = [j for j in visited_points(fr, landing) if j < landing]
+        k_up = visited[-1] if visited else 0
+        up_b, land = pts[k_up], pts[landing]
     tr = Tracer(full, fr.tracer.cfg)
     U = lift(mh, full, up_b.u)
     z = tr.zeta(U, up_b.p)[0]
     upper = PathPoint(U, up_b.p, z, up_b.tangent.copy(), lift(mh, full, up_b.du_ds), up_b.dp_ds, 0.0)
     dofs = extra_dofs(mh, full)
     L = lift(mh, full, land.u)
-    e = extra_eigen(full, L, land.p, dofs)
+    e = extra_eigen(full, L, land.p, dofs) if eigen is None else eigen
     if e is None or not e[0] < 0.0:
         full.release_buffers()
         return None, chk, None

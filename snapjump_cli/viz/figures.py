@@ -378,7 +378,10 @@ def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "",
     if axisym:
         bx = (np.asarray(branch["V_m3"]) - V0) / L**3
         by = np.asarray(branch["p_Pa"]) / mu
-        if branch.get("n_sec") is not None:  # the first branch, then the one leaving it
+        if branch.get("n_sec") is not None and branch.get("landing_V_m3") is not None:  # a jump off it
+            what = (f"n = {branch['n']} ({branch.get('parent_kind') or '?'}) to its fold, then a jump, N = "
+                    f"{branch['N']}")
+        elif branch.get("n_sec") is not None:  # the first branch, then the one leaving it
             what = (f"n = {branch['n']} ({branch.get('parent_kind') or '?'}), then n = {branch['n_sec']} "
                     f"({branch['kind'] or 'no snap'}), N = {branch['N']}")
         else:
@@ -389,6 +392,9 @@ def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "",
             k = int(np.argmin(np.abs(np.asarray(branch["V_m3"]) - branch["V_sec_m3"])))
             ax.plot(bx[k], by[k], "v", mfc="tab:red", mec="k", ms=7,
                     label=f"secondary bifurcation (n = {branch['n_sec']})")
+        if branch.get("landing_V_m3") is not None:  # a jump past the branch's fold onto an unstable state
+            ax.plot((branch["landing_V_m3"] - V0) / L**3, branch["landing_p_Pa"] / mu, "x", color="tab:red",
+                    ms=8, mew=2, label=f"the fold's jump lands here: unstable in n = {branch['n_sec']}")
         if "snap_V_m3" in branch:
             sx = (np.asarray(branch["snap_V_m3"]) - V0) / L**3
             sy = np.asarray(branch["snap_p_Pa"]) / mu

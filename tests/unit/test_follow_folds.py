@@ -51,6 +51,9 @@ def test_a_fold_whose_off_branch_lower_state_releases_almost_nothing_is_passed_a
     st = out.tracker.states
     assert st.k_before == 3 + 2 and st.k_return == 3 + 4 and out.path.points[st.k_return] is low2
     assert st.lower is low2 and st.lower_method == "path"
+    # the fold is recorded: after the first trace's point 2, the jump lands on the second trace's first point
+    (f,) = out.folds
+    assert f.k == 2 and f.upper.u[0] == 10 and f.landing == "restart" and f.landing_index == 3
 
 
 @pytest.mark.parametrize("dE, method", [(0.5, "descent"), (-1e-12, "descent"), (1e-4, "path")])
@@ -94,3 +97,29 @@ def test_the_tracker_stops_when_the_branch_passes_back_through_the_axisymmetric_
     mixed = [(0.0, 0.0), (0.1, 0.1), (1.0, 1.0), (0.1, 0.8), (-0.1, 0.8)]
     tk = tracker(mixed)
     assert not any(tk._rejoined(SimpleNamespace(u=np.array(a))) for a in mixed)
+
+
+def test_the_points_passed_through_know_the_folds_traced_through():
+    """visited_points / reached_along (snapjump_cli.fe.secondary) with the folds a branch records:
+    a fold between two path points raises the volume high to its own volume (the points after it
+    on the way down are not passed through), and the first point of a restarted trace is landed on
+    by a jump, not reached along the branch."""
+    from snapjump_cli.fe.follow import FoldJump
+    from snapjump_cli.fe.secondary import jump_before, reached_along, visited_points
+
+    # a micro-fold between points 2 and 3 at V = 3.2, the branch going down to 2.6 and back up
+    V = [1.0, 2.0, 3.0, 3.1, 2.6, 3.15, 3.3, 3.5]
+    on_path = FoldJump(2, _pt(3.2, 9.0), _pt(3.2, 8.9))
+    fr = SimpleNamespace(path=Path(points=[_pt(v, 0.0) for v in V]), folds=[on_path])
+    assert visited_points(fr, 7) == [1, 2, 6, 7]  # not 3 (3.1 < 3.2, past the fold), nor 5
+    assert reached_along(fr, 2) and not reached_along(fr, 6) and reached_along(fr, 7)
+    assert jump_before(fr, 6) is on_path and jump_before(fr, 2) is None
+    fr.folds = []  # without the record: points 3 and 5 (new highs of the points) would count as passed through
+    assert visited_points(fr, 7) == [1, 2, 3, 5, 6, 7]
+    # a restart: the trace up to a fold after point 2, then a new trace from the state it lands on
+    V = [1.0, 2.0, 3.0, 3.2, 3.4, 3.6]
+    restart = FoldJump(2, _pt(3.2, 9.0), "landing", landing_index=3)
+    fr = SimpleNamespace(path=Path(points=[_pt(v, 0.0) for v in V]), folds=[restart])
+    assert visited_points(fr, 5) == [1, 2, 3, 4, 5]
+    assert not reached_along(fr, 3) and reached_along(fr, 4)  # point 3 is the landing
+    assert jump_before(fr, 3) is restart

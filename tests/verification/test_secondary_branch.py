@@ -29,6 +29,7 @@ from snapjump_cli.fe.secondary import (
     extra_harmonics,
     follow_secondary,
     lift,
+    reached_along,
     unstable_modes,
     visited_points,
 )
@@ -104,13 +105,24 @@ def test_a_jump_onto_a_state_unstable_outside_the_branch_goes_on_outside_it(jump
     res, out, fs = jumped
     fr, sec, full = fs.parent, fs.secondary, fs.model
     assert fs.kind == "jump" and fr.first_kind == "subcritical"
-    landing = next(i for i, pt in enumerate(fr.path.points) if pt is sec.point)
-    assert landing - 1 not in set(visited_points(fr, landing))  # reached by a jump, not along the branch
+    # the fold the branch's trace located and traced through, and the state it lands on
+    jump = fr.folds[-1]
+    assert sec.point is jump.landing and sec.index == jump.k
+    pts = fr.path.points
+    V_fold = fr.model.volume(jump.upper.u)
+    # a volume high: at or past the point before it (here the bifurcation point itself, where the
+    # subcritical branch turns back at once), above the point after it
+    assert V_fold >= fr.model.volume(pts[jump.k].u) and V_fold > fr.model.volume(pts[jump.k + 1].u)
+    assert fr.model.volume(jump.landing.u) == pytest.approx(V_fold, rel=1e-8)  # the landing: the same volume,
+    assert fr.model.energy(jump.landing.u) < fr.model.energy(jump.upper.u)  # further along, lower
+    after = [j for j in visited_points(fr, len(pts) - 1) if j > jump.k]
+    assert after and not reached_along(fr, after[0])  # the next point passed through is reached by the jump
     assert unstable_modes(full, lift(fr.model, full, sec.point.u), sec.point.p) > unstable_modes(
         fr.model, sec.point.u, sec.point.p)
     up, lo = fs.states.upper, fs.states.lower
+    assert full.volume(up.u) == pytest.approx(V_fold, rel=1e-12)  # the jump starts at the fold itself
     assert lo is not None and fs.states.lower_method == "descent"
-    assert full.volume(lo.u) == pytest.approx(full.volume(up.u), rel=1e-8)  # at the fold's volume
+    assert full.volume(lo.u) == pytest.approx(V_fold, rel=1e-8)  # and ends at its volume
     lin = full.linearize(lo.u, lo.p)
     assert unstable_modes(full, lo.u, lo.p) == 0  # stable with every harmonic
     assert np.linalg.norm(lin.R) < 1e-6 * abs(lo.p) * np.linalg.norm(lin.g)
@@ -128,7 +140,8 @@ def test_the_row_says_what_happened(jumped):
     assert out["dE_J"] > 0 and out["dy_pole_m"] > 0
     assert out["V_star_m3"] < fs.parent.metrics["V_star_m3"]  # before the branch's own volume limit
     bc = branch_curve(fs)
-    assert bc["n_sec"] == sec.n and len(bc["V_m3"]) == sec.index + 2 + len(fs.path.points)
+    assert bc["n_sec"] == sec.n and len(bc["V_m3"]) == sec.index + 1 + len(fs.path.points)  # up to the fold
+    assert bc["V_sec_m3"] is None and bc["landing_V_m3"] == sec.V_m3
     # the kinds of both branches: the n = 3 branch's own (how it left the axisymmetric path), then the jump
     assert bc["kind"] == "jump" and bc["parent_kind"] == (fs.parent.first_kind or fs.parent.kind) != "jump"
     from snapjump_cli.commands.curve import _text
@@ -136,19 +149,37 @@ def test_the_row_says_what_happened(jumped):
     text = _text(None, dict(res.metrics, **out))
     followed = next(ln for ln in text.splitlines() if ln.startswith("followed branch"))
     assert "n = 3 (harmonics up to 6)" in followed and "jump" not in followed
-    assert "leaving it there (jump, every harmonic kept)" in text
+    sec_line = next(ln for ln in text.splitlines() if ln.startswith("secondary"))
+    assert "the state it jumps to there is unstable in n = " in sec_line and "loses stability" not in sec_line
 
 
-def test_the_plot_draws_both_branches_and_the_secondary_point(jumped, located, tmp_path):
+def test_the_plot_draws_both_branches_and_the_secondary_point(jumped, located, tmp_path, monkeypatch):
     pytest.importorskip("matplotlib")
+    from snapjump_cli.viz import figures
     from snapjump_cli.viz.figures import plot_pv_curve
+
+    seen: list[list[str]] = []
+    save = figures._save
+
+    def keep_legend(fig, path, dpi):  # the legend's entries of each figure as it is saved
+        seen.append([t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()])
+        return save(fig, path, dpi)
+
+    monkeypatch.setattr(figures, "_save", keep_legend)
+
+    def labels(png):
+        assert png.stat().st_size > 10_000
+        return seen[-1]
 
     res, out, fs = jumped
     png = plot_pv_curve(res.curve, dict(res.metrics, **out), tmp_path / "pv.png", title="jump", branch=branch_curve(fs))
-    assert png.stat().st_size > 10_000
+    got = labels(png)
+    assert any("then a jump" in t for t in got) and any(t.startswith("the fold's jump lands here") for t in got)
+    assert not any(t.startswith("secondary bifurcation") for t in got)
     res, fr, fs, sec = located  # a branch leaving at a located point, not traced to a snap here
     bc = branch_curve(fs)
     assert len(bc["V_m3"]) == sec.index + 2 + len(fs.path.points) and bc["V_sec_m3"] == sec.V_m3
     metrics = dict(res.metrics, dE_J=res.metrics["dE_J"], axisym_dE_J=res.metrics["dE_J"])
     png = plot_pv_curve(res.curve, metrics, tmp_path / "pv2.png", title="located", branch=bc)
-    assert png.stat().st_size > 10_000
+    got = labels(png)
+    assert "secondary bifurcation (n = 2)" in got and not any("lands here" in t for t in got)
