@@ -6,7 +6,8 @@ JSON keys (stable): ``dE_J``, ``dE_norm`` (dE / (mu_i R_i^3)), ``dE_energy_J``, 
 ``wall_s``, ``mesh_sensitive``, ``mesh_check``, ``dE_J_coarse``, ``dy_pole_m_coarse``, the
 harmonic check's ``asym_first``, ``asym_n``, ``asym_V_m3``, ``asym_p_Pa``, ``asym_lower_stable``
 (null without ``--harmonics``), the followed branch's ``followed``, ``follow_n``, ``follow_N``,
-``follow_kind``, ``follow_V_bif_m3``, ``follow_sec_n``, ``follow_sec_V_m3`` and ``axisym_dE_J``, ``axisym_dy_pole_m``, ``axisym_h_imp_m``,
+``follow_kind``, ``follow_V_bif_m3``, ``follow_sec_n``, ``follow_sec_V_m3``, ``follow_sec_p_Pa`` and ``axisym_dE_J``,
+``axisym_dy_pole_m``, ``axisym_h_imp_m``,
 ``axisym_V_star_m3``, ``axisym_p_star_Pa`` (null without ``--follow``: with it, ``dE_J``,
 ``dy_pole_m``, ``h_imp_m``, ``V_star_m3``, ``p_star_Pa`` describe the followed snap); with
 ``--imperfection DELTA`` the imperfect actuator's snap (docs/harmonics.md section 12) as

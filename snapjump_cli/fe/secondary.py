@@ -270,8 +270,11 @@ def _negative_eigenvalues(K) -> int:
 @dataclass
 class Secondary:
     """A secondary bifurcation of a followed branch: the branch's state there (a point of its
-    path's step from ``index`` to ``index + 1``), the critical mode as a free vector of the full model, its dominant harmonic and the
-    eigenvalue left at the located point."""
+    path's step from ``index`` to ``index + 1``), the critical mode as a free vector of the full
+    model, its dominant harmonic and the eigenvalue left at the located point (relative to its
+    value at the stable side of the step). For a jump off the branch
+    (:func:`jump_off_branch`): the state the jump lands on, ``index`` the last path point before the
+    fold, the unstable mode there and its eigenvalue (absolute)."""
 
     point: object
     index: int  # the last point of the branch's path before it

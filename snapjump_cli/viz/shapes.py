@@ -340,9 +340,11 @@ def followed_shape_states(fr) -> list[ShapeState]:
     if st.upper is None or st.lower is None:
         return []
     L, S = mh.L, mh.S
+    sec = getattr(fr, "secondary", None)
+    which = f"n = {fr.bif.n}" + (f", then n = {sec.n}" if sec is not None else "")  # (a secondary branch's)
     out = []
     for name, pt in (("followed upper state", st.upper), ("followed lower state", st.lower)):
-        out.append(ShapeState(f"{name} (n = {fr.bif.n})", float(pt.p * S), float(pt.zeta[0] * sc[0] * L**3),
+        out.append(ShapeState(f"{name} ({which})", float(pt.p * S), float(pt.zeta[0] * sc[0] * L**3),
                               mh.section(pt.u, 0.0) * L, mh.section(pt.u, np.pi) * L,
                               note="colour: each section read as an axisymmetric map"))
     return out
