@@ -210,7 +210,7 @@ def extra_dofs(mh: MultiHarmonicModel, full: MultiHarmonicModel) -> np.ndarray:
 
 
 def extra_eigen(full: MultiHarmonicModel, u: np.ndarray, p: float, dofs: np.ndarray, scale: float = 1.0,
-                max_shifts: int = 12):
+                max_shifts: int = 12, smallest: bool = True):
     """The smallest eigenvalue of the tangent of ``full`` at ``(u, p)`` restricted to ``dofs`` (the
     harmonics outside a branch's subspace, decoupled from it at a state of the branch), divided by
     ``scale``, and its eigenvector as a free vector of ``full``; ``None`` outside the domain.
@@ -219,7 +219,9 @@ def extra_eigen(full: MultiHarmonicModel, u: np.ndarray, p: float, dofs: np.ndar
     none is far below zero). The number of negative eigenvalues (the inertia of the block's
     ``LDL^T``, which Sylvester's law makes exact) tells whether one was missed: then the shift moves
     down, each time to four times the lowest eigenvalue found or the shift, until every negative
-    eigenvalue has been found (at most ``max_shifts`` times; then ``None``)."""
+    eigenvalue has been found (at most ``max_shifts`` times; then ``None``). ``smallest=False``
+    skips that count: the eigenvalue nearest zero from below is then what is returned (enough
+    where it is the one that crosses zero: the roots of :func:`locate_secondary`)."""
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
@@ -227,7 +229,7 @@ def extra_eigen(full: MultiHarmonicModel, u: np.ndarray, p: float, dofs: np.ndar
     if lin is None:
         return None
     K = lin.stiffness().tocsr()[dofs][:, dofs].tocsc()
-    n_neg = _negative_eigenvalues(K)
+    n_neg = _negative_eigenvalues(K) if smallest else -1
     d = np.abs(K.diagonal())
     sigma = -1e-6 * float(np.median(d))  # below the eigenvalue near zero; nearest to it = smallest
     v0 = np.random.default_rng(0).standard_normal(K.shape[0])  # fixed: reproducible answers
@@ -261,7 +263,7 @@ def _negative_eigenvalues(K) -> int:
     n = K.shape[0]
     kl = int((r - c).max()) if len(r) else 0
     ab = np.zeros((n, kl + 1))
-    np.add.at(ab, (c, r - c), v)  # A[i, j] = ab[j, i - j]
+    ab[c, r - c] = v  # A[i, j] = ab[j, i - j] (the entries of a CSC matrix's COO are unique)
     ext = envelope_extents(C.row, C.col, n, kl)
     ok, n_neg = band_ldlt(ab, ext)
     return int(n_neg) if ok else -1
@@ -312,14 +314,16 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
             return None  # reached by a jump past a fold: no bifurcation on the step before it
         a, b = pts[j1 - 1], pts[j1]
         a_prev = pts[j1 - 2] if j1 >= 2 else None
-    ea = extra_eigen(full, lift(mh, full, a.u), a.p, dofs)
+    # (the extra count is 0 at a and the eigenvalue that crosses zero on the step is the one
+    # nearest zero: no inertia count at each trial)
+    ea = extra_eigen(full, lift(mh, full, a.u), a.p, dofs, smallest=False)
     if ea is None or not ea[0] > 0.0:
         return None
     scale = ea[0]
     cache: dict = {}
 
     def f(q) -> float:
-        e = extra_eigen(full, lift(mh, full, q.u), q.p, dofs, scale)
+        e = extra_eigen(full, lift(mh, full, q.u), q.p, dofs, scale, smallest=False)
         if e is None:
             return math.nan
         cache[id(q)] = e
