@@ -151,8 +151,9 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
     fr : a :class:`snapjump_cli.fe.follow.FollowResult`
     N : highest harmonic of the full model (default: the branch's highest)
     stride : check every ``stride``-th point the actuator passes through (:func:`visited_points`;
-        the upper state is always checked)
-    upto : last path index checked (default: the branch's upper state, else its last point)
+        ``upto`` is always checked)
+    upto : last path index checked (default: the last path point before the branch's upper state,
+        else its last point; the upper state itself, located inside the step after it, is not)
     stop_at_first : stop at the first state with an extra unstable mode
     full : the model with every harmonic (default: :func:`full_model` of the branch, ``N``)
 
