@@ -113,7 +113,9 @@ def visited_points(fr, upto: int) -> list[int]:
     critical eigenvalue is zero, and its sign (so the count of either model) is round-off."""
     pts = fr.path.points
     folds = getattr(fr, "folds", None) or []
-    fold_top = {f.k: float(f.upper.zeta[0]) for f in folds}
+    fold_top: dict[int, float] = {}
+    for f in folds:
+        fold_top[f.k] = max(fold_top.get(f.k, -math.inf), float(f.upper.zeta[0]))
     landings = {f.landing_index for f in folds if f.landing_index is not None}
     out, top = [], pts[0].zeta[0] if pts else 0.0
     for i in range(1, min(upto, len(pts) - 1) + 1):
@@ -211,44 +213,76 @@ def extra_dofs(mh: MultiHarmonicModel, full: MultiHarmonicModel) -> np.ndarray:
 
 
 def extra_eigen(full: MultiHarmonicModel, u: np.ndarray, p: float, dofs: np.ndarray, scale: float = 1.0,
-                max_shifts: int = 12, smallest: bool = True):
+                smallest: bool = True):
     """The smallest eigenvalue of the tangent of ``full`` at ``(u, p)`` restricted to ``dofs`` (the
     harmonics outside a branch's subspace, decoupled from it at a state of the branch), divided by
-    ``scale``, and its eigenvector as a free vector of ``full``; ``None`` outside the domain.
+    ``scale``, and its eigenvector as a free vector of ``full``; ``None`` outside the domain or if
+    the eigenvalue solver does not converge.
 
-    Shift-invert Lanczos finds the eigenvalues nearest a shift just below zero (the smallest when
-    none is far below zero). The number of negative eigenvalues (the inertia of the block's
-    ``LDL^T``, which Sylvester's law makes exact) tells whether one was missed: then the shift moves
-    down, each time to four times the lowest eigenvalue found or the shift, until every negative
-    eigenvalue has been found (at most ``max_shifts`` times; then ``None``). ``smallest=False``
-    skips that count: the eigenvalue nearest zero from below is then what is returned (enough
-    where it is the one that crosses zero: the roots of :func:`locate_secondary`)."""
-    import scipy.sparse as sp
+    Shift-invert Lanczos finds the eigenvalues nearest a shift just below zero: the smallest,
+    unless one lies far below zero. The number of negative eigenvalues (the inertia of the block's
+    band ``LDL^T``, exact by Sylvester's law) tells whether one was missed; then the lowest
+    eigenvalue is bracketed by inertia counts of ``K - sigma I`` (the shift moved down until none
+    is below it, then bisected) and found by shift-invert just below it
+    (:func:`_lowest_eigen`). ``smallest=False`` skips the count: the eigenvalue nearest zero is
+    then what is returned (enough where it is the one that crosses zero: the roots of
+    :func:`locate_secondary`)."""
     import scipy.sparse.linalg as spla
 
     lin = full.linearize(u, p)
     if lin is None:
         return None
     K = lin.stiffness().tocsr()[dofs][:, dofs].tocsc()
+    K.sum_duplicates()
     n_neg = _negative_eigenvalues(K) if smallest else -1
     d = np.abs(K.diagonal())
     sigma = -1e-6 * float(np.median(d))  # below the eigenvalue near zero; nearest to it = smallest
     v0 = np.random.default_rng(0).standard_normal(K.shape[0])  # fixed: reproducible answers
-    I = sp.identity(K.shape[0], format="csc")
-    for _ in range(max_shifts):
+    try:
         vals, vecs = spla.eigsh(K, k=min(3, K.shape[0] - 1), sigma=sigma, which="LM", v0=v0)
-        lo = float(vals.min())
-        if n_neg < 0 or (int(np.sum(vals < 0.0)) >= min(n_neg, len(vals))
-                         and (n_neg <= len(vals) or _negative_eigenvalues(K - (lo - 1e-9 * abs(lo)) * I) == 0)):
-            break  # (every negative eigenvalue found, or none below the lowest found)
-        sigma = -4.0 * max(abs(lo), abs(sigma))  # further down: nearer the most negative ones
-    else:
-        log.warning("extra_eigen: %d negative eigenvalue(s) not reached by shift-invert", n_neg)
+        if n_neg > 0 and not (n_neg <= len(vals) and int(np.sum(vals < 0.0)) >= n_neg):
+            vals, vecs = _lowest_eigen(K, float(np.abs(vals).max()), v0)  # one lies further below
+    except spla.ArpackNoConvergence:
+        log.warning("extra_eigen: the eigenvalue solver did not converge")
+        return None
+    if vals is None:
         return None
     i = int(np.argmin(vals))
     x = np.zeros(full.n)
     x[dofs] = vecs[:, i]
     return float(vals[i]) / scale, x
+
+
+def _lowest_eigen(K, start: float, v0: np.ndarray, bisections: int = 30):
+    """The lowest eigenvalue of ``K`` (with its vector, as ``eigsh`` returns them): a shift with
+    no eigenvalue below it (the inertia count of ``K - sigma I`` zero), found by moving down from
+    ``-start`` by factors of 4, then bisected against one with an eigenvalue below it, then
+    shift-invert Lanczos from just below the bracket; ``(None, None)`` if no shift is found."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    I = sp.identity(K.shape[0], format="csc")
+
+    def below(sigma: float) -> bool:  # some eigenvalue below sigma (a zero pivot: one at sigma)
+        c = _negative_eigenvalues(K - sigma * I)
+        return c != 0
+
+    hi, lo = 0.0, -max(start, 1e-300)
+    for _ in range(60):
+        if not below(lo):
+            break
+        hi, lo = lo, 4.0 * lo
+    else:
+        return None, None
+    for _ in range(bisections):
+        mid = 0.5 * (lo + hi)
+        if below(mid):
+            hi = mid
+        else:
+            lo = mid
+        if hi - lo <= 1e-6 * abs(hi):
+            break
+    return spla.eigsh(K, k=1, sigma=lo - 1e-3 * (hi - lo), which="LM", v0=v0)
 
 
 def _negative_eigenvalues(K) -> int:

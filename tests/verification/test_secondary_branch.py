@@ -28,6 +28,7 @@ from snapjump_cli.fe.secondary import (
     extra_eigen,
     extra_harmonics,
     follow_secondary,
+    jump_before,
     lift,
     reached_along,
     unstable_modes,
@@ -106,9 +107,9 @@ def test_a_jump_onto_a_state_unstable_outside_the_branch_goes_on_outside_it(jump
     fr, sec, full = fs.parent, fs.secondary, fs.model
     assert fs.kind == "jump" and fr.first_kind == "subcritical"
     # the fold the branch's trace located and traced through, and the state it lands on
-    jump = fr.folds[-1]
-    assert sec.point is jump.landing and sec.index == jump.k
     pts = fr.path.points
+    jump = jump_before(fr, next(j for j in visited_points(fr, len(pts) - 1) if j > fr.folds[0].k))
+    assert jump is not None and sec.point is jump.landing and sec.index == jump.k
     V_fold = fr.model.volume(jump.upper.u)
     # a volume high: at or past the point before it (here the bifurcation point itself, where the
     # subcritical branch turns back at once), above the point after it
