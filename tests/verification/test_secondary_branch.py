@@ -85,6 +85,32 @@ def test_the_secondary_bifurcation_is_bracketed_and_located(located):
     assert fr.states.upper is not None and sec.index < fr.states.k_before  # before the branch's own snap
 
 
+def test_a_bracket_started_inside_the_step_finds_the_same_point(located):
+    """locate_secondary(start=...): the bracket of a jump's landing state, stable outside the
+    branch, between two path points (the state a micro-fold traced through lands on): here a state
+    of the located step itself, before the point, finds that point again."""
+    from snapjump_cli.fe.secondary import SecondaryCheck, locate_secondary
+
+    res, fr, fs, sec = located
+    full = fs.model
+    pts = fr.path.points
+    a, b = pts[sec.index], pts[sec.index + 1]
+    ex = extra_dofs(fr.model, full)
+    for frac in (0.5, 0.25, 0.1, 0.02):  # a state of the step before the point (stable outside)
+        start = fr.tracer.step_between(a, b, frac * (b.s - a.s))
+        if start is not None and extra_eigen(full, lift(fr.model, full, start.u), start.p, ex)[0] > 0:
+            break
+    else:
+        pytest.fail("no state of the step before the secondary point")
+    again = locate_secondary(fr, SecondaryCheck(N=int(full.hn[-1]), first=0), full, first=sec.index + 1, start=start)
+    assert again is not None and again.n == sec.n and again.index == sec.index
+    assert again.V_m3 == pytest.approx(sec.V_m3, rel=1e-9) and again.p_Pa == pytest.approx(sec.p_Pa, rel=1e-7)
+    late = fr.tracer.step_between(a, b, 0.999 * (b.s - a.s))  # a start past the point: no bracket
+    if extra_eigen(full, lift(fr.model, full, late.u), late.p, ex)[0] < 0:
+        assert locate_secondary(fr, SecondaryCheck(N=int(full.hn[-1]), first=0), full, first=sec.index + 1,
+                                start=late) is None
+
+
 def test_the_secondary_branch_leaves_along_the_other_harmonics(located):
     res, fr, fs, sec = located
     full = fs.model
