@@ -125,6 +125,47 @@ def report(ranked: pd.DataFrame, top: int = 20) -> list[str]:
     return out
 
 
+def sample_report(grid: pd.DataFrame, followed: list[pd.DataFrame]) -> list[str]:
+    """The followed samples themselves, by critical harmonic and ``mu_i/mu_o``: designs, followed
+    (through a secondary bifurcation), at the time limit, followed / axisymmetric medians (ranges)
+    and the median wall time of a followed design; then the whole grid's followed run at the
+    samples' mean wall time per design of each harmonic (the grid's axisymmetric ``wall_s`` added)."""
+    rows = pd.concat(followed, ignore_index=True)
+    rows = rows[rows["status"] == "ok"]
+    out = ["\nthe followed samples (wall times as they ran, on the machine they ran on):",
+           "| n | mu_i/mu_o | designs | followed (secondary) | time limit | dE | dy_pole | V* | wall, followed |",
+           "|---|---|---|---|---|---|---|---|---|"]
+
+    def med(r: np.ndarray) -> str:
+        r = r[np.isfinite(r)]
+        return f"{np.median(r):.2f} ({r.min():.2f}-{r.max():.2f})" if r.size else "-"
+
+    for (n, mu), g in rows.groupby([rows["follow_n"].astype("float64"), rows["mu_ratio"].astype("float64")]):
+        fol = g[g["followed"].astype("boolean").fillna(False).to_numpy(bool)]
+        v = lambda c: fol[c].astype("float64").to_numpy()  # noqa: E731
+        sec = int(fol["follow_sec_n"].notna().sum()) if "follow_sec_n" in fol else 0
+        limit = int(g["follow_note"].fillna("").str.contains("time limit").sum())
+        wall = f"{fol['wall_s'].astype('float64').median():.0f} s" if len(fol) else "-"
+        out.append(f"| {int(n)} | {mu:g} | {len(g)} | {len(fol)} ({sec}) | {limit} | {med(v('dE_J') / v('axisym_dE_J'))} "
+                   f"| {med(v('dy_pole_m') / v('axisym_dy_pole_m'))} | {med(v('V_star_m3') / v('axisym_V_star_m3'))} "
+                   f"| {wall} |")
+    ok = grid[grid["status"] == "ok"]
+    first = ok[ok["asym_first"].astype("boolean").fillna(False).to_numpy(bool)]
+    counts = first["asym_n"].astype("float64").value_counts()
+    mean_wall = rows.groupby(rows["follow_n"].astype("float64"))["wall_s"].mean()
+    total = float(ok["wall_s"].astype("float64").sum())
+    parts = []
+    for n, c in counts.items():
+        if n in mean_wall.index:
+            total += c * float(mean_wall[n])
+            parts.append(f"{int(c)} x {mean_wall[n]:.0f} s (n = {int(n)})")
+        else:
+            parts.append(f"{int(c)} designs of n = {int(n)} not sampled (not counted)")
+    out.append(f"the grid's followed run at the samples' cost: {'; '.join(parts)}, plus the axisymmetric "
+               f"solves: {total:,.0f} s, {total / 2 / 3600:.0f} h on 2 cores")
+    return out
+
+
 def main(argv: Iterable[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.followed_fig4", description=__doc__.split("\n\n")[0])
     ap.add_argument("grid", type=Path, help="the grid's result table (with the harmonic check)")
@@ -137,11 +178,13 @@ def main(argv: Iterable[str] | None = None) -> int:
     from snapjump_cli.jump.rank import rank_results
 
     grid = read_any(a.grid)
-    merged, n, missing = merge(grid, [read_followed(p) for p in a.followed])
+    tables = [read_followed(p) for p in a.followed]
+    merged, n, missing = merge(grid, tables)
     print(f"{len(grid)} grid rows; {n} replaced by their followed answer"
           + (f"; {missing} followed rows are not designs of the grid (ignored)" if missing else ""))
     ranked = rank_results(merged)
     print("\n".join(report(ranked, a.top)))
+    print("\n".join(sample_report(grid, tables)))
     if a.plots is not None:
         from snapjump_cli.viz.figures import make_plots
 

@@ -18,6 +18,7 @@ phases are timed by wrapping the functions the solve calls (exclusive times):
 * ``check``: :func:`snapjump_cli.fe.harmonics.check_harmonics`;
 * ``other``: the rest (model set-up, Python glue).
 
+and, per kind, the compiled corrector's time (the solves' ``t_newton_s``) against the traces'.
 The first solve of a design is ``nt2``, the mesh re-check's ``nt3``. ``--out`` writes every
 design's answers (``dE_J``, ``dy_pole_m``, the flags, ``n_steps``, ...) and CPU per phase as JSON,
 so that two versions can be compared on the same sample (run this file with the other checkout's
@@ -229,9 +230,10 @@ def main(argv: list[str] | None = None) -> int:
         dt = time.process_time() - t0
         clock.add("other", dt - sum(clock.cpu.values()))
         kind_now = "descent" if m.get("mesh_check") else kind
-        t = totals.setdefault(kind_now, {"n": 0, "cpu": 0.0, "phases": {}})
+        t = totals.setdefault(kind_now, {"n": 0, "cpu": 0.0, "phases": {}, "corrector": 0.0})
         t["n"] += 1
         t["cpu"] += dt
+        t["corrector"] += float(m.get("t_newton_s") or 0.0)  # the compiled corrector's calls (in the traces)
         for k, v in clock.cpu.items():
             t["phases"][k] = t["phases"].get(k, 0.0) + v
         rows.append({"key": str(r.key), "kind": kind, "cpu_s": dt,
@@ -244,6 +246,10 @@ def main(argv: list[str] | None = None) -> int:
         print("| solve | phase | CPU-s per design |\n|---|---|---|")
         for (s, p), v in sorted(t["phases"].items(), key=lambda kv: (kv[0][0], PHASES.index(kv[0][1]))):
             print(f"| {s} | {p} | {v / n:.4f} |")
+        traces = sum(v for (s, p), v in t["phases"].items() if p.startswith("trace"))
+        print(f"compiled corrector (the solves' t_newton_s, wall): {t['corrector'] / n:.4f} s per design, "
+              f"{100 * t['corrector'] / max(traces, 1e-300):.0f} % of the traces' CPU (its few calls outside them, "
+              "the snap roots and the check's bisection, included)")
     if a.out is not None:
         a.out.write_text(json.dumps({"totals": {k: {**v, "phases": {f"{s}/{p}": x for (s, p), x in v["phases"].items()}}
                                                 for k, v in totals.items()}, "rows": rows}, indent=1) + "\n")

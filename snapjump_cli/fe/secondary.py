@@ -31,7 +31,8 @@ log = logging.getLogger(__name__)
 
 __all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
            "extra_eigen", "locate_secondary", "follow_secondary", "visited_points",
-           "first_extra", "jump_off_branch", "reached_along", "jump_before", "extra_harmonics", "JUMP_KICK"]
+           "first_extra", "jump_off_branch", "reached_along", "jump_before", "landing_jump", "mode_counts",
+           "more_outside", "extra_harmonics", "JUMP_KICK"]
 
 
 def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray | None = None) -> MultiHarmonicModel:
@@ -78,6 +79,18 @@ def unstable_modes(model: MultiHarmonicModel, u: np.ndarray, p: float) -> int:
         return -1
     s = lin.factor(lin.g, 0.0)
     return constrained_negatives(s, lin.g)
+
+
+def mode_counts(mh: MultiHarmonicModel, full: MultiHarmonicModel, pt) -> tuple[int, int]:
+    """The unstable modes of the branch state ``pt`` in the branch's model and, lifted, in the
+    model with every harmonic (:func:`unstable_modes`; -1 where a factorisation failed)."""
+    return unstable_modes(mh, pt.u, pt.p), unstable_modes(full, lift(mh, full, pt.u), pt.p)
+
+
+def more_outside(own: int, nf: int) -> bool:
+    """Whether the full model counts more unstable modes than the branch's (a failed count, -1,
+    is neither)."""
+    return nf >= 0 and own >= 0 and nf > own
 
 
 @dataclass
@@ -144,6 +157,18 @@ def jump_before(fr, j: int):
     return before[-1] if before else None
 
 
+def landing_jump(fr, j: int):
+    """The recorded fold whose jump brings the actuator to path point ``j``: the last one before
+    ``j`` if ``j`` is the state it lands on (a restarted trace's first point) or the first point
+    passed through after it; ``None`` if another fold, not recorded, lies between."""
+    f = jump_before(fr, j)
+    if f is None:
+        return None
+    if f.landing_index is not None:
+        return f if f.landing_index == j else None
+    return None if any(f.k < i < j for i in visited_points(fr, j)) else f
+
+
 def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None = None,
                      stop_at_first: bool = False, full: MultiHarmonicModel | None = None) -> SecondaryCheck:
     """Count the unstable modes of a followed branch's states outside the branch's subspace.
@@ -178,15 +203,13 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
     try:
         for i in idx:
             pt = pts[i]
-            own = unstable_modes(mh, pt.u, pt.p)
-            uf = lift(mh, full, pt.u)
-            nf = unstable_modes(full, uf, pt.p)
+            own, nf = mode_counts(mh, full, pt)
             out.index.append(i)
             out.V_m3.append(float(mh.volume(pt.u) * L3))
             out.p_Pa.append(float(pt.p * S))
             out.own.append(own)
             out.full.append(nf)
-            if out.first is None and nf >= 0 and own >= 0 and nf > own:
+            if out.first is None and more_outside(own, nf):
                 out.first = len(out.index) - 1
                 log.info("branch of harmonic %d: %d unstable mode(s) outside its harmonics at V = %.4g m^3 "
                          "(path point %d)", fr.bif.n, nf - own, out.V_m3[-1], i)
@@ -407,10 +430,7 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
         # reached by a jump past a fold of the branch: if the state it lands on is unstable
         # outside the branch the jump goes on; if not, the loss of stability lies on the path
         # between that state and j1 (a landing between two path points, a micro-fold traced through)
-        jump = jump_before(fr, j1)
-        if jump is not None and (j1 != jump.landing_index if jump.landing_index is not None
-                                 else any(jump.k < j < j1 for j in visited_points(fr, j1))):
-            jump = None  # (another fold, not recorded, lies between: the path points tell)
+        jump = landing_jump(fr, j1)
         land = jump.landing if jump is not None else fr.path.points[j1]
         e = extra_eigen(full, lift(fr.model, full, land.u), land.p, extra_dofs(fr.model, full))
         if jump is None or jump.landing_index is not None or e is None or e[0] < 0.0:
@@ -438,12 +458,9 @@ def first_extra(fr, chk: SecondaryCheck, full: MultiHarmonicModel) -> int:
     j1 = chk.index[chk.first]
     try:
         for j in visited_points(fr, j1):
-            if j0 < j < j1:
-                own = unstable_modes(mh, pts[j].u, pts[j].p)
-                nf = unstable_modes(full, lift(mh, full, pts[j].u), pts[j].p)
-                if nf >= 0 and own >= 0 and nf > own:  # (-1: a failed count, as in branch_stability)
-                    j1 = j
-                    break
+            if j0 < j < j1 and more_outside(*mode_counts(mh, full, pts[j])):
+                j1 = j
+                break
     finally:
         mh.release_buffers()
     chk.first_point = j1
