@@ -8,7 +8,7 @@ sample, and the check's answers for an exact before/after comparison.
 Each design of the sample (default: the 480 seeded paper-grid points of
 ``bench/harmonics_sample/points.csv``, the first ``--limit``) is solved as the sweep solves it with
 the check off (``solve_checked`` with the sweep's short mesh re-check), then
-:func:`snapjump_cli.fe.harmonics.check_harmonics` runs on the result. Both are timed in process
+:func:`snapjump_cli.fe.stability.harmonics.check_harmonics` runs on the result. Both are timed in process
 CPU time (``time.process_time``; one process, one BLAS thread, as a sweep worker runs), so the
 figures do not depend much on other jobs on the machine. The phases of the check are timed by
 wrapping the functions it calls (exclusive times: a phase's callees are counted in theirs):
@@ -55,7 +55,7 @@ GRID = REPO / "configs" / "paper_grid.yaml"
 EXACT = ("asym_first", "asym_n", "asym_ns", "asym_lower_stable", "asym_lower_n", "asym_states_checked")
 #: Answers compared by their relative change.
 CLOSE = ("asym_V_m3", "asym_p_Pa")
-#: phase -> names (module globals of snapjump_cli.fe.harmonics) whose calls it times; the first
+#: phase -> names (module globals of snapjump_cli.fe.stability.harmonics) whose calls it times; the first
 #: phase of a name that exists wins, so that older and newer versions of the module both profile.
 PHASES: dict[str, tuple[str, ...]] = {
     "K_n elements": ("harmonic_element_matrices", "harmonic_element_parts"),
@@ -98,8 +98,8 @@ class PhaseTimer:
 
 
 def install(timer: PhaseTimer) -> None:
-    """Wrap the check's callees (module globals of :mod:`snapjump_cli.fe.harmonics`, the gauge)."""
-    from snapjump_cli.fe import harmonics as H
+    """Wrap the check's callees (module globals of :mod:`snapjump_cli.fe.stability.harmonics`, the gauge)."""
+    from snapjump_cli.fe.stability import harmonics as H
 
     for phase, names in PHASES.items():
         for name in names:
@@ -124,7 +124,7 @@ def sample(limit: int | None) -> list[dict]:
 
 
 def run(limit: int | None, n_max: int, out: Path | None, designs: list[str] | None = None, repeat: int = 1) -> int:
-    from snapjump_cli.fe.harmonics import check_harmonics
+    from snapjump_cli.fe.stability.harmonics import check_harmonics
     from snapjump_cli.fe.solve import SolveFailed, solve_checked, warm_up
     from snapjump_cli.geometry.caps import Design, InvalidDesign
     from snapjump_cli.sweep.config import load_config
@@ -176,7 +176,7 @@ def run(limit: int | None, n_max: int, out: Path | None, designs: list[str] | No
         t3 = time.process_time()
         t_solve += t1 - t0
         t_check += t3 - t2
-        n_states += repeat * h["asym_states_checked"]
+        n_states += repeat * h.asym_states_checked
         row.update(status="ok" if res.metrics.get("snaps") else "no_snap", solve_cpu_s=t1 - t0, check_cpu_s=t3 - t2)
         row.update({k: json_value(h.get(k)) for k in EXACT + CLOSE})
         rows.append(row)

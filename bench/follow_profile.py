@@ -87,22 +87,22 @@ def setup(name: str):
     check as the first call in this process (with the one-time costs: imports, loading the
     compiled kernels)."""
     from bench.follow_study import solve_checked_scene
-    from snapjump_cli.fe.follow import locate_bifurcation
+    from snapjump_cli.fe.branch.bifurcation import locate_bifurcation
 
     t0 = time.process_time()
     res, chk, _ = solve_checked_scene(name)
     t_axi = time.process_time() - t0
-    if not chk["asym_first"]:
+    if not chk.asym_first:
         raise SystemExit(f"{name} stays axisymmetric: nothing to follow")
-    bif = locate_bifurcation(res, int(chk["asym_n"]))
+    bif = locate_bifurcation(res, int(chk.asym_n))
     return res, bif, t_axi
 
 
 @contextmanager
 def instrumented(acc: dict):
     """Time (CPU) every kernel call the multi-harmonic model makes, into ``acc[name]``."""
-    import snapjump_cli.fe.model as fmodel
-    import snapjump_cli.fe.multiharmonic as fmh
+    import snapjump_cli.fe.axisym.model as fmodel
+    import snapjump_cli.fe.branch.model as fmh
     import snapjump_kernels.multiharmonic as kmh
 
     def wrap(name, fn, key=None):
@@ -171,7 +171,7 @@ def mode(which: str, before_kernel=None):
     (:func:`load_kernel`). ``"reference"``: as ``"before"`` with the element kernel before
     2026-11-27 (:mod:`snapjump_kernels.multiharmonic_reference`)."""
     import snapjump_kernels.multiharmonic as kmh
-    from snapjump_cli.fe.multiharmonic import MultiHarmonicModel
+    from snapjump_cli.fe.branch.model import MultiHarmonicModel
 
     saved = kmh.mh_elements, MultiHarmonicModel.fused_assembly
     try:
@@ -190,7 +190,7 @@ def mode(which: str, before_kernel=None):
 
 def whole_solve(res, bif, hn, which: str = "after", before_kernel=None) -> tuple[dict, object]:
     """The followed solve with every kernel call timed; returns the times and the result."""
-    from snapjump_cli.fe.follow import follow_branch
+    from snapjump_cli.fe.branch.trace import follow_branch
 
     acc: dict = {}
     with mode(which, before_kernel):
@@ -304,7 +304,7 @@ KEYS = ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa")
 def warm(res, bif, hn, modes, before_kernel=None) -> None:
     """Compile every kernel the followed solve calls in each mode (three steps of the branch), so
     that no timing includes a JIT compilation."""
-    from snapjump_cli.fe.follow import follow_branch
+    from snapjump_cli.fe.branch.trace import follow_branch
 
     for which in modes:
         with mode(which, before_kernel):
@@ -316,7 +316,7 @@ def compare(name: str, res, bif, hn, before_kernel=None, rounds: int = 2, before
     alternated ``rounds`` times in this process (``before``: ``"before"`` or ``"reference"``), with the scene's axisymmetric solve and check
     timed between them (back to back, at the same load); print each run's answers, CPU, steps and
     assemblies; return the largest relative difference of the answers."""
-    from snapjump_cli.fe.follow import follow_branch
+    from snapjump_cli.fe.branch.trace import follow_branch
 
     warm(res, bif, hn, (before, "after"), before_kernel)
     runs: dict[str, list] = {"after": [], before: [], "axisymmetric": []}
@@ -354,10 +354,10 @@ def envelope_flops(mh) -> float:
 
 def step_growth(res, bif, hn, grows: list[float]) -> None:
     """The followed branch with the continuation's step growth (``follow_branch(step_grow=...)``,
-    default :data:`snapjump_cli.fe.follow.FOLLOW_STEP_GROW`; the axisymmetric trace's is 1.6) set
+    default :data:`snapjump_cli.fe.branch.trace.FOLLOW_STEP_GROW`; the axisymmetric trace's is 1.6) set
     to each of ``grows`` in turn; prints the steps, rejected steps, assemblies, CPU and the
     answers' relative differences from the first run."""
-    from snapjump_cli.fe.follow import follow_branch
+    from snapjump_cli.fe.branch.trace import follow_branch
 
     first = None
     for g in grows:
@@ -373,7 +373,7 @@ def step_growth(res, bif, hn, grows: list[float]) -> None:
 
 
 def main(argv=None) -> int:
-    from snapjump_cli.fe.follow import default_harmonics
+    from snapjump_cli.fe.branch.bifurcation import default_harmonics
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scene", nargs="?", default="B")

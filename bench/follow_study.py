@@ -31,7 +31,7 @@ SCENES = {
 def solve_checked_scene(name: str) -> tuple:
     """The scene ``name`` of :data:`SCENES` solved at the default mesh and checked against
     ``n <= 4``: ``(result, check, CPU seconds of the solve)``."""
-    from snapjump_cli.fe.harmonics import check_harmonics
+    from snapjump_cli.fe.stability.harmonics import check_harmonics
     from snapjump_cli.fe.solve import solve_scene
     from snapjump_cli.geometry.caps import CapScene
     from snapjump_cli.geometry.designs import get_design
@@ -46,17 +46,18 @@ def solve_checked_scene(name: str) -> tuple:
 
 
 def run(name: str, Ns: list[int] | None = None, secondary: bool = True) -> dict:
-    from snapjump_cli.fe.follow import default_harmonics, follow_branch, locate_bifurcation
-    from snapjump_cli.fe.secondary import follow_secondary
+    from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
+    from snapjump_cli.fe.branch.trace import follow_branch
+    from snapjump_cli.fe.branch.secondary import follow_secondary
 
     res, chk, t_axi = solve_checked_scene(name)
     m = res.metrics
     out = {"scene": name, "cpu_axisym_s": t_axi, "axisym_dE_J": m["dE_J"], "axisym_dy_pole_m": m["dy_pole_m"],
-           "axisym_V_star_m3": m["V_star_m3"], "axisym_h_imp_m": m.get("h_imp_m"), "asym_n": chk["asym_n"],
-           "asym_V_m3": chk["asym_V_m3"], "runs": []}
-    if not chk["asym_first"]:
+           "axisym_V_star_m3": m["V_star_m3"], "axisym_h_imp_m": m.get("h_imp_m"), "asym_n": chk.asym_n,
+           "asym_V_m3": chk.asym_V_m3, "runs": []}
+    if not chk.asym_first:
         return out
-    n = int(chk["asym_n"])
+    n = int(chk.asym_n)
     t0 = time.process_time()
     bif = locate_bifurcation(res, n)
     out["cpu_locate_s"] = time.process_time() - t0

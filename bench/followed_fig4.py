@@ -71,7 +71,7 @@ def merge(grid: pd.DataFrame, followed: list[pd.DataFrame]) -> tuple[pd.DataFram
             out[c] = pd.NA
     k = keys(out)
     pos = dict(zip(k, range(len(out))))
-    from snapjump_cli.fe.follow import MICRO_FOLD_DE
+    from snapjump_cli.fe.branch.trace import MICRO_FOLD_DE
 
     replaced, missing = 0, 0
     for f in followed:

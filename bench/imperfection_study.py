@@ -25,10 +25,11 @@ KEYS = ("dE_J", "dE_path_J", "dy_pole_m", "V_star_m3", "p_star_Pa", "h_imp_m", "
 
 
 def run(name: str, deltas: list[float], n: int, N: int | None, post: int | None = None) -> dict:
-    from snapjump_cli.fe.follow import default_harmonics, follow_branch, locate_bifurcation
-    from snapjump_cli.fe.harmonics import check_harmonics
-    from snapjump_cli.fe.imperfection import imperfection_shape, inner_thickness, trace_imperfect
-    from snapjump_cli.fe.margins import path_margins
+    from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
+    from snapjump_cli.fe.branch.trace import follow_branch
+    from snapjump_cli.fe.stability.harmonics import check_harmonics
+    from snapjump_cli.fe.branch.imperfection import imperfection_shape, inner_thickness, trace_imperfect
+    from snapjump_cli.fe.stability.margins import path_margins
     from snapjump_cli.fe.solve import solve_scene
     from snapjump_cli.geometry.designs import get_design
     from snapjump_cli.settings import MeshSettings, SolverSettings
@@ -40,9 +41,9 @@ def run(name: str, deltas: list[float], n: int, N: int | None, post: int | None 
     out = {"scene": name, "cpu_axisym_s": time.process_time() - t0, "V_star_axisym_m3": m["V_star_m3"],
            "p_max_Pa": m.get("p_max_Pa"), "axisym": {k: m.get(k) for k in KEYS}}
     chk = check_harmonics(res, 4)
-    out["check"] = {k: chk.get(k) for k in ("asym_first", "asym_n", "asym_V_m3", "asym_p_Pa")}
+    out["check"] = {k: getattr(chk, k) for k in ("asym_first", "asym_n", "asym_V_m3", "asym_p_Pa")}
     # margins of n = 0..4 along the path (mu_i / R_i^2), as fractions of V*
-    info, table = path_margins(res, 4)
+    table = path_margins(res, 4).table
     Vs = table[:, 0] / m["V_star_m3"]
     out["margins"] = {"V_rel": Vs.tolist(), **{f"n{k}": table[:, 1 + k].tolist() for k in range(table.shape[1] - 1)}}
     t0 = time.process_time()
@@ -52,7 +53,7 @@ def run(name: str, deltas: list[float], n: int, N: int | None, post: int | None 
                     "cpu_s": time.process_time() - t0}
     runs = []
     t0 = time.process_time()
-    if chk["asym_first"] and int(chk["asym_n"]) == n:
+    if chk.asym_first and int(chk.asym_n) == n:
         fr = follow_branch(res, locate_bifurcation(res, n), default_harmonics(n, N))
         perfect = {k: fr.metrics.get(k) for k in KEYS}
         perfect.update(kind="followed " + (fr.kind or "?"), steps=len(fr.path.points) - 1)

@@ -12,10 +12,10 @@ phases are timed by wrapping the functions the solve calls (exclusive times):
 * ``trace to V*``: the continuation from rest to the upper state (the volume limit located);
 * ``trace after V*``: the post-snap continuation, until the path is back at ``V*`` (path designs)
   or until it stops otherwise (the cavity volume at zero, the step budget: descent designs);
-* ``lower state``: :func:`snapjump_cli.fe.lower_state.find_lower_state` (the stability of the
+* ``lower state``: :func:`snapjump_cli.fe.axisym.lower_state.find_lower_state` (the stability of the
   path's lower state, or the fixed-volume path);
-* ``metrics``: :func:`snapjump_cli.fe.metrics.snap_metrics`;
-* ``check``: :func:`snapjump_cli.fe.harmonics.check_harmonics`;
+* ``metrics``: :func:`snapjump_cli.fe.axisym.metrics.snap_metrics`;
+* ``check``: :func:`snapjump_cli.fe.stability.harmonics.check_harmonics`;
 * ``other``: the rest (model set-up, Python glue).
 
 and, per kind, the compiled corrector's time (the solves' ``t_newton_s``) against the traces'.
@@ -69,7 +69,8 @@ class Clock(PhaseTimer):
 
 def install(clock: Clock) -> None:
     """Wrap the callees of the sweep's solve."""
-    from snapjump_cli.fe import snap, solve
+    from snapjump_cli.fe.axisym import snap
+    from snapjump_cli.fe import solve
     from snapjump_cli.mesh import build
 
     build.mesh_scene = clock.wrap("mesh", build.mesh_scene)
@@ -115,7 +116,7 @@ def install(clock: Clock) -> None:
                 clock._stack[-1] += t1 - t0
 
     solve._trace = traced
-    from snapjump_cli.fe import harmonics
+    from snapjump_cli.fe.stability import harmonics
 
     harmonics_check = harmonics.check_harmonics
     harmonics.check_harmonics = clock.wrap("check", harmonics_check)
@@ -140,7 +141,10 @@ def dispatch_ab(grid: Path, n_path: int, seed: int, repeat: int) -> int:
 
     import snapjump_kernels.aot as aot
     import snapjump_kernels.calls as calls
-    from snapjump_cli.fe import harmonics, lower_state, model, solve  # noqa: F401 - their kernel names are patched
+    from snapjump_cli.fe.stability import harmonics  # noqa: F401 - their kernel names are patched
+    from snapjump_cli.fe.axisym import lower_state
+    from snapjump_cli.fe.axisym import model
+    from snapjump_cli.fe import solve
     from snapjump_cli.geometry.caps import Design
     from snapjump_cli.sweep.config import load_config
 

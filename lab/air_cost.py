@@ -17,7 +17,7 @@ import numpy as np
 
 from snapjump_cli.sweep.config import load_config
 from snapjump_cli.geometry.designs import get_design
-from snapjump_cli.fe.fluid import FluidSettings
+from snapjump_cli.fe.axisym.fluid import FluidSettings
 from snapjump_cli.geometry.caps import Design, InvalidDesign
 from snapjump_cli.settings import MeshSettings
 from snapjump_cli.fe.solve import SolveFailed, solve_checked, warm_up

@@ -21,7 +21,7 @@ import math
 
 from snapjump_cli import jump
 from snapjump_cli.geometry.designs import get_design
-from snapjump_cli.fe.fluid import FluidSettings
+from snapjump_cli.fe.axisym.fluid import FluidSettings
 from snapjump_cli.settings import MeshSettings
 from snapjump_cli.fe.solve import solve_checked
 
@@ -104,7 +104,7 @@ def fig_s9(a) -> None:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from snapjump_cli.fe.fluid import GasLaw
+    from snapjump_cli.fe.axisym.fluid import GasLaw
 
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11.0, 4.4))
     w = solve_checked(get_design(a.design), a.mesh)

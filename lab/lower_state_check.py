@@ -4,8 +4,8 @@
 
 For each design (``grid-NNNN``: the paper grid's point NNNN at the grid's mesh; a named design
 with ``--nt``/``--aspect``), traces the path, then finds the lower state from the upper state with
-:func:`snapjump_cli.fe.lower_state.snap_at_fixed_volume` and with
-:func:`snapjump_cli.fe.lower_state.descend_at_volume`, and prints their steps / iterations, times and the
+:func:`snapjump_cli.fe.axisym.lower_state.snap_at_fixed_volume` and with
+:func:`snapjump_cli.fe.axisym.descent.descend_at_volume`, and prints their steps / iterations, times and the
 relative difference of the released energy. Prints a markdown table.
 """
 from __future__ import annotations
@@ -30,7 +30,8 @@ def main(argv: list[str] | None = None) -> int:
     from snapjump_cli.sweep.config import load_config
     from snapjump_cli.geometry.designs import get_design
     from snapjump_cli.geometry.caps import Design
-    from snapjump_cli.fe.lower_state import descend_at_volume, snap_at_fixed_volume
+    from snapjump_cli.fe.axisym.descent import descend_at_volume
+    from snapjump_cli.fe.axisym.lower_state import snap_at_fixed_volume
     from snapjump_cli.settings import MeshSettings
     from snapjump_cli.fe.solve import solve_scene, warm_up
 

@@ -1,5 +1,5 @@
 """How close K_T's next unstable mode comes to the first volume limit (the near-cusp check of
-:class:`snapjump_cli.fe.snap.SnapTracker`) on the named designs and on random designs.
+:class:`snapjump_cli.fe.axisym.snap.SnapTracker`) on the named designs and on random designs.
 
 For each design: the first change of neg(K_T) after the volume limit, its relative distance from
 (V*, p*) ("gap", 0 in the fold's own step) and whether the tracker flagged a near-cusp.

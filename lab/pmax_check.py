@@ -31,7 +31,7 @@ def main(argv: list[str] | None = None) -> int:
     from snapjump_cli.sweep.config import load_config
     from snapjump_cli.geometry.designs import get_design
     from snapjump_cli.geometry.caps import Design
-    from snapjump_cli.fe.metrics import loading_peak
+    from snapjump_cli.fe.axisym.metrics import loading_peak
     from snapjump_cli.fe.solve import solve_checked
 
     cfg = load_config(REPO / "configs" / "paper_grid.yaml")

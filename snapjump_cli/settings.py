@@ -97,16 +97,16 @@ class SolverSettings:
         in the arc-length metric); the limit point, the lower state and the descent always use
         ``tol`` (a residual test)
     harmonics : check the traced states against non-axisymmetric perturbations ``cos n phi``,
-        ``n = 1..harmonics`` (:mod:`snapjump_cli.fe.harmonics`; 0 = off, the default)
+        ``n = 1..harmonics`` (:mod:`snapjump_cli.fe.stability.harmonics`; 0 = off, the default)
     u_scale : scale of the RMS displacement in the arc length, in units of the pole-displacement
         scale (0 = arc length in (V, p, pole) only)
     follow : when the harmonic check finds a harmonic unstable before V*, trace the branch that
-        bifurcates there (:mod:`snapjump_cli.fe.follow`) and report its snap as the design's answer
+        bifurcates there (:mod:`snapjump_cli.fe.branch.trace`) and report its snap as the design's answer
         (needs ``harmonics >= 1``; the axisymmetric answer is kept in the ``axisym_*`` keys)
     follow_N : highest harmonic of the followed branch's Fourier series (0 = the default,
         ``4 n_c`` for the critical harmonic ``n_c``)
     margins : report the smallest eigenvalue of every harmonic's tangent ``n = 0..harmonics`` along
-        the loading path (:mod:`snapjump_cli.fe.margins`; needs ``harmonics >= 1``; about one
+        the loading path (:mod:`snapjump_cli.fe.stability.margins`; needs ``harmonics >= 1``; about one
         shift-invert eigenvalue solve per harmonic and path state: several times the solve)
     time_limit_s : CPU seconds one design (or scene) may take, the mesh check's re-solve and the
         harmonic check included; beyond it the solve stops with a failure saying so (the paper

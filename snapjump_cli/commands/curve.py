@@ -116,7 +116,7 @@ def _jumps(m: dict) -> dict:
 def _fluid(air_ml: float | None, gamma: float | None, p0: float | None, harmonics: int):
     """The fluid of ``--air-ml / --gamma / --p0`` (``None``: water), checked by the settings class
     the YAML uses too."""
-    from snapjump_cli.fe.fluid import FluidSettings, P0_DEFAULT
+    from snapjump_cli.fe.axisym.fluid import FluidSettings, P0_DEFAULT
     from snapjump_cli.settings import SettingsError
 
     if air_ml is None:
@@ -140,9 +140,9 @@ IMP_KEYS: tuple[str, ...] = ("imp_delta", "imp_n", "imp_N", "imp_shape", "imp_am
 
 
 def _imperfect(res, scene, delta: float, n: int | None, N: int, time_limit_s: float) -> None:
-    """Trace the imperfect actuator (:mod:`snapjump_cli.fe.imperfection`) and add its keys to
+    """Trace the imperfect actuator (:mod:`snapjump_cli.fe.branch.imperfection`) and add its keys to
     ``res.metrics``."""
-    from snapjump_cli.fe.imperfection import imperfection_shape, inner_thickness, trace_imperfect
+    from snapjump_cli.fe.branch.imperfection import imperfection_shape, inner_thickness, trace_imperfect
     from snapjump_cli.fe.limits import TimeLimitExceeded, time_limit
 
     m = res.metrics

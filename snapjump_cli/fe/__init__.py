@@ -1,10 +1,13 @@
-"""The finite-element solve of one scene (docs/physics.md sections 3-5), one module per stage:
-:mod:`.model` (mesh + materials -> the problem interface), :mod:`.continuation` (arc-length
-continuation over it; :mod:`.path` its settings and path points, :mod:`.tracer` the corrector and
-tangents, :mod:`.hermite` the cubic between path points), :mod:`.snap` (the stop criterion and
-the snap states), :mod:`.lower_state` (with :mod:`.descent`, its fallback), :mod:`.metrics`,
-:mod:`.harmonics` (the Fourier-harmonic stability check), :mod:`.multiharmonic` and
-:mod:`.follow` (the followed non-axisymmetric branch), :mod:`.fluid` and :mod:`.air_snap`
-(inflating with air) and :mod:`.solve` (mesh -> model -> trace -> lower state -> metrics, within
-the design's CPU-time limit of :mod:`.limits`);
-:mod:`.precompile` builds the kernels ahead of time with the signatures a solve uses."""
+"""The finite-element solve of one scene (docs/physics.md sections 3-5), one subpackage per stage;
+imports go one way, down this list:
+
+* :mod:`.continuation` -- arc-length continuation over a problem interface (knows no mesh);
+* :mod:`.axisym` -- the axisymmetric model, the snap, its lower state and metrics, air;
+* :mod:`.stability` -- the Fourier-harmonic check, the margins, the eigenvalue helpers;
+* :mod:`.branch` -- the followed non-axisymmetric branch, its secondary bifurcations, imperfections;
+* :mod:`.solve` -- the one orchestrator: mesh -> model -> trace -> lower state -> metrics, the
+  mesh check, the harmonic check, margins and the followed branch, within the design's CPU-time
+  limit of :mod:`.limits` (a leaf every stage may use);
+
+:mod:`.precompile` builds the kernels ahead of time with the signatures a solve uses. The row
+keys the stages fill are declared in :mod:`snapjump_cli.schema`."""

@@ -25,7 +25,7 @@ def collect_signatures() -> dict[str, dict[str, Any]]:
     that were called, per kernel module (each with the signatures it was called with)."""
     from numba.core.registry import CPUDispatcher
 
-    from snapjump_cli.fe.harmonics import check_harmonics
+    from snapjump_cli.fe.stability.harmonics import check_harmonics
     from snapjump_cli.fe.solve import solve_checked, solve_scene
     from snapjump_cli.geometry.caps import CapScene, Design
     from snapjump_cli.settings import MeshSettings, SolverSettings

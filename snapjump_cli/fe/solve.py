@@ -1,9 +1,9 @@
 """One scene, end to end (docs/physics.md sections 3-5): mesh -> model -> trace -> lower state -> metrics.
 
 ``solve_scene`` is what ``snapjump curve`` and every sweep worker call; each stage has its module:
-:mod:`snapjump_cli.mesh.build` (gmsh), :mod:`snapjump_cli.fe.model` (the problem interface),
-:mod:`snapjump_cli.fe.continuation` with the stop criterion of :mod:`snapjump_cli.fe.snap` (the trace and
-its upper state), :mod:`snapjump_cli.fe.lower_state` and :mod:`snapjump_cli.fe.metrics`. Everything is
+:mod:`snapjump_cli.mesh.build` (gmsh), :mod:`snapjump_cli.fe.axisym.model` (the problem interface),
+:mod:`snapjump_cli.fe.continuation` with the stop criterion of :mod:`snapjump_cli.fe.axisym.snap` (the trace and
+its upper state), :mod:`snapjump_cli.fe.axisym.lower_state` and :mod:`snapjump_cli.fe.axisym.metrics`. Everything is
 computed in scaled units (lengths / R, stresses / mu of the inner or only cap) and converted back
 to SI by the metrics. ``solve_design`` adds the mesh-sensitivity check of the sweep.
 """
@@ -16,18 +16,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from snapjump_cli.fe.air_snap import AirSnap, fluid_keys
+from snapjump_cli.fe.axisym.air_snap import AirSnap, fluid_keys
 from snapjump_cli.fe.continuation import ContinuationFailed, ContinuationSettings, Path, Tracer, trace
-from snapjump_cli.fe.fluid import FluidSettings
+from snapjump_cli.fe.axisym.fluid import FluidSettings
 from snapjump_cli.fe.limits import TimeLimitExceeded, time_limit
 from snapjump_cli.geometry.caps import CapScene, Design
-from snapjump_cli.fe.lower_state import find_lower_state
+from snapjump_cli.fe.axisym.lower_state import find_lower_state
 from snapjump_cli.mesh.data import Mesh
-from snapjump_cli.fe.metrics import scene_curve, snap_metrics
-from snapjump_cli.fe.model import Model
-from snapjump_cli.sweep.rows import ASYM_KEYS, FOLLOW_ROW_KEYS
+from snapjump_cli.fe.axisym.metrics import scene_curve, snap_metrics
+from snapjump_cli.fe.axisym.model import Model
+from snapjump_cli.schema import FOLLOWED, HARMONIC_CHECK, MARGINS, TIMING_KEYS, columns
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.fe.snap import POST_SNAP_SKIPPED, SnapStates, SnapTracker, state_at_pressure
+from snapjump_cli.fe.axisym.snap import POST_SNAP_SKIPPED, SnapStates, SnapTracker, state_at_pressure
 
 log = logging.getLogger(__name__)
 
@@ -50,15 +50,15 @@ class SceneResult:
     tracer: Tracer | None = None
     curve_args: tuple | None = field(default=None, repr=False)  # (scales, V0) for :func:`scene_curve`
     stop_args: dict | None = field(default=None, repr=False)  # the snap tracker's bounds (p_stop, V_stop, ...)
-    follow: object | None = field(default=None, repr=False)  # the followed branch (snapjump_cli.fe.follow)
+    follow: object | None = field(default=None, repr=False)  # the followed branch (snapjump_cli.fe.branch.trace)
     margins: np.ndarray | None = field(default=None, repr=False)  # (states, 1 + harmonics): V and margins
-    air: object | None = field(default=None, repr=False)  # the air snap (:class:`snapjump_cli.fe.air_snap.AirSnap`)
+    air: object | None = field(default=None, repr=False)  # the air snap (:class:`snapjump_cli.fe.axisym.air_snap.AirSnap`)
     lower: object | None = field(default=None, repr=False)  # how the lower state was found (LowerState)
     _curve: dict | None = field(default=None, init=False, repr=False)
 
     @property
     def curve(self) -> dict:
-        """The traced path in SI units (:func:`snapjump_cli.fe.metrics.scene_curve`); ``{}`` without
+        """The traced path in SI units (:func:`snapjump_cli.fe.axisym.metrics.scene_curve`); ``{}`` without
         a path."""
         if self._curve is None:
             if self.curve_args is None or self.model is None or self.path is None:
@@ -120,12 +120,12 @@ def solve_scene(
     scene : a full actuator (:class:`Design`) or a single cap (:class:`CapScene`)
     mesh_settings, solver : mesh density and continuation settings
     mesh : a pre-built mesh (skips meshing)
-    fluid : water (``None``, the default) or air (:mod:`snapjump_cli.fe.air_snap`: the snap metrics
+    fluid : water (``None``, the default) or air (:mod:`snapjump_cli.fe.axisym.air_snap`: the snap metrics
         are the air snap's, the water snap's are kept as ``water_dE_J``, ...)
     fused : the compiled Newton corrector (``False``: the Python corrector, whose timers split
         assembly and factorisation; the same answers, slower: for profiling)
     post_snap : trace the post-snap path (``False``: stop the trace once the upper state is located
-        and the near-cusp watch has decided, :class:`~snapjump_cli.fe.snap.SnapTracker`; the lower
+        and the near-cusp watch has decided, :class:`~snapjump_cli.fe.axisym.snap.SnapTracker`; the lower
         state is then found at fixed volume unless the path was back at V* by then; the path's
         ``self_crossing``, ``n_steps`` and ``n_newton`` describe the shorter trace). Water only;
         ignored with ``solver.full``.
@@ -133,7 +133,7 @@ def solve_scene(
     Returns
     -------
     SceneResult
-        ``metrics`` holds the keys of :data:`snapjump_cli.sweep.rows.RESULT_KEYS` (SI units).
+        ``metrics`` holds the keys of :data:`snapjump_cli.sweep.rows.RESULT_KEYS`, declared by :mod:`snapjump_cli.schema` (SI units).
 
     Raises
     ------
@@ -213,7 +213,7 @@ def _settings(scene: Design | CapScene, solver: SolverSettings, fused: bool = Tr
 def _trace(scene: Design | CapScene, model: Model, solver: SolverSettings, V0: float, air=None, fused: bool = True,
            post_snap: bool = True) -> tuple[Tracer, SnapStates, Path, str]:
     """Trace the scene's pressure-volume path from the stress-free state until the snap tracker
-    (with ``air``, an :class:`~snapjump_cli.fe.air_snap.AirSnap`: until both snaps are characterised)
+    (with ``air``, an :class:`~snapjump_cli.fe.axisym.air_snap.AirSnap`: until both snaps are characterised)
     stops it; returns the tracer, the snap states, the path and the continuation's failure ('' if
     none: a failed continuation keeps the path traced so far)."""
     sc = _scales(scene)
@@ -243,9 +243,6 @@ def _trace(scene: Design | CapScene, model: Model, solver: SolverSettings, V0: f
 MESH_SENSITIVE_REL = 0.05
 
 
-_TIME_KEYS = ("wall_s", "mesh_s", "t_assembly_s", "t_residual_s", "t_factor_s", "t_newton_s")
-
-
 def suspicious_snap(m: dict) -> str:
     """Why a snap may be a mesh artefact ('' if it looks sound): the pole moves up, the snap is
     tiny (dE < 1e-4 mu_i R_i^3), the volume limit is a near-cusp (``fold_note``: a bifurcation or a
@@ -270,7 +267,7 @@ def solve_checked(
 ) -> SceneResult:
     """Solve a scene the way every command reports it: :func:`solve_scene`, the mesh check, and
     (``solver.harmonics > 0``) the Fourier-harmonic stability check of the reported solve
-    (:func:`snapjump_cli.fe.harmonics.check_harmonics`: ``asym_first``, ``asym_n``, ``asym_V_m3``,
+    (:func:`snapjump_cli.fe.stability.harmonics.check_harmonics`: ``asym_first``, ``asym_n``, ``asym_V_m3``,
     ``asym_p_Pa``, ``asym_lower_stable``; all None when it is off). ``fluid``: water (``None``) or
     air (:func:`solve_scene`; not with the harmonic check); ``fused`` as in :func:`solve_scene`.
     ``short_recheck``: the mesh re-check of a design whose coarse path went to zero volume stops
@@ -293,24 +290,25 @@ def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: Solve
                      fluid: FluidSettings | None, fused: bool, short_recheck: bool = False) -> SceneResult:
     res = _solve_mesh_checked(scene, mesh, solver, check_mesh, fluid, fused, short_recheck)
     m = res.metrics
-    m.update({k: None for k in ASYM_KEYS})
-    m.update({k: None for k in FOLLOW_ROW_KEYS})
-    m.update(asym_margin=None, asym_margin_n=None, asym_margin_V_m3=None)
+    m.update({k: None for k in columns(HARMONIC_CHECK)})
+    m.update({k: None for k in columns(FOLLOWED)})
+    m.update({k: None for k in columns(MARGINS)})
     if solver.harmonics > 0 and res.model is not None and res.path is not None:
-        from snapjump_cli.fe.harmonics import check_harmonics
+        from snapjump_cli.fe.stability.harmonics import check_harmonics
 
         t0 = time.perf_counter()
         h = check_harmonics(res, solver.harmonics)
-        m.update({k: h.get(k) for k in ASYM_KEYS})
+        m.update(h.as_row())
         m["asym_wall_s"] = time.perf_counter() - t0
         m["wall_s"] = (m.get("wall_s") or 0.0) + m["asym_wall_s"]
         if solver.margins:
-            from snapjump_cli.fe.margins import path_margins
+            from snapjump_cli.fe.stability.margins import path_margins
 
-            summary, res.margins = path_margins(res, solver.harmonics)
-            m.update(summary)
+            margins = path_margins(res, solver.harmonics)
+            res.margins = margins.table
+            m.update(margins.as_row())
         if solver.follow:
-            from snapjump_cli.fe.follow import apply_followed
+            from snapjump_cli.fe.branch.followed import apply_followed
 
             apply_followed(res, h, solver.follow_N)
     return res
@@ -381,7 +379,7 @@ def _solve_mesh_checked(
         coarse["mesh_check"] = f"{why}; refined run failed: {exc}"
         return res
     m["dE_J_coarse"], m["dy_pole_m_coarse"] = coarse["dE_J"], coarse["dy_pole_m"]
-    for k in _TIME_KEYS:  # the cost of the design is that of both solves
+    for k in TIMING_KEYS:  # the cost of the design is that of both solves
         m[k] = (m.get(k) or 0) + (coarse.get(k) or 0)
     if not m["snaps"]:
         m["mesh_sensitive"] = True

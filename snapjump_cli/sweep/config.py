@@ -51,7 +51,7 @@ from typing import Any, Callable, Iterator, Mapping
 
 import numpy as np
 
-from snapjump_cli.fe.fluid import FLUID_KEYS, WATER, FluidSettings, fluid_from_mapping
+from snapjump_cli.fe.axisym.fluid import FLUID_KEYS, WATER, FluidSettings, fluid_from_mapping
 from snapjump_cli.geometry.caps import J_M_DEFAULT, MU_ELITE_DOUBLE_32, R_I_DEFAULT, RADIUS_RANGE_M
 from snapjump_cli.settings import MeshSettings, SettingsError, SolverSettings
 from snapjump_cli.sweep.checks import CheckContext, ConfigError, read_yaml
@@ -367,7 +367,7 @@ def _settings_from(ctx: CheckContext, path: str, value: Any, cls: type) -> Any:
 
 
 def _parse_fluid(ctx: CheckContext, value: Any) -> FluidSettings:
-    """The ``fluid:`` setting (the checks are :class:`snapjump_cli.fe.fluid.FluidSettings`'s, as on the
+    """The ``fluid:`` setting (the checks are :class:`snapjump_cli.fe.axisym.fluid.FluidSettings`'s, as on the
     command line)."""
     if isinstance(value, Mapping):
         ctx.mapping("fluid", value, FLUID_KEYS)

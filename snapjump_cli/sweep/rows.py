@@ -2,7 +2,7 @@
 becomes a row.
 
 Everything about a row lives here: the statuses, the input columns, the solver's metric keys
-(:data:`RESULT_KEYS`) with their types, the per-row provenance columns, the arrow schema, and
+(:data:`RESULT_KEYS`, declared with their types by :mod:`snapjump_cli.schema`), the per-row provenance columns, the arrow schema, and
 :func:`fill_row`, which validates a solver result (type and range of every metric) before a row is
 ``ok``. :mod:`snapjump_cli.sweep.results` reads and writes tables of these rows.
 
@@ -23,6 +23,8 @@ import json
 import math
 import numbers
 from typing import TYPE_CHECKING, Any, Mapping
+
+from snapjump_cli import schema
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -58,53 +60,23 @@ INPUT_COLUMNS: tuple[str, ...] = (
 #: Mesh settings stored per row.
 MESH_COLUMNS: tuple[str, ...] = ("mesh_order", "mesh_nt", "mesh_aspect")
 
-#: The stable result keys (``snapjump curve --format json`` and one sweep row each).
-RESULT_KEYS: tuple[str, ...] = (
-    "dE_J", "dE_norm", "dE_energy_J", "dE_path_J", "dE_rel_diff",
-    "dy_pole_m", "dy_pole_upper_m", "dy_pole_norm",
-    "p_star_Pa", "V_star_m3", "p_max_Pa", "h_imp_m", "L0_m",
-    "snaps", "self_crossing", "lower_state_method",
-    "n_steps", "n_newton", "wall_s",
-    "n_nodes", "n_elements", "n_dofs",
-    "V_inner_solid_m3", "V_outer_solid_m3",
-    "mesh_sensitive", "dE_J_coarse", "dy_pole_m_coarse", "mesh_check",
-    "asym_first", "asym_n", "asym_V_m3", "asym_p_Pa", "asym_lower_stable",
-    "followed", "follow_n", "follow_N", "follow_kind", "follow_V_bif_m3", "follow_sec_n", "follow_sec_V_m3",
-    "follow_note", "axisym_dE_J", "axisym_dy_pole_m", "axisym_h_imp_m", "axisym_V_star_m3", "axisym_p_star_Pa",
-    "asym_margin", "asym_margin_n", "asym_margin_V_m3",
-)
-BOOL_RESULT_KEYS: frozenset[str] = frozenset({"snaps", "self_crossing", "mesh_sensitive", "asym_first",
-                                              "asym_lower_stable", "followed"})
-STR_RESULT_KEYS: frozenset[str] = frozenset({"lower_state_method", "mesh_check", "follow_kind", "follow_note"})
-INT_RESULT_KEYS: frozenset[str] = frozenset({"n_steps", "n_newton", "n_nodes", "n_elements", "n_dofs", "asym_n",
-                                             "follow_n", "follow_N", "follow_sec_n", "asym_margin_n"})
+#: The stable result keys (``snapjump curve --format json`` and one sweep row each): the column
+#: keys of every stage of :mod:`snapjump_cli.schema`, in the row's order.
+RESULT_KEYS: tuple[str, ...] = tuple(k.name for group in schema.STAGES.values() for k in group if k.column)
+_column_keys = tuple(k for group in schema.STAGES.values() for k in group if k.column)
+BOOL_RESULT_KEYS: frozenset[str] = frozenset(k.name for k in _column_keys if k.type == "bool")
+STR_RESULT_KEYS: frozenset[str] = frozenset(k.name for k in _column_keys if k.type == "str")
+INT_RESULT_KEYS: frozenset[str] = frozenset(k.name for k in _column_keys if k.type == "int")
 #: Float metrics that may be null in an ok row (set only after a mesh-sensitivity re-solve, or only
-#: by the harmonic check, ``solver.harmonics > 0``, and then only when a harmonic lost stability).
-OPTIONAL_FLOAT_KEYS: frozenset[str] = frozenset({"dE_J_coarse", "dy_pole_m_coarse", "asym_V_m3", "asym_p_Pa",
-                                                 "follow_V_bif_m3", "follow_sec_V_m3", "axisym_dE_J", "axisym_dy_pole_m",
-                                                 "axisym_h_imp_m", "axisym_V_star_m3", "axisym_p_star_Pa",
-                                                 "asym_margin", "asym_margin_V_m3"})
-#: The keys of the harmonic check (all null when it is off).
-ASYM_KEYS: tuple[str, ...] = ("asym_first", "asym_n", "asym_V_m3", "asym_p_Pa", "asym_lower_stable")
-#: The keys of the followed branch (``solver.follow``; all null when it is off): ``followed`` says
-#: whether the row's dE_J, dy_pole_m, h_imp_m, V_star_m3, p_star_Pa (and the keys derived from
-#: them) describe the branch that bifurcates from the axisymmetric path (or, when that branch loses
-#: stability to other harmonics first, the branch that leaves it there: ``follow_sec_n``, the
-#: dominant harmonic of that mode, and ``follow_sec_V_m3``, the cavity volume there); the
-#: axisymmetric answer is kept in the ``axisym_*`` keys.
-FOLLOW_ROW_KEYS: tuple[str, ...] = ("followed", "follow_n", "follow_N", "follow_kind", "follow_V_bif_m3",
-                                    "follow_sec_n", "follow_sec_V_m3", "follow_note", "axisym_dE_J", "axisym_dy_pole_m", "axisym_h_imp_m",
-                                    "axisym_V_star_m3", "axisym_p_star_Pa")
-#: The keys of a snap under air (``fluid: air``, :mod:`snapjump_cli.fe.air_snap`): the fluid, the gas and
-#: the pressures, volumes and energies of the air snap, and the water snap's answers; ``fluid`` is
-#: ``"water"`` and the others null in a water row.
-AIR_KEYS: tuple[str, ...] = (
-    "fluid", "air_V0_m3", "air_gamma", "air_p0_Pa", "V_disp_m3", "p_before_Pa", "p_after_Pa",
-    "dV_snap_m3", "dV_snap_eq9_m3", "dE_rubber_J", "dE_gas_J", "water_dE_J", "water_dy_pole_m", "water_h_imp_m",
-)
-RESULT_KEYS = RESULT_KEYS + AIR_KEYS
-STR_RESULT_KEYS = STR_RESULT_KEYS | {"fluid"}
-OPTIONAL_FLOAT_KEYS = OPTIONAL_FLOAT_KEYS | frozenset(AIR_KEYS[1:])
+#: by the harmonic check, ``solver.harmonics > 0``, and then only when a harmonic lost stability,
+#: or only under air).
+OPTIONAL_FLOAT_KEYS: frozenset[str] = frozenset(k.name for k in _column_keys if k.optional)
+#: The columns of the harmonic check (all null when it is off), the followed branch
+#: (``solver.follow``) and air (``fluid: air``): :data:`snapjump_cli.schema.HARMONIC_CHECK`,
+#: :data:`~snapjump_cli.schema.FOLLOWED`, :data:`~snapjump_cli.schema.AIR`.
+ASYM_KEYS: tuple[str, ...] = schema.columns(schema.HARMONIC_CHECK)
+FOLLOW_ROW_KEYS: tuple[str, ...] = schema.columns(schema.FOLLOWED)
+AIR_KEYS: tuple[str, ...] = schema.columns(schema.AIR)
 #: Every other result key is a float metric.
 FLOAT_RESULT_KEYS: tuple[str, ...] = tuple(
     k for k in RESULT_KEYS if k not in BOOL_RESULT_KEYS | STR_RESULT_KEYS | INT_RESULT_KEYS

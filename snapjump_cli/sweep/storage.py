@@ -28,7 +28,7 @@ from typing import Any, Mapping
 from snapjump_cli.sweep import results as res
 from snapjump_cli.sweep.config import DesignPoint
 from snapjump_cli.errors import SweepInputError
-from snapjump_cli.fe.fluid import FluidSettings
+from snapjump_cli.fe.axisym.fluid import FluidSettings
 from snapjump_cli.files import os_error_reason
 from snapjump_cli.geometry.caps import Design
 from snapjump_cli.settings import MeshSettings, SolverSettings, without_limits
@@ -74,7 +74,7 @@ def design_key(point: DesignPoint | Design | Mapping[str, Any], mesh: MeshSettin
     mesh, solver
         The numerical settings.
     fluid
-        The fluid (:class:`snapjump_cli.fe.fluid.FluidSettings`); water (the default) leaves the key
+        The fluid (:class:`snapjump_cli.fe.axisym.fluid.FluidSettings`); water (the default) leaves the key
         as it was before the setting existed.
 
     Returns

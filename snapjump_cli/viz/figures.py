@@ -357,7 +357,7 @@ def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "",
     """The pressure-volume path of one scene, normalised as the paper's Fig. 2A
     (``p / mu_i`` against ``dV / R_i^3``), with the released energy dE shaded (the area between
     the path and the vertical line ``V = V*``), the volume limit point (black) and the isochoric
-    point on the lower branch (white) marked. ``branch`` (:func:`snapjump_cli.fe.follow.branch_curve`):
+    point on the lower branch (white) marked. ``branch`` (:func:`snapjump_cli.fe.branch.metrics.branch_curve`):
     the followed non-axisymmetric branch, drawn from its bifurcation with its own snap shaded, as
     in the paper's Fig. S16 (and where it left the first branch, for a secondary bifurcation)."""
     plt = _pyplot()
@@ -423,7 +423,7 @@ def plot_air_curves(curve: dict, metrics: dict, path: str | Path, title: str = "
     volume) and the air snap (at constant dispensed volume: the actuator grows as the gas expands,
     eq 9).
     """
-    from snapjump_cli.fe.fluid import GasLaw
+    from snapjump_cli.fe.axisym.fluid import GasLaw
 
     plt = _pyplot()
     V0 = curve["V0_m3"]

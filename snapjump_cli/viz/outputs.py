@@ -122,13 +122,13 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
         steps = path_steps(res)
     mesh = res.model.mesh if res.model is not None else None
     jobs: list[tuple[str, Path, Callable[[Path], object]]] = []
-    air = getattr(res, "air", None)  # inflated with air (snapjump_cli.fe.air_snap): its snap, and V_d per step
+    air = getattr(res, "air", None)  # inflated with air (snapjump_cli.fe.axisym.air_snap): its snap, and V_d per step
     if "--csv" in wanted:
         columns = steps.columns()
         if air is not None:
             columns["V_disp_m3"] = list(air.dispensed(steps.V_m3, steps.p_Pa, res.model))
-        if getattr(res, "margins", None) is not None:  # every step's margins (snapjump_cli.fe.margins)
-            from snapjump_cli.fe.margins import state_margins
+        if getattr(res, "margins", None) is not None:  # every step's margins (snapjump_cli.fe.stability.margins)
+            from snapjump_cli.fe.stability.margins import state_margins
 
             n_max = res.margins.shape[1] - 2
             table = np.array([state_margins(res.model, u, p, n_max) for u, p in zip(steps.u, steps.p_scaled)])
@@ -140,7 +140,7 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
 
         branch = None
         if getattr(res, "follow", None) is not None:  # the followed branch beside the axisymmetric path
-            from snapjump_cli.fe.follow import branch_curve
+            from snapjump_cli.fe.branch.metrics import branch_curve
 
             branch = branch_curve(res.follow)
         if air is None:

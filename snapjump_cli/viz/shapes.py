@@ -331,7 +331,7 @@ def key_shape_states(steps, X: np.ndarray) -> list[ShapeState]:
 
 
 def followed_shape_states(fr) -> list[ShapeState]:
-    """The followed snap's upper and lower states (``fr``: :class:`snapjump_cli.fe.follow.FollowResult`)
+    """The followed snap's upper and lower states (``fr``: :class:`snapjump_cli.fe.branch.trace.FollowResult`)
     (SI), each with its two meridian sections ``phi = 0`` (right half) and ``phi = pi`` (left half).
     The colour is computed from each section as if it were an axisymmetric map: away from the axis
     it is close to the 3D stretch in the section's plane, but near the axis the ``n = 1`` part

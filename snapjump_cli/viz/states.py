@@ -83,7 +83,7 @@ def _pressure_peak(res, pts: list, up) -> tuple[object | None, int]:
     """The loading path's pressure maximum: ``(state, k)`` with a state solved on the step after
     path point ``k``; ``(None, k)`` when it is path point ``k`` itself; ``(None, -1)`` when it is
     the upper state (the pressure still rises at ``V*``)."""
-    from snapjump_cli.fe.snap import root_on_step
+    from snapjump_cli.fe.axisym.snap import root_on_step
 
     st = res.states
     last = st.k_before if (up is not None and st.k_before is not None) else len(pts) - 1

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.model import Model
+from snapjump_cli.fe.axisym.model import Model
 from tests.sphere import sphere_mesh
 from snapjump_kernels.assembly import assemble
 from snapjump_kernels.element_plain import assemble_plain

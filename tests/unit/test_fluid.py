@@ -9,7 +9,7 @@ import pytest
 from scipy.integrate import quad
 
 from snapjump_cli.sweep.config import ConfigError, parse_config
-from snapjump_cli.fe.fluid import WATER, FluidSettings, GasLaw, fluid_from_mapping
+from snapjump_cli.fe.axisym.fluid import WATER, FluidSettings, GasLaw, fluid_from_mapping
 from snapjump_cli.settings import MeshSettings, SettingsError, SolverSettings
 from snapjump_cli.sweep.storage import design_key
 from snapjump_cli.sweep.run import _row_settings

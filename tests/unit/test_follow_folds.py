@@ -1,5 +1,5 @@
 """Going on past folds of a followed branch that release almost nothing
-(snapjump_cli.fe.follow: trace_through_micro_folds, BranchTracker's return to the axisymmetric path)."""
+(snapjump_cli.fe.branch.trace: trace_through_micro_folds, BranchTracker's return to the axisymmetric path)."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -7,9 +7,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.follow import BranchTracker, trace_through_micro_folds
-from snapjump_cli.fe.path import Path
-from snapjump_cli.fe.snap import SnapStates
+from snapjump_cli.fe.branch.trace import BranchTracker, trace_through_micro_folds
+from snapjump_cli.fe.continuation.path import Path
+from snapjump_cli.fe.axisym.snap import SnapStates
 
 
 def _pt(V: float, E: float) -> SimpleNamespace:
@@ -100,12 +100,12 @@ def test_the_tracker_stops_when_the_branch_passes_back_through_the_axisymmetric_
 
 
 def test_the_points_passed_through_know_the_folds_traced_through():
-    """visited_points / reached_along (snapjump_cli.fe.secondary) with the folds a branch records:
+    """visited_points / reached_along (snapjump_cli.fe.branch.secondary) with the folds a branch records:
     a fold between two path points raises the volume high to its own volume (the points after it
     on the way down are not passed through), and the first point of a restarted trace is landed on
     by a jump, not reached along the branch."""
-    from snapjump_cli.fe.follow import FoldJump
-    from snapjump_cli.fe.secondary import jump_before, reached_along, visited_points
+    from snapjump_cli.fe.branch.trace import FoldJump
+    from snapjump_cli.fe.branch.secondary import jump_before, reached_along, visited_points
 
     # a micro-fold between points 2 and 3 at V = 3.2, the branch going down to 2.6 and back up
     V = [1.0, 2.0, 3.0, 3.1, 2.6, 3.15, 3.3, 3.5]

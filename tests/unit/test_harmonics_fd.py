@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.harmonics import HarmonicOperator, harmonic_operator, pivot_columns, rigid_modes
-from snapjump_cli.fe.model import Model
+from snapjump_cli.fe.stability.harmonics import HarmonicOperator, harmonic_operator, pivot_columns, rigid_modes
+from snapjump_cli.fe.axisym.model import Model
 from tests.sphere import sphere_mesh
 from snapjump_kernels.elements import element_tables
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.linalg import qr
 
-from snapjump_cli.fe.harmonics import pivot_columns
+from snapjump_cli.fe.stability.harmonics import pivot_columns
 
 
 @pytest.mark.parametrize("k", [1, 2])

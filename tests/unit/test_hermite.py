@@ -1,7 +1,7 @@
 """The cubic Hermite interpolation shared by the continuation, the snap location and the metrics."""
 import numpy as np
 
-from snapjump_cli.fe import hermite
+from snapjump_cli.fe.continuation import hermite
 
 
 def test_basis_reproduces_cubics():

@@ -1,4 +1,4 @@
-"""An initial geometric imperfection in the multi-harmonic model (snapjump_cli.fe.multiharmonic).
+"""An initial geometric imperfection in the multi-harmonic model (snapjump_cli.fe.branch.model).
 
 Checks, each able to fail on a wrong term:
 
@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.multiharmonic import MultiHarmonicModel
+from snapjump_cli.fe.branch.model import MultiHarmonicModel
 from tests.unit.test_harmonics_fd import _model, _state
 from tests.unit.test_multiharmonic import _smooth_modes, assert_derivatives_of_the_energy
 

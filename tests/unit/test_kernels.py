@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.model import Model
+from snapjump_cli.fe.axisym.model import Model
 from tests.sphere import sphere_mesh
 from snapjump_kernels.cavity import cavity_volume, cavity_volume_derivatives
 from snapjump_kernels.gent import gent_iso

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from snapjump_cli.fe.lower_state import FixedVolumeProblem
-from snapjump_cli.fe.model import Model
+from snapjump_cli.fe.axisym.lower_state import FixedVolumeProblem
+from snapjump_cli.fe.axisym.model import Model
 from tests.sphere import sphere_mesh
 
 

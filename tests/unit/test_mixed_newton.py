@@ -8,7 +8,7 @@ import pytest
 
 from snapjump_cli.fe.continuation import ContinuationSettings
 from snapjump_cli.geometry.designs import get_design
-from snapjump_cli.fe.model import Model
+from snapjump_cli.fe.axisym.model import Model
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.fe.solve import solve_scene
 from tests.sphere import sphere_mesh

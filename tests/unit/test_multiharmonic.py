@@ -1,4 +1,4 @@
-"""The nonlinear multi-harmonic model (snapjump_cli.fe.multiharmonic, kernels/multiharmonic.py).
+"""The nonlinear multi-harmonic model (snapjump_cli.fe.branch.model, kernels/multiharmonic.py).
 
 Checks, each able to fail on a wrong term:
 
@@ -16,9 +16,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.harmonics import harmonic_operator
-from snapjump_cli.fe.model import Model
-from snapjump_cli.fe.multiharmonic import MultiHarmonicModel, component_index
+from snapjump_cli.fe.stability.harmonics import harmonic_operator
+from snapjump_cli.fe.axisym.model import Model
+from snapjump_cli.fe.branch.model import MultiHarmonicModel, component_index
 from tests.unit.test_harmonics_fd import Energy3D, _model, _state
 
 

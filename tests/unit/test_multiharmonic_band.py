@@ -16,7 +16,7 @@ import gc
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.multiharmonic import MultiHarmonicModel
+from snapjump_cli.fe.branch.model import MultiHarmonicModel
 from snapjump_kernels.banded import band_ldlt, bordered_factor
 from snapjump_kernels.multiharmonic_band import bordered_factor_into, envelope_ldlt
 from tests.unit.test_banded import _extents_of, _random_profile_matrix, _to_band
@@ -54,7 +54,7 @@ def test_envelope_ldlt_reports_a_zero_pivot_as_band_ldlt_does():
 
 @pytest.mark.parametrize("shift", [8.0, 0.5])
 def test_bordered_factor_into_is_bordered_factor_and_solves(shift):
-    from snapjump_cli.fe.model import BorderedSolver
+    from snapjump_cli.fe.axisym.model import BorderedSolver
 
     n, kl = 150, 17
     A, ab, ext = _profile(n, kl, 11, shift)
@@ -77,7 +77,7 @@ def test_bordered_solve_at_a_limit_point():
     """``K`` singular to ~1e-9 of its scale (a limit point under pressure control), the bordered
     matrix regular (its border sees the null vector): the new factors solve it as the old ones do,
     bit for bit, and as dense algebra does."""
-    from snapjump_cli.fe.model import BorderedSolver
+    from snapjump_cli.fe.axisym.model import BorderedSolver
 
     n, kl = 140, 12
     A0, _, ext = _profile(n, kl, 17, 0.5)

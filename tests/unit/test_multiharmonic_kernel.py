@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.multiharmonic import MultiHarmonicModel
+from snapjump_cli.fe.branch.model import MultiHarmonicModel
 from tests.unit.test_harmonics_fd import _model, _state
 from tests.unit.test_imperfection import _imperfection
 from tests.unit.test_multiharmonic import _smooth_modes

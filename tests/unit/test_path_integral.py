@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from snapjump_cli.fe.continuation import PathPoint
-from snapjump_cli.fe.metrics import hermite_p_dV, path_p_dV
+from snapjump_cli.fe.axisym.metrics import hermite_p_dV, path_p_dV
 
 
 def _points(s: np.ndarray, sV: float, sp: float) -> list[PathPoint]:

@@ -1,4 +1,4 @@
-"""Stability of a followed branch outside its harmonics (snapjump_cli.fe.secondary).
+"""Stability of a followed branch outside its harmonics (snapjump_cli.fe.branch.secondary).
 
 * A branch state lifted into the model with every harmonic keeps its energy, volume, residual and
   tangent to round-off, and the harmonics outside the branch decouple from it exactly (Bloch), at
@@ -12,10 +12,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.harmonics import harmonic_operator
-from snapjump_cli.fe.lower_state import constrained_instability
-from snapjump_cli.fe.multiharmonic import MultiHarmonicModel
-from snapjump_cli.fe.secondary import extra_dofs, extra_eigen, extra_harmonics, full_model, lift, unstable_modes
+from snapjump_cli.fe.stability.harmonics import harmonic_operator
+from snapjump_cli.fe.axisym.lower_state import constrained_instability
+from snapjump_cli.fe.branch.model import MultiHarmonicModel
+from snapjump_cli.fe.branch.secondary import extra_dofs, extra_harmonics, full_model, lift, unstable_modes
+from snapjump_cli.fe.stability.eigen import extra_eigen
 from snapjump_cli.fe.solve import solve_scene
 from snapjump_cli.geometry.caps import CapScene
 from snapjump_cli.settings import MeshSettings, SolverSettings

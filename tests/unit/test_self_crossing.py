@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from snapjump_cli.fe.metrics import path_self_crosses
+from snapjump_cli.fe.axisym.metrics import path_self_crosses
 
 
 def _hermite_data(x, y, dx, dy):

@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.continuation import ContinuationSettings, step_turn
+from snapjump_cli.fe.continuation import ContinuationSettings
+from snapjump_cli.fe.continuation.stepping import step_turn
 from snapjump_cli.geometry.designs import get_design
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.fe.solve import solve_scene
@@ -98,7 +99,7 @@ def _cubic_points(s_a: float, s_b: float):
 
 
 def test_hermite_root_first_estimates_are_exact_on_a_cubic_volume():
-    from snapjump_cli.fe.snap import _hermite_root
+    from snapjump_cli.fe.axisym.snap import _hermite_root
 
     a, b, V, dV = _cubic_points(0.2, 0.8)
     s_lim = (6.0 - math.sqrt(36.0 - 12.0)) / 3.0  # dV/ds = 0 at s = 0.367

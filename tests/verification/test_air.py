@@ -8,8 +8,9 @@ from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
 from snapjump_cli.geometry.designs import get_design
-from snapjump_cli.fe.fluid import FluidSettings
-from snapjump_cli.fe.lower_state import constrained_instability, descend_at_volume, snap_at_fixed_volume
+from snapjump_cli.fe.axisym.fluid import FluidSettings
+from snapjump_cli.fe.axisym.lower_state import constrained_instability, snap_at_fixed_volume
+from snapjump_cli.fe.axisym.descent import descend_at_volume
 from snapjump_cli.settings import SolverSettings
 from snapjump_cli.fe.solve import solve_checked, solve_scene
 

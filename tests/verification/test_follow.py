@@ -1,4 +1,4 @@
-"""Following the branch that bifurcates from the axisymmetric path (snapjump_cli.fe.follow).
+"""Following the branch that bifurcates from the axisymmetric path (snapjump_cli.fe.branch.trace).
 
 * the bifurcation is located where the harmonic check's inertia changes, with a zero eigenvalue;
 * leaving along the mode: the branch's first states are equilibria of the multi-harmonic model,
@@ -15,9 +15,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.follow import default_harmonics, follow_branch, locate_bifurcation
+from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
+from snapjump_cli.fe.branch.trace import follow_branch
 from snapjump_cli.geometry.caps import CapScene
-from snapjump_cli.fe.harmonics import check_harmonics, harmonic_operator
+from snapjump_cli.fe.stability.harmonics import check_harmonics, harmonic_operator
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.fe.solve import solve_checked, solve_scene
 
@@ -32,7 +33,7 @@ def cap():
 
 def test_the_bifurcation_is_where_the_inertia_changes(cap):
     res, chk = cap
-    assert chk["asym_first"] and chk["asym_n"] == 2
+    assert chk.asym_first and chk.asym_n == 2
     bif = locate_bifurcation(res, 2)
     assert abs(bif.eig) < 1e-8
     op = harmonic_operator(res.model, 2)
@@ -43,7 +44,7 @@ def test_the_bifurcation_is_where_the_inertia_changes(cap):
     # the check's bisected volume lies within its 6 bisections of this one
     L3, sV = res.model.L**3, res.tracer.sc[0]
     dV = (pts[k].zeta[0] - pts[k - 1].zeta[0]) * sV * L3
-    assert abs(chk["asym_V_m3"] - bif.zeta[0] * sV * L3) <= dV / 2**6 * 1.01
+    assert abs(chk.asym_V_m3 - bif.zeta[0] * sV * L3) <= dV / 2**6 * 1.01
 
 
 def _amplitude_solve(mh, U_c, p_c, e, eps):
@@ -120,7 +121,7 @@ def test_design_B_snaps_at_its_subcritical_bifurcation():
 
 
 def test_a_branch_over_the_time_limit_keeps_the_axisymmetric_answer(cap):
-    from snapjump_cli.fe.follow import apply_followed
+    from snapjump_cli.fe.branch.followed import apply_followed
     from snapjump_cli.fe.limits import time_limit
 
     res, chk = cap
@@ -138,7 +139,7 @@ def test_a_fold_that_releases_almost_nothing_is_not_the_answer(cap, monkeypatch)
     the reason, instead of reporting a near-zero snap."""
     from types import SimpleNamespace
 
-    from snapjump_cli.fe import follow
+    from snapjump_cli.fe.branch import followed as follow
 
     res, chk = cap
     dE_axi = res.metrics["dE_J"]
@@ -146,13 +147,13 @@ def test_a_fold_that_releases_almost_nothing_is_not_the_answer(cap, monkeypatch)
     monkeypatch.setattr(follow, "locate_bifurcation", lambda result, n: SimpleNamespace(n=n))
     monkeypatch.setattr(follow, "follow_branch", lambda *a, **k: SimpleNamespace(metrics=dict(fake)))
     # (a fake branch: no model to check against the other harmonics, section 10.7)
-    out, _ = follow.followed_metrics(res, chk, secondary=False)
+    out = follow.followed_metrics(res, chk, secondary=False).values
     assert out["followed"] is False and "releases" in out["follow_note"]
     fake["dE_J"] = 0.5 * dE_axi  # a real snap is reported
-    out, _ = follow.followed_metrics(res, chk, secondary=False)
+    out = follow.followed_metrics(res, chk, secondary=False).values
     assert out["followed"] is True and out["dE_J"] == 0.5 * dE_axi
     fake["dy_pole_m"] = -1.6e-3  # ... unless its pole moves up: the axisymmetric answer stays, with the reason
-    out, _ = follow.followed_metrics(res, chk, secondary=False)
+    out = follow.followed_metrics(res, chk, secondary=False).values
     assert out["followed"] is False and "moves the pole up" in out["follow_note"] and out.get("dE_J") is None
 
 
@@ -163,8 +164,9 @@ def test_the_axisymmetric_state_at_a_volume_is_offered_only_where_it_is_stable(c
     from dataclasses import replace
 
     from snapjump_cli.fe.continuation import Tracer
-    from snapjump_cli.fe.follow import axisym_state_at, harmonic1_gauge
-    from snapjump_cli.fe.multiharmonic import MultiHarmonicModel
+    from snapjump_cli.fe.branch.trace import axisym_state_at
+    from snapjump_cli.fe.branch.bifurcation import harmonic1_gauge
+    from snapjump_cli.fe.branch.model import MultiHarmonicModel
 
     res, chk = cap
     bif = locate_bifurcation(res, 2)

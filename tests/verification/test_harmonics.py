@@ -19,9 +19,10 @@ import scipy.linalg as sl
 
 from snapjump_cli.fe.continuation import ContinuationSettings, Tracer, trace
 from snapjump_cli.geometry.caps import CapScene
-from snapjump_cli.fe.harmonics import check_harmonics, harmonic_inertia, harmonic_operator, rigid_modes
+from snapjump_cli.fe.stability.harmonics import check_harmonics, harmonic_operator, rigid_modes
+from snapjump_cli.fe.stability.eigen import harmonic_inertia
 from snapjump_cli.mesh.data import Mesh
-from snapjump_cli.fe.model import Model
+from snapjump_cli.fe.axisym.model import Model
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.fe.solve import solve_scene
 from tests.sphere import sphere_mesh
@@ -185,14 +186,14 @@ def test_clamped_cap_asymmetric_buckling_threshold(eta, asym):
                     SolverSettings())
     assert r.metrics["snaps"]
     h = check_harmonics(r, 6)
-    assert h["asym_first"] is asym
-    assert h["asym_lower_stable"] is True
+    assert h.asym_first is asym
+    assert h.asym_lower_stable is True
     if asym:
-        assert h["asym_n"] >= 2
-        assert h["asym_p_Pa"] < 0.9 * r.metrics["p_max_Pa"]
-        assert h["asym_V_m3"] < r.metrics["V_star_m3"]
+        assert h.asym_n >= 2
+        assert h.asym_p_Pa < 0.9 * r.metrics["p_max_Pa"]
+        assert h.asym_V_m3 < r.metrics["V_star_m3"]
     else:
-        assert h["asym_n"] is None and h["asym_V_m3"] is None
+        assert h.asym_n is None and h.asym_V_m3 is None
 
 
 # ---- the paper's Fig. S16 inner caps with their ring -----------------------------------------------
@@ -209,16 +210,16 @@ def test_fig_s16_cap_12_5_70_buckles_in_harmonic_3_before_the_pressure_maximum(s
     m = r.metrics
     h = check_harmonics(r, 4)
     assert m["self_crossing"]  # the paper's heuristic flags it too
-    assert h["asym_first"] and h["asym_n"] == 3
+    assert h.asym_first and h.asym_n == 3
     # before the pressure maximum of the loading path (5.90 kPa at 0.47 V*), not just below it
     # (until 23 Nov 2026 p_max was the largest traced pressure, 6.44 kPa on the post-snap path,
     # and this line read asym_p < 0.9 p_max)
     loading = r.path.points[: r.states.k_before + 1]
     peak = max(loading, key=lambda pt: pt.p)
-    assert h["asym_p_Pa"] < m["p_max_Pa"]
-    assert h["asym_V_m3"] / m["V_star_m3"] < peak.zeta[0] / r.states.upper.zeta[0] < 0.5
+    assert h.asym_p_Pa < m["p_max_Pa"]
+    assert h.asym_V_m3 / m["V_star_m3"] < peak.zeta[0] / r.states.upper.zeta[0] < 0.5
     # converged to ~1 % (5.51-5.56 kPa from nt = 1 to 4)
-    assert h["asym_p_Pa"] == pytest.approx(5.52e3, rel=0.02)
+    assert h.asym_p_Pa == pytest.approx(5.52e3, rel=0.02)
 
 
 def test_fig_s16_cap_10_60_tilts_in_harmonic_1_between_the_pressure_maximum_and_the_snap(s16):
@@ -226,9 +227,9 @@ def test_fig_s16_cap_10_60_tilts_in_harmonic_1_between_the_pressure_maximum_and_
     m, c = r.metrics, r.curve
     h = check_harmonics(r, 4)
     assert not m["self_crossing"]  # missed by the self-crossing heuristic
-    assert h["asym_first"] and h["asym_n"] == 1
+    assert h.asym_first and h.asym_n == 1
     V_pmax = c["V_m3"][int(np.argmax(c["p_Pa"]))]
-    assert V_pmax < h["asym_V_m3"] < m["V_star_m3"]
+    assert V_pmax < h.asym_V_m3 < m["V_star_m3"]
 
 
 def test_inertia_is_the_count_of_negative_eigenvalues_with_the_rigid_translation_removed(s16):
@@ -251,10 +252,10 @@ def test_check_harmonics_locates_the_loss_of_stability_between_path_states(s16):
     coarse = check_harmonics(r, 4, refine=0)
     fine = check_harmonics(r, 4, refine=6)
     V_path = r.curve["V_m3"]
-    k = int(np.argmin(np.abs(V_path - coarse["asym_V_m3"])))
-    assert coarse["asym_V_m3"] == pytest.approx(V_path[k], rel=1e-9)  # a path state, in SI units
-    assert coarse["asym_p_Pa"] == pytest.approx(r.curve["p_Pa"][k], rel=1e-9)
-    assert V_path[k - 1] < fine["asym_V_m3"] <= coarse["asym_V_m3"]
+    k = int(np.argmin(np.abs(V_path - coarse.asym_V_m3)))
+    assert coarse.asym_V_m3 == pytest.approx(V_path[k], rel=1e-9)  # a path state, in SI units
+    assert coarse.asym_p_Pa == pytest.approx(r.curve["p_Pa"][k], rel=1e-9)
+    assert V_path[k - 1] < fine.asym_V_m3 <= coarse.asym_V_m3
     # the bisection tells which of the harmonics unstable at that path state went first
-    assert coarse["asym_ns"] == "2,3" and fine["asym_n"] == 3
-    assert fine["asym_states_checked"] > coarse["asym_states_checked"]
+    assert coarse.asym_ns == "2,3" and fine.asym_n == 3
+    assert fine.asym_states_checked > coarse.asym_states_checked

@@ -1,4 +1,4 @@
-"""An imperfect actuator traced from rest to its snap (snapjump_cli.fe.imperfection).
+"""An imperfect actuator traced from rest to its snap (snapjump_cli.fe.branch.imperfection).
 
 The Fig. S16 ring-roller cap (eta 10, theta 60) loses stability to harmonic 1 just before its
 axisymmetric volume limit, and the branch is subcritical (a symmetric unstable bifurcation). For
@@ -15,8 +15,8 @@ import math
 import pytest
 
 from snapjump_cli.commands.curve import main
-from snapjump_cli.fe.harmonics import check_harmonics
-from snapjump_cli.fe.imperfection import imperfection_shape, inner_thickness, trace_imperfect
+from snapjump_cli.fe.stability.harmonics import check_harmonics
+from snapjump_cli.fe.branch.imperfection import imperfection_shape, inner_thickness, trace_imperfect
 from snapjump_cli.fe.solve import solve_scene
 from snapjump_cli.geometry.caps import CapScene
 from snapjump_cli.settings import MeshSettings, SolverSettings
@@ -36,10 +36,10 @@ def traced():
 
 def test_the_shape_is_the_critical_mode(traced):
     res, chk, shape, _ = traced
-    assert chk["asym_first"] and chk["asym_n"] == 1
+    assert chk.asym_first and chk.asym_n == 1
     assert shape.source == "critical" and abs(shape.eig) < 1e-8
     sV = res.tracer.sc[0] * res.model.L**3
-    assert shape.V * sV == pytest.approx(chk["asym_V_m3"], rel=2e-3)  # the check's onset, to its bisection
+    assert shape.V * sV == pytest.approx(chk.asym_V_m3, rel=2e-3)  # the check's onset, to its bisection
 
 
 def test_the_imperfect_snap_follows_koiters_two_thirds_law(traced):

@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 import scipy.linalg as sl
 
-from snapjump_cli.fe.harmonics import check_harmonics, harmonic_operator
-from snapjump_cli.fe.margins import path_margins, smallest_eigenvalue
+from snapjump_cli.fe.stability.harmonics import check_harmonics, harmonic_operator
+from snapjump_cli.fe.stability.margins import path_margins
+from snapjump_cli.fe.stability.eigen import smallest_eigenvalue
 from snapjump_cli.fe.solve import solve_checked, solve_scene
 from snapjump_cli.geometry.caps import CapScene
 from snapjump_cli.settings import MeshSettings, SolverSettings
@@ -34,7 +35,8 @@ def test_the_margin_is_the_smallest_generalised_eigenvalue(cap, n):
 
 def test_the_margins_agree_with_the_check(cap):
     chk = check_harmonics(cap, 3, refine=0, scan_all=True)
-    summary, table = path_margins(cap, 3)
+    margins = path_margins(cap, 3)
+    summary, table = margins.as_row(), margins.table
     pts = list(cap.path.points[: cap.states.k_before + 1]) + [cap.states.upper]
     assert table.shape == (len(pts), 5)
     mu = float(np.min(cap.model.mu))
@@ -42,7 +44,7 @@ def test_the_margins_agree_with_the_check(cap):
         for n in (1, 2, 3):
             unstable = harmonic_operator(cap.model, n).inertia(pt.u, pt.p) > 0
             assert unstable == (row[1 + n] < -1e-6 * mu)
-    assert chk["asym_first"] and summary["asym_margin"] < 0
+    assert chk.asym_first and summary["asym_margin"] < 0
     assert table[0, 1] > 0  # the stress-free state is stable in every harmonic, n = 0 included
     assert summary["asym_margin_V_m3"] == table[np.argmin(table[:, 2:].min(axis=1)), 0]
 
@@ -58,7 +60,7 @@ def test_solve_reports_them_when_asked():
 def test_the_eigen_solve_is_repeatable(cap):
     """The same state gives the same eigenvalue and mode to the last bit (ARPACK's start vector is
     fixed; with its random default, followed answers differed between processes by ~1e-8)."""
-    from snapjump_cli.fe.margins import eig_near
+    from snapjump_cli.fe.stability.eigen import eig_near
 
     res = cap
     pt = res.path.points[len(res.path.points) // 2]
@@ -73,7 +75,7 @@ def test_a_free_actuators_rotation_about_its_axis_is_not_its_n0_margin():
     """A free actuator can turn about its axis: a zero eigenvalue of the n = 0 torsion that is not
     a margin. The margin is the smallest of the other eigenvalues (dense reference, the rotation's
     eigenvector found by its M-cosine), certified by the inertia less the rotation."""
-    from snapjump_cli.fe.margins import axis_rotation
+    from snapjump_cli.fe.stability.eigen import axis_rotation
     from snapjump_cli.geometry.designs import get_design
 
     res = solve_scene(get_design("C"), MeshSettings(nt=1, aspect=4.0), SolverSettings())

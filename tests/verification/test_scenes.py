@@ -15,7 +15,8 @@ import pytest
 
 from snapjump_cli.geometry.designs import FIG1_CAPS, fig1_caps, get_design
 from snapjump_cli.geometry.caps import CapScene, Design
-from snapjump_cli.fe.lower_state import constrained_instability, descend_at_volume, descent_starts, snap_at_fixed_volume
+from snapjump_cli.fe.axisym.lower_state import constrained_instability, snap_at_fixed_volume
+from snapjump_cli.fe.axisym.descent import descend_at_volume, descent_starts
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.fe.solve import solve_checked, solve_scene, suspicious_snap
 

@@ -1,4 +1,4 @@
-"""A followed branch that loses stability outside its harmonics (snapjump_cli.fe.secondary).
+"""A followed branch that loses stability outside its harmonics (snapjump_cli.fe.branch.secondary).
 
 Two caps at one element through the thickness, whose first harmonic to go unstable is 3 and whose
 branch (harmonics 0, 3, 6) rises far beyond the axisymmetric V* but, in the model with every
@@ -21,11 +21,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.follow import branch_curve, default_harmonics, follow_branch, followed_metrics, locate_bifurcation
-from snapjump_cli.fe.harmonics import check_harmonics
-from snapjump_cli.fe.secondary import (
+from snapjump_cli.fe.branch.metrics import branch_curve
+from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
+from snapjump_cli.fe.branch.trace import follow_branch
+from snapjump_cli.fe.branch.followed import followed_metrics
+from snapjump_cli.fe.stability.harmonics import check_harmonics
+from snapjump_cli.fe.branch.secondary import (
     extra_dofs,
-    extra_eigen,
     extra_harmonics,
     follow_secondary,
     jump_before,
@@ -34,6 +36,7 @@ from snapjump_cli.fe.secondary import (
     unstable_modes,
     visited_points,
 )
+from snapjump_cli.fe.stability.eigen import extra_eigen
 from snapjump_cli.fe.solve import solve_scene
 from snapjump_cli.geometry.caps import CapScene
 from snapjump_cli.settings import MeshSettings, SolverSettings
@@ -42,7 +45,7 @@ from snapjump_cli.settings import MeshSettings, SolverSettings
 def _solved(theta, eta, bc):
     res = solve_scene(CapScene(theta_deg=theta, eta=eta, bc=bc), MeshSettings(nt=1, aspect=2.0), SolverSettings())
     chk = check_harmonics(res, 4)
-    assert chk["asym_first"] and chk["asym_n"] == 3
+    assert chk.asym_first and chk.asym_n == 3
     return res, chk
 
 
@@ -59,8 +62,9 @@ def located():
 def jumped():
     """The clamped cap: the followed answer."""
     res, chk = _solved(30.0, 80.0, "clamped")
-    out, fs = followed_metrics(res, chk, N=6)
-    res.metrics.update({k: chk[k] for k in ("asym_first", "asym_n", "asym_V_m3", "asym_p_Pa", "asym_lower_stable")})
+    answer = followed_metrics(res, chk, N=6)
+    out, fs = answer.values, answer.branch
+    res.metrics.update(chk.as_row())
     return res, out, fs
 
 
@@ -89,7 +93,7 @@ def test_a_bracket_started_inside_the_step_finds_the_same_point(located):
     """locate_secondary(start=...): the bracket of a jump's landing state, stable outside the
     branch, between two path points (the state a micro-fold traced through lands on): here a state
     of the located step itself, before the point, finds that point again."""
-    from snapjump_cli.fe.secondary import SecondaryCheck, locate_secondary
+    from snapjump_cli.fe.branch.secondary import SecondaryCheck, locate_secondary
 
     res, fr, fs, sec = located
     full = fs.model

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from snapjump_cli.fe.continuation import ContinuationSettings, trace
-from snapjump_cli.fe.model import Model
+from snapjump_cli.fe.axisym.model import Model
 from tests.sphere import sphere_mesh, sphere_pressure
 
 A, B, MU, JM = 1.0, 1.5, 1.0, 24.0

@@ -10,8 +10,8 @@ from typing import Callable
 
 import numpy as np
 
-from snapjump_cli.fe import hermite
-from snapjump_cli.fe.path import ContinuationFailed, ContinuationSettings, PathPoint, Problem
+from snapjump_cli.fe.continuation import hermite
+from snapjump_cli.fe.continuation.path import ContinuationFailed, ContinuationSettings, PathPoint, Problem
 
 __all__ = ["Tracer", "start_point"]
 

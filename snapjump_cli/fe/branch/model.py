@@ -1,7 +1,7 @@
 """The nonlinear multi-harmonic model: the actuator's 3D deformation as a Fourier series on the 2D mesh.
 
 :class:`MultiHarmonicModel` is the problem interface of :mod:`snapjump_cli.fe.continuation` (as
-:class:`snapjump_cli.fe.model.Model` is) for displacements
+:class:`snapjump_cli.fe.axisym.model.Model` is) for displacements
 
     u_r = sum_k a_k cos n_k phi,   u_z = sum_k b_k cos n_k phi,   u_phi = sum_{k>=1} c_k sin n_k phi
 
@@ -12,7 +12,7 @@ under the equations, and it holds the branch that bifurcates from harmonic ``n_c
 branching lemma): a trace that starts in it stays in it. The kernels are
 :mod:`snapjump_kernels.multiharmonic` (energy, residual, tangent and the exact 3D cavity volume).
 
-Constraints per harmonic are those of :class:`snapjump_cli.fe.harmonics.HarmonicOperator`: ``n = 0``
+Constraints per harmonic are those of :class:`snapjump_cli.fe.stability.harmonics.HarmonicOperator`: ``n = 0``
 keeps the axisymmetric model's own (so that with the harmonic 0 alone this *is* that model, to
 round-off); for ``n >= 1`` the axis conditions of a single-valued displacement (``n = 1``:
 ``b = 0``, ``c = -a``; ``n >= 2``: all zero) and, for a supported cap, its supports. The rigid
@@ -34,7 +34,7 @@ import numpy as np
 
 from snapjump_cli.fe.limits import check_time
 from snapjump_cli.mesh.data import number_dofs
-from snapjump_cli.fe.model import BorderedSolver, Linearization, factor_bordered
+from snapjump_cli.fe.axisym.model import BorderedSolver, Linearization, factor_bordered
 from snapjump_kernels.calls import envelope_extents, scatter_band
 
 log = logging.getLogger(__name__)
@@ -63,7 +63,7 @@ def component_index(k: int, comp: int) -> int:
 
 
 class MultiHarmonicModel:
-    """A truncated Fourier series of harmonics ``hn`` on an axisymmetric :class:`~snapjump_cli.fe.model.Model`.
+    """A truncated Fourier series of harmonics ``hn`` on an axisymmetric :class:`~snapjump_cli.fe.axisym.model.Model`.
 
     Parameters
     ----------
@@ -71,12 +71,12 @@ class MultiHarmonicModel:
     hn : the harmonics kept, starting with 0 (e.g. ``[0, 1, 2]`` or ``[0, 2, 4]``)
     n_phi : intervals of the phi rule on ``[0, pi / hn[1]]`` (default ``2 K_max + 2``, ``K_max``
         the highest harmonic in units of ``hn[1]``: exact for the quadratic terms and the cavity)
-    free_body : as in :class:`snapjump_cli.fe.harmonics.HarmonicOperator` (default: a full actuator)
+    free_body : as in :class:`snapjump_cli.fe.stability.harmonics.HarmonicOperator` (default: a full actuator)
     gauge : ``(node, comp)`` amplitudes of harmonic 1 fixed to zero (removing the rigid modes)
     imperfection : ``(nn, nc)`` nodal amplitudes of an initial geometric imperfection (default
         none): the stress-free body is the perfect one displaced by them, and ``u`` is measured
         from it (:func:`snapjump_kernels.multiharmonic.imperfect_point`). They must satisfy the
-        axis conditions of their harmonics (a mode of :class:`~snapjump_cli.fe.harmonics.HarmonicOperator` does).
+        axis conditions of their harmonics (a mode of :class:`~snapjump_cli.fe.stability.harmonics.HarmonicOperator` does).
     """
 
     solver = "banded"
@@ -84,7 +84,7 @@ class MultiHarmonicModel:
     #: (:func:`snapjump_kernels.multiharmonic.mh_assemble_band`) and factorised by
     #: :func:`snapjump_kernels.multiharmonic_band.bordered_factor_into`, both into reused band
     #: buffers: the same bands and factors bit for bit as with ``False`` (the element matrices,
-    #: :func:`~snapjump_kernels.calls.scatter_band` and :func:`~snapjump_cli.fe.model.factor_bordered`
+    #: :func:`~snapjump_kernels.calls.scatter_band` and :func:`~snapjump_cli.fe.axisym.model.factor_bordered`
     #: into fresh arrays, as before 2026-11-28; kept for ``bench.follow_profile --compare``)
     fused_assembly: bool = True
     #: band buffers kept for reuse (each ``n (kl + 1)`` doubles; more are allocated when all are in use)
@@ -206,8 +206,8 @@ class MultiHarmonicModel:
         ``band_ext`` (its envelope holds anything: the kernels that fill it write all of it).
 
         A buffer of the pool is free when the pool holds the only reference to it: a
-        :class:`~snapjump_cli.fe.model.Linearization` or a
-        :class:`~snapjump_cli.fe.model.BorderedSolver` still using it holds it or a view of it
+        :class:`~snapjump_cli.fe.axisym.model.Linearization` or a
+        :class:`~snapjump_cli.fe.axisym.model.BorderedSolver` still using it holds it or a view of it
         (a view refers to it as its base), so a band in use is never handed out again. Reusing
         the buffers saves allocating, zeroing and faulting in ~15 MB per assembly and
         factorisation (design B, ``N = 4``)."""
@@ -244,7 +244,7 @@ class MultiHarmonicModel:
     def embed(self, u_axi: np.ndarray, modes: dict[int, np.ndarray] | None = None) -> np.ndarray:
         """The free vector of an axisymmetric state ``u_axi`` (of :attr:`base`) plus, optionally,
         harmonic amplitudes ``modes[n] = (nn, 3)`` (``a, b, c`` per node, as
-        :meth:`snapjump_cli.fe.harmonics.HarmonicOperator.to_nodal` gives them)."""
+        :meth:`snapjump_cli.fe.stability.harmonics.HarmonicOperator.to_nodal` gives them)."""
         A = np.zeros(self.dofmap.shape)
         A[:, :2] = self.base.full_displacement(u_axi)
         for n, Am in (modes or {}).items():
@@ -354,7 +354,7 @@ class MultiHarmonicModel:
         return Linearization(self, u, p, R, g, data, V, E)
 
     def measures(self, u: np.ndarray, p: float, lin: Linearization | None = None):
-        """Path measures ``(V, p, w)`` and their derivatives (as :meth:`snapjump_cli.fe.model.Model.measures`)."""
+        """Path measures ``(V, p, w)`` and their derivatives (as :meth:`snapjump_cli.fe.axisym.model.Model.measures`)."""
         dz = np.zeros((3, self.n))
         if lin is not None:
             V = lin.V
@@ -371,7 +371,7 @@ class MultiHarmonicModel:
         return np.array([V, p, u[self.pole_dof]]), dz, np.array([0.0, 1.0, 0.0])
 
     def _factor(self, data, b, c_u, c_p) -> BorderedSolver | None:
-        """The bordered band factorisation (as :func:`snapjump_cli.fe.model.factor_bordered`, whose
+        """The bordered band factorisation (as :func:`snapjump_cli.fe.axisym.model.factor_bordered`, whose
         factors it returns bit for bit; with :attr:`fused_assembly`, into a reused band buffer)."""
         if not self.fused_assembly:
             return factor_bordered(self, data, b, c_u, c_p)

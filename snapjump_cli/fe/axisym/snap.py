@@ -12,7 +12,7 @@ where the path comes back to ``V*``, the lower state on it.
 
 What it found is kept in :class:`SnapStates`. Where the path does not come back to ``V*`` (it can
 fold several times and turn back, docs/physics.md section 5) or comes back on an unstable branch,
-the lower state is found off the path, at fixed volume (:func:`snapjump_cli.fe.lower_state.find_lower_state`).
+the lower state is found off the path, at fixed volume (:func:`snapjump_cli.fe.axisym.lower_state.find_lower_state`).
 :func:`state_at_pressure` solves the state at a given pressure on the path (an outer cap alone).
 """
 from __future__ import annotations
@@ -24,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 
-from snapjump_cli.fe import hermite
+from snapjump_cli.fe.continuation import hermite
 from snapjump_cli.fe.continuation import Path, PathPoint, Tracer
 
 log = logging.getLogger(__name__)

@@ -1,7 +1,7 @@
 """The reported snap metrics (docs/physics.md section 5) of a traced and characterised path.
 
 Pure computation, no solving: from the model, the traced path and its snap states (the upper
-state at ``V*`` and the lower state, :mod:`snapjump_cli.fe.snap`, :mod:`snapjump_cli.fe.lower_state`)
+state at ``V*`` and the lower state, :mod:`snapjump_cli.fe.axisym.snap`, :mod:`snapjump_cli.fe.axisym.lower_state`)
 to the metrics dict (SI units; the stable keys are :data:`snapjump_cli.sweep.rows.RESULT_KEYS`) and the
 curve arrays.
 
@@ -17,20 +17,18 @@ import math
 
 import numpy as np
 
-from snapjump_cli.fe import hermite
+from snapjump_cli.fe.continuation import hermite
 from snapjump_cli.fe.continuation import Path, PathPoint
 from snapjump_cli.mesh.data import solid_volumes
-from snapjump_cli.fe.model import Model
-from snapjump_cli.fe.snap import SnapStates
+from snapjump_cli.schema import SNAP_VALUE_KEYS
+from snapjump_cli.fe.axisym.model import Model
+from snapjump_cli.fe.axisym.snap import SnapStates
 
 __all__ = ["snap_metrics", "scene_curve", "snap_sequence", "hermite_p_dV", "path_p_dV", "path_self_crosses", "loading_peak",
            "path_derivatives"]
 
 _G3 = np.polynomial.legendre.leggauss(4)
 
-#: The metrics that stay ``None`` without a snap (the first keys of the dict, in this order).
-_SNAP_KEYS = ("dE_J", "dE_norm", "dE_energy_J", "dE_path_J", "dE_rel_diff", "dy_pole_m", "dy_pole_upper_m",
-              "dy_pole_norm", "p_star_Pa", "V_star_m3", "h_imp_m", "L0_m")
 
 
 def hermite_p_dV(a: PathPoint, b: PathPoint, h: float, sV: float, sp: float) -> float:
@@ -132,7 +130,7 @@ def loading_peak(points: list[PathPoint], states: SnapStates, sV: float, sp: flo
     """The largest pressure (scaled) on the loading path: from the start up to the upper state,
     or along the whole traced path when there is no volume limit.
 
-    Taken on the path's cubic Hermite curve (:func:`snapjump_cli.fe.hermite.segment_maxima`): the
+    Taken on the path's cubic Hermite curve (:func:`snapjump_cli.fe.continuation.hermite.segment_maxima`): the
     points alone miss a smooth maximum by the curvature times the square of the step. The path
     beyond the upper state is left out: where it rises again, how far it was traced (the trace
     stops once the snap is characterised) would set the value.
@@ -205,7 +203,7 @@ def snap_metrics(
     pole1 = int(mesh.node_sets["pole_lower"][0])
     pole2 = int(mesh.node_sets["pole_upper"][0])
     E_unit = S * L**3
-    metrics: dict = {k: None for k in _SNAP_KEYS}
+    metrics: dict = {k: None for k in SNAP_VALUE_KEYS}
     V_curve = np.array([pt.zeta[0] * sV for pt in pts])
     p_curve = np.array([pt.p for pt in pts])
     dV_seg, dp_seg = path_derivatives(pts, sV, sp)

@@ -1,7 +1,7 @@
 """Stability of a followed branch against the harmonics it does not keep (secondary bifurcations).
 
 A branch of critical harmonic ``n_c`` is traced with the harmonics ``0, n_c, 2 n_c, ...``
-(:func:`snapjump_cli.fe.follow.default_harmonics`): a subspace that the equations leave invariant,
+(:func:`snapjump_cli.fe.branch.bifurcation.default_harmonics`): a subspace that the equations leave invariant,
 so the branch is an exact solution of the full problem. It need not be *stable* in the full
 problem. At a state whose displacement has only multiples of ``n_c``, the second variation
 decouples into classes of harmonics by their residue modulo ``n_c`` (Bloch): the class of 0 is the
@@ -14,7 +14,7 @@ secondary bifurcation) and the followed snap does not happen as traced.
 control in a model with every harmonic ``0, 1, ..., N`` and in the branch's own model: the
 difference is the number of unstable modes outside the branch's subspace. Harmonic 1 carries the
 rigid translation across the axis and the tilt of a free body (exact zero modes at an
-equilibrium); the gauge of :func:`snapjump_cli.fe.follow.harmonic1_gauge` removes them.
+equilibrium); the gauge of :func:`snapjump_cli.fe.branch.bifurcation.harmonic1_gauge` removes them.
 """
 from __future__ import annotations
 
@@ -24,13 +24,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from snapjump_cli.fe.descent import constrained_negatives
-from snapjump_cli.fe.multiharmonic import MultiHarmonicModel, component_index
+from snapjump_cli.fe.axisym.descent import constrained_negatives, descend_at_volume
+from snapjump_cli.fe.axisym.snap import SnapStates, root_on_step
+from snapjump_cli.fe.branch.bifurcation import harmonic1_gauge
+from snapjump_cli.fe.branch.model import MultiHarmonicModel, component_index
+from snapjump_cli.fe.branch.trace import FollowResult, branch_metrics, trace_branch
+from snapjump_cli.fe.continuation import Path, PathPoint, Tracer
+from snapjump_cli.fe.stability.eigen import extra_eigen
 
 log = logging.getLogger(__name__)
 
 __all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
-           "extra_eigen", "locate_secondary", "follow_secondary", "visited_points",
+           "locate_secondary", "follow_secondary", "visited_points",
            "first_extra", "jump_off_branch", "reached_along", "jump_before", "landing_jump", "mode_counts",
            "more_outside", "extra_harmonics", "JUMP_KICK"]
 
@@ -40,8 +45,6 @@ def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray |
     axisymmetric model as ``mh``, harmonic 1's rigid modes gauged out at the axisymmetric state
     ``u_axi`` (default: the stress-free state), its phi rule made of the branch's points (so that
     a state of the branch, :func:`lift`-ed, is an equilibrium of both models alike)."""
-    from snapjump_cli.fe.follow import harmonic1_gauge
-
     base = mh.base
     N = int(mh.hn[-1]) if N is None else int(N)
     if N < int(mh.hn[-1]):
@@ -120,7 +123,7 @@ def visited_points(fr, upto: int) -> list[int]:
     up to index ``upto``: those at which the cavity volume is a new high (inflation only adds
     volume; past a fold traced through, the actuator jumps to the branch's state at the same
     volume further on, and the points between are never reached). A fold recorded on the branch
-    (``fr.folds``, :class:`snapjump_cli.fe.follow.FoldJump`) raises the high to its own volume,
+    (``fr.folds``, :class:`snapjump_cli.fe.branch.trace.FoldJump`) raises the high to its own volume,
     which lies between two path points, and the state a restart lands on counts as passed
     through. From the first point after the bifurcation: at the bifurcation point itself the
     critical eigenvalue is zero, and its sign (so the count of either model) is round-off."""
@@ -151,7 +154,7 @@ def reached_along(fr, j: int) -> bool:
 
 
 def jump_before(fr, j: int):
-    """The recorded fold (:class:`snapjump_cli.fe.follow.FoldJump`) the actuator jumps past last
+    """The recorded fold (:class:`snapjump_cli.fe.branch.trace.FoldJump`) the actuator jumps past last
     before reaching path point ``j``, or ``None``."""
     before = [f for f in (getattr(fr, "folds", None) or []) if f.k < j]
     return before[-1] if before else None
@@ -175,7 +178,7 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
 
     Parameters
     ----------
-    fr : a :class:`snapjump_cli.fe.follow.FollowResult`
+    fr : a :class:`snapjump_cli.fe.branch.trace.FollowResult`
     N : highest harmonic of the full model (default: the branch's highest)
     stride : check every ``stride``-th point the actuator passes through (:func:`visited_points`;
         ``upto`` is always checked)
@@ -235,98 +238,6 @@ def extra_dofs(mh: MultiHarmonicModel, full: MultiHarmonicModel) -> np.ndarray:
     return np.unique(d[d >= 0])
 
 
-def extra_eigen(full: MultiHarmonicModel, u: np.ndarray, p: float, dofs: np.ndarray, scale: float = 1.0,
-                smallest: bool = True):
-    """The smallest eigenvalue of the tangent of ``full`` at ``(u, p)`` restricted to ``dofs`` (the
-    harmonics outside a branch's subspace, decoupled from it at a state of the branch), divided by
-    ``scale``, and its eigenvector as a free vector of ``full``; ``None`` outside the domain or if
-    the eigenvalue solver does not converge.
-
-    Shift-invert Lanczos finds the eigenvalues nearest a shift just below zero: the smallest,
-    unless one lies far below zero. The number of negative eigenvalues (the inertia of the block's
-    band ``LDL^T``, exact by Sylvester's law) tells whether one was missed; then the lowest
-    eigenvalue is bracketed by inertia counts of ``K - sigma I`` (the shift moved down until none
-    is below it, then bisected) and found by shift-invert just below it
-    (:func:`_lowest_eigen`). ``smallest=False`` skips the count: the eigenvalue nearest zero is
-    then what is returned (enough where it is the one that crosses zero: the roots of
-    :func:`locate_secondary`)."""
-    import scipy.sparse.linalg as spla
-
-    lin = full.linearize(u, p)
-    if lin is None:
-        return None
-    K = lin.stiffness().tocsr()[dofs][:, dofs].tocsc()
-    K.sum_duplicates()
-    n_neg = _negative_eigenvalues(K) if smallest else -1
-    d = np.abs(K.diagonal())
-    sigma = -1e-6 * float(np.median(d))  # below the eigenvalue near zero; nearest to it = smallest
-    v0 = np.random.default_rng(0).standard_normal(K.shape[0])  # fixed: reproducible answers
-    try:
-        vals, vecs = spla.eigsh(K, k=min(3, K.shape[0] - 1), sigma=sigma, which="LM", v0=v0)
-        if n_neg > 0 and not (n_neg <= len(vals) and int(np.sum(vals < 0.0)) >= n_neg):
-            vals, vecs = _lowest_eigen(K, float(np.abs(vals).max()), v0)  # one lies further below
-    except spla.ArpackNoConvergence:
-        log.warning("extra_eigen: the eigenvalue solver did not converge")
-        return None
-    if vals is None:
-        return None
-    i = int(np.argmin(vals))
-    x = np.zeros(full.n)
-    x[dofs] = vecs[:, i]
-    return float(vals[i]) / scale, x
-
-
-def _lowest_eigen(K, start: float, v0: np.ndarray, bisections: int = 30):
-    """The lowest eigenvalue of ``K`` (with its vector, as ``eigsh`` returns them): a shift with
-    no eigenvalue below it (the inertia count of ``K - sigma I`` zero), found by moving down from
-    ``-start`` by factors of 4, then bisected against one with an eigenvalue below it, then
-    shift-invert Lanczos from just below the bracket; ``(None, None)`` if no shift is found."""
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
-
-    I = sp.identity(K.shape[0], format="csc")
-
-    def below(sigma: float) -> bool:  # some eigenvalue below sigma (a zero pivot: one at sigma)
-        c = _negative_eigenvalues(K - sigma * I)
-        return c != 0
-
-    hi, lo = 0.0, -max(start, 1e-300)
-    for _ in range(60):
-        if not below(lo):
-            break
-        hi, lo = lo, 4.0 * lo
-    else:
-        return None, None
-    for _ in range(bisections):
-        mid = 0.5 * (lo + hi)
-        if below(mid):
-            hi = mid
-        else:
-            lo = mid
-        if hi - lo <= 1e-6 * abs(hi):
-            break
-    return spla.eigsh(K, k=1, sigma=lo - 1e-3 * (hi - lo), which="LM", v0=v0)
-
-
-def _negative_eigenvalues(K) -> int:
-    """Negative eigenvalues of the sparse symmetric ``K`` (Sylvester: the negative pivots of its
-    band ``LDL^T``, :func:`snapjump_kernels.banded.band_ldlt`, in the order of its rows, which keep
-    the full model's node order); -1 if a pivot is zero to round-off."""
-    from snapjump_kernels.band_layout import envelope_extents
-    from snapjump_kernels.calls import band_ldlt
-
-    C = K.tocoo()
-    low = C.row >= C.col
-    r, c, v = C.row[low], C.col[low], C.data[low]
-    n = K.shape[0]
-    kl = int((r - c).max()) if len(r) else 0
-    ab = np.zeros((n, kl + 1))
-    ab[c, r - c] = v  # A[i, j] = ab[j, i - j] (the entries of a CSC matrix's COO are unique)
-    ext = envelope_extents(C.row, C.col, n, kl)
-    ok, n_neg = band_ldlt(ab, ext)
-    return int(n_neg) if ok else -1
-
-
 @dataclass
 class Secondary:
     """A secondary bifurcation of a followed branch: the branch's state there (a point of its
@@ -352,12 +263,10 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
     consecutive path points on either side of it (``first``: the first point with an extra
     unstable mode, :func:`first_extra`, when already known), then the zero of the smallest
     eigenvalue of the harmonics outside the branch (:func:`extra_eigen`, relative to its value at
-    the stable side) on that step (:func:`snapjump_cli.fe.snap.root_on_step`); ``None`` without a
+    the stable side) on that step (:func:`snapjump_cli.fe.axisym.snap.root_on_step`); ``None`` without a
     bracket of two consecutive points the actuator passes through (:func:`visited_points`).
     ``start``: the stable state the bracket starts from instead of the point before ``first`` (the
     state a jump past a fold lands on, on the path between that point and ``first``)."""
-    from snapjump_cli.fe.snap import root_on_step
-
     if chk.first is None:
         return None
     mh, pts = fr.model, fr.path.points
@@ -407,7 +316,7 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
 def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
     """Check a followed branch against the harmonics it does not keep and, if it loses stability
     to them before its volume limit, trace the branch that leaves it there in the model with every
-    harmonic ``0..N`` (:func:`snapjump_cli.fe.follow.trace_branch`).
+    harmonic ``0..N`` (:func:`snapjump_cli.fe.branch.trace.trace_branch`).
 
     Returns
     -------
@@ -418,8 +327,6 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
         (:func:`visited_points`), there is no secondary bifurcation to locate: the jump itself
         goes on outside the branch (:func:`jump_off_branch`).
     """
-    from snapjump_cli.fe.follow import trace_branch
-
     full = full_model(fr.model, N, fr.bif.u)
     chk = branch_stability(fr, stride=stride, stop_at_first=True, full=full)
     if chk.first is None:
@@ -480,9 +387,9 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     branch (``landing``) that is unstable outside the branch's harmonics: the jump goes on, at the
     fold's volume, to the state that an energy descent at fixed volume in the model with every
     harmonic reaches from the landing state displaced along its unstable mode
-    (:func:`snapjump_cli.fe.descent.descend_at_volume`). The upper state is the fold: the last
+    (:func:`snapjump_cli.fe.axisym.descent.descend_at_volume`). The upper state is the fold: the last
     state the actuator passes through before the landing state: the recorded fold ``jump``
-    (:class:`snapjump_cli.fe.follow.FoldJump`, with the state it lands on) when the branch's trace
+    (:class:`snapjump_cli.fe.branch.trace.FoldJump`, with the state it lands on) when the branch's trace
     located it, else the last path point passed through before ``landing``. ``eigen``: the landing
     state's :func:`extra_eigen`, if already computed.
 
@@ -493,12 +400,6 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
         alone, ``parent`` the branch) and the landing state as the ``Secondary`` (``index`` the
         fold's path index)
     """
-    from snapjump_cli.fe.descent import descend_at_volume
-    from snapjump_cli.fe.follow import FollowResult, _branch_metrics
-    from snapjump_cli.fe.path import Path, PathPoint
-    from snapjump_cli.fe.snap import SnapStates
-    from snapjump_cli.fe.tracer import Tracer
-
     mh, pts = fr.model, fr.path.points
     if jump is not None:
         k_up, up_b, land = jump.k, jump.upper, jump.landing
@@ -528,6 +429,6 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     st = SnapStates(k_before=0, upper=upper, lower=low, lower_method="descent" if low is not None else "")
     out = FollowResult(fr.bif, full, Path(points=[upper]), st, tr, "jump", fr.first_kind, lower_method="descent",
                        lower_note=msg, failure="" if low is not None else msg, parent=fr, secondary=sec)
-    out.metrics = _branch_metrics(out, sc)
+    out.metrics = branch_metrics(out, sc)
     full.release_buffers()
     return out, chk, sec

@@ -1,4 +1,4 @@
-"""The lower state by energy descent at fixed volume (the fallback of :mod:`snapjump_cli.fe.lower_state`
+"""The lower state by energy descent at fixed volume (the fallback of :mod:`snapjump_cli.fe.axisym.lower_state`
 when the fixed-volume path does not reach it): a shifted, volume-constrained Newton iteration from
 the upper state (or a post-snap path point) that restores ``V*`` gradually and goes downhill in
 every mode until the state is stable at fixed volume."""

@@ -14,14 +14,14 @@ __all__ = ["Problem", "ContinuationFailed", "ContinuationSettings", "PathPoint",
 
 
 class Problem(Protocol):
-    """What the continuation needs (see :mod:`snapjump_cli.fe.model`)."""
+    """What the continuation needs (see :mod:`snapjump_cli.fe.axisym.model`)."""
 
     n: int
 
     # optional: ``newton(u, p, scales, tol, max_newton, target=None, riks=None, aux=None, tol_inc=0.0,
     # theta_max=0.5)``,
     # the corrector of :meth:`Tracer.correct` compiled for this problem (see
-    # :meth:`snapjump_cli.fe.model.Model.newton`)
+    # :meth:`snapjump_cli.fe.axisym.model.Model.newton`)
 
     def linearize(self, u: np.ndarray, p: float, stiffness: bool = True):
         """Object with ``.R`` (residual) and ``.factor(c_u, c_p)`` -> solver with
@@ -87,8 +87,8 @@ class ContinuationSettings:
         per failed step (``lab/newton_study.py contraction``)
     mixed_tangent : linearise with the auxiliary field carried along the path, if the problem has one
     step_grow : growth of the next step after a step whose Newton took at most ``n_opt`` iterations
-        (:data:`snapjump_cli.fe.continuation.STEP_GROW` by default; a followed branch grows more
-        slowly, :data:`snapjump_cli.fe.follow.FOLLOW_STEP_GROW`)
+        (:data:`snapjump_cli.fe.continuation.stepping.STEP_GROW` by default; a followed branch grows more
+        slowly, :data:`snapjump_cli.fe.branch.trace.FOLLOW_STEP_GROW`)
     split_steps : a step that turned more than ``max_turn_deg`` is kept, with its half-way point
         added, when each half turns less (else it is rejected and the step halved); the converged
         end point is not thrown away

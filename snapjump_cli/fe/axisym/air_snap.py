@@ -4,23 +4,23 @@ The rubber's equilibrium depends only on the cavity pressure ``p``, so the equil
 ``(u, p)`` traced under volume control (:mod:`snapjump_cli.fe.continuation`) is the set of states under
 air as well; what changes is the control. The syringe's dispensed volume is
 
-    V_d(u, p) = (V(u) - V_cav0) + V0 - V_gas(p)          (eq 9; V_gas: :class:`snapjump_cli.fe.fluid.GasLaw`)
+    V_d(u, p) = (V(u) - V_cav0) + V0 - V_gas(p)          (eq 9; V_gas: :class:`snapjump_cli.fe.axisym.fluid.GasLaw`)
 
 and the gas is a spring of compliance ``c(p) = -dV_gas/dp`` in series with the actuator. Hence:
 
 * **The snap** comes at the first limit point of ``V_d`` along the path, where
   ``dV/ds + c dp/ds`` changes sign from + to -: between the pressure maximum (``V0 -> infinity``)
   and the volume limit ``V*`` (``V0 -> 0``). :class:`AirSnap` watches the trace for it and locates
-  it as the root of ``dV_d/ds`` on a re-solved step (as :mod:`snapjump_cli.fe.snap` does for ``V*``).
+  it as the root of ``dV_d/ds`` on a re-solved step (as :mod:`snapjump_cli.fe.axisym.snap` does for ``V*``).
 * **The post-snap state** is at the same ``V_d``: on the path where it comes back to ``V_d*`` with
   ``dV_d/ds > 0`` (solved exactly there under the gas constraint), if that state is stable under
-  the gas; else off the path by the fixed-volume path of :mod:`snapjump_cli.fe.lower_state` with the
+  the gas; else off the path by the fixed-volume path of :mod:`snapjump_cli.fe.axisym.lower_state` with the
   constraint ``V(u) + V0 - V_gas(p) = V_d*`` (:class:`GasControlled`).
 * **Stability under the gas**: the stiffness is ``K_T + g g^T / c`` (``g = dV/du``), between
   pressure control (``c -> infinity``: ``K_T``) and volume control (``c -> 0``); its unstable
-  modes are ``neg(K_T) - [c + g^T K_T^-1 g < 0]`` (:func:`snapjump_cli.fe.lower_state.constrained_instability`).
+  modes are ``neg(K_T) - [c + g^T K_T^-1 g < 0]`` (:func:`snapjump_cli.fe.axisym.lower_state.constrained_instability`).
 * **The energy released** is that of rubber and gas, ``dE = [W + G](upper) - [W + G](lower)``
-  with the gas energy ``G(p)`` (:meth:`snapjump_cli.fe.fluid.GasLaw.energy`); along the path
+  with the gas energy ``G(p)`` (:meth:`snapjump_cli.fe.axisym.fluid.GasLaw.energy`); along the path
   ``d(W + G)/ds = p dV_d/ds``, so it is also ``-integral p dV_d`` from the upper to the lower state
   (the area between the path in the ``(V_d, p)`` plane and the line ``V_d = V_d*``). Both are
   computed; they agree to the quadrature's accuracy when the lower state is on the path.
@@ -38,22 +38,21 @@ import math
 
 import numpy as np
 
-from snapjump_cli.fe import hermite
+from snapjump_cli.fe.continuation import hermite
 from snapjump_cli.fe.continuation import Path, PathPoint, Tracer
-from snapjump_cli.fe.fluid import FluidSettings, GasLaw
-from snapjump_cli.fe.lower_state import LowerState, constrained_instability, find_lower_state
-from snapjump_cli.fe.metrics import path_p_dV, snap_metrics, snap_sequence
-from snapjump_cli.sweep.rows import AIR_KEYS
-from snapjump_cli.fe.snap import SnapStates, SnapTracker, root_on_step
+from snapjump_cli.fe.axisym.fluid import FluidSettings, GasLaw
+from snapjump_cli.fe.axisym.lower_state import LowerState, constrained_instability, find_lower_state
+from snapjump_cli.fe.axisym.metrics import path_p_dV, snap_metrics, snap_sequence
+from snapjump_cli.fe.axisym.snap import SnapStates, SnapTracker, root_on_step
+from snapjump_cli.schema import AIR, AIR_SNAP_KEYS, columns
 
 log = logging.getLogger(__name__)
 
-__all__ = ["GasControlled", "AirSnap", "fluid_keys"]
+__all__ = ["GasControlled", "AirSnap", "fluid_keys", "AIR_KEYS"]
 
-#: The snap metrics that describe the air snap in an air run (the water run's are kept as ``water_*``).
-_SNAP_KEYS = ("dE_J", "dE_norm", "dE_energy_J", "dE_path_J", "dE_rel_diff", "dy_pole_m", "dy_pole_upper_m",
-              "dy_pole_norm", "p_star_Pa", "V_star_m3", "h_imp_m", "L0_m", "snaps", "lower_state_method",
-              "lower_state_solver", "lower_state_note", "p_lower_Pa", "max_dilatation")
+#: The row keys of air (:data:`snapjump_cli.schema.AIR`).
+AIR_KEYS: tuple[str, ...] = columns(AIR)
+
 SNAP_DONE = "snap characterised"
 
 
@@ -70,7 +69,7 @@ class GasControlled:
 
     A :class:`~snapjump_cli.fe.continuation.Tracer` on it (Python corrector) solves states at a given
     ``V_d`` (``target=(0, value)``) and judges their stability under the gas
-    (:func:`snapjump_cli.fe.lower_state.constrained_instability`). Scaled units, as the model.
+    (:func:`snapjump_cli.fe.axisym.lower_state.constrained_instability`). Scaled units, as the model.
     """
 
     def __init__(self, model, gas: GasLaw) -> None:
@@ -212,7 +211,7 @@ class AirSnap:
     def lower_state(self, points: list[PathPoint], why: str) -> LowerState:
         """The post-snap state under air: on the path if it came back to ``V_d*`` on a branch
         stable under the gas, else off the path at fixed ``V_d`` (the fixed-volume path of
-        :func:`snapjump_cli.fe.lower_state.find_lower_state` under the gas constraint). Sets
+        :func:`snapjump_cli.fe.axisym.lower_state.find_lower_state` under the gas constraint). Sets
         ``states.lower`` and ``states.lower_method``."""
         st = self.states
         if st.upper is None:
@@ -229,7 +228,7 @@ class AirSnap:
         return constrained_instability(self.control, lin) if lin is not None else -1
 
     def metrics(self, model, path: Path, water: dict, low: LowerState, scales: tuple[float, float, float]) -> dict:
-        """The metrics of an air run: those of :func:`snapjump_cli.fe.metrics.snap_metrics` for the air
+        """The metrics of an air run: those of :func:`snapjump_cli.fe.axisym.metrics.snap_metrics` for the air
         snap (``dE_J`` of rubber and gas), the :data:`AIR_KEYS`, and the water run's diagnostics."""
         st = self.states
         L, S = model.L, model.S
@@ -239,7 +238,7 @@ class AirSnap:
         out.update(air_V0_m3=self.fluid.V0_m3, air_gamma=float(self.fluid.gamma), air_p0_Pa=float(self.fluid.p0),
                    water_dE_J=water["dE_J"], water_dy_pole_m=water["dy_pole_m"], water_h_imp_m=water["h_imp_m"])
         air = snap_metrics(model, path, st, scales, lower_solver=low.solver, lower_note=low.note)
-        for k in _SNAP_KEYS:
+        for k in AIR_SNAP_KEYS:
             out[k] = air.get(k)
         if st.upper is None:
             return out

@@ -1,7 +1,7 @@
 """Initial geometric imperfections: how sensitive is a design's snap to a moulding error?
 
 A real actuator is not a perfect solid of revolution. This module gives the multi-harmonic model
-(:class:`~snapjump_cli.fe.multiharmonic.MultiHarmonicModel`) a stress-free reference that is the
+(:class:`~snapjump_cli.fe.branch.model.MultiHarmonicModel`) a stress-free reference that is the
 perfect body displaced by a shape of harmonic ``n``, and traces the imperfect actuator from
 rest to its snap under volume control. There is then no bifurcation to switch at: the path is
 non-axisymmetric from the start and the snap is the volume limit of that path.
@@ -15,7 +15,7 @@ non-axisymmetric from the start and the snap is the volume limit of that path.
 * **Trace** (:func:`trace_imperfect`): harmonics ``0, n, 2n, ... N`` (default ``4 n``), from the
   stress-free imperfect state with the continuation and snap tracker of the axisymmetric path;
   the lower state and the metrics as for a followed branch
-  (:func:`snapjump_cli.fe.follow.multiharmonic_snap_metrics`).
+  (:func:`snapjump_cli.fe.branch.metrics.multiharmonic_snap_metrics`).
 """
 from __future__ import annotations
 
@@ -27,20 +27,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from snapjump_cli.fe.continuation import ContinuationFailed, Path, Tracer, trace
-from snapjump_cli.fe.follow import (
-    BranchTracker,
-    micro_energy,
-    tracker_bounds,
-    default_harmonics,
-    harmonic1_gauge,
-    locate_bifurcation,
-    lowest_eigen,
-    multiharmonic_snap_metrics,
-)
-from snapjump_cli.fe.harmonics import harmonic_operator
-from snapjump_cli.fe.lower_state import find_lower_state
-from snapjump_cli.fe.multiharmonic import MultiHarmonicModel, component_index
-from snapjump_cli.fe.snap import SnapStates
+from snapjump_cli.fe.branch.trace import BranchTracker, micro_energy, tracker_bounds
+from snapjump_cli.fe.branch.bifurcation import default_harmonics, harmonic1_gauge, locate_bifurcation
+from snapjump_cli.fe.stability.eigen import lowest_eigen
+from snapjump_cli.fe.branch.metrics import multiharmonic_snap_metrics
+from snapjump_cli.fe.stability.harmonics import harmonic_operator
+from snapjump_cli.fe.axisym.lower_state import find_lower_state
+from snapjump_cli.fe.branch.model import MultiHarmonicModel, component_index
+from snapjump_cli.fe.axisym.snap import SnapStates
 
 log = logging.getLogger(__name__)
 
@@ -137,7 +131,7 @@ def trace_imperfect(result, shape: ImperfectionShape, delta: float, thickness: f
     Returns
     -------
     ImperfectResult
-        with ``metrics``: those of :func:`snapjump_cli.fe.follow.multiharmonic_snap_metrics` and
+        with ``metrics``: those of :func:`snapjump_cli.fe.branch.metrics.multiharmonic_snap_metrics` and
         ``imp_n``, ``imp_delta``, ``imp_amplitude_m``, ``imp_shape``, ``imp_cpu_s``, ``imp_steps``,
         ``imp_stop`` (why the trace stopped), ``imp_note`` (says so when the path has no volume
         limit: the imperfect actuator then does not snap)

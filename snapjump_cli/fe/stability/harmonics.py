@@ -1,6 +1,6 @@
 """Stability of axisymmetric states against non-axisymmetric perturbations (Fourier harmonics).
 
-At an axisymmetric equilibrium ``(u, p)`` of :class:`snapjump_cli.fe.model.Model`, the second
+At an axisymmetric equilibrium ``(u, p)`` of :class:`snapjump_cli.fe.axisym.model.Model`, the second
 variation of the 3D potential ``Pi = W - p (V - V*)`` restricted to perturbations
 
     u_r = a(R, Z) cos n phi,   u_z = b(R, Z) cos n phi,   u_phi = c(R, Z) sin n phi
@@ -44,11 +44,12 @@ from __future__ import annotations
 import logging
 import time
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
 from snapjump_cli.mesh.data import number_dofs
+from snapjump_cli.schema import HARMONIC_CHECK, columns, keys
 from snapjump_kernels.calls import (
     band_ldlt,
     envelope_extents,
@@ -64,21 +65,47 @@ __all__ = [
     "ZERO_TOL",
     "HarmonicOperator",
     "harmonic_operator",
-    "harmonic_tangent",
-    "harmonic_inertia",
     "rigid_modes",
     "check_harmonics",
     "HARMONIC_KEYS",
+    "HarmonicCheck",
 ]
 
 #: Eigenvalues of ``(K_n, M_n)`` above ``-ZERO_TOL * mu_min`` (scaled units) count as zero, not negative.
 ZERO_TOL = 1e-6
 
-#: The keys :func:`check_harmonics` returns.
-HARMONIC_KEYS: tuple[str, ...] = (
-    "asym_first", "asym_n", "asym_ns", "asym_V_m3", "asym_p_Pa", "asym_lower_stable", "asym_lower_n",
-    "asym_n_max", "asym_states_checked", "asym_wall_s",
-)
+#: The keys of :class:`HarmonicCheck` (:data:`snapjump_cli.schema.HARMONIC_CHECK`).
+HARMONIC_KEYS: tuple[str, ...] = keys(HARMONIC_CHECK)
+
+
+@dataclass
+class HarmonicCheck:
+    """What :func:`check_harmonics` found, under the keys of :data:`HARMONIC_KEYS`:
+    ``asym_first`` (some harmonic became unstable before V*), ``asym_n`` (the lowest unstable
+    harmonic at the first unstable state), ``asym_ns`` (all unstable harmonics there, comma
+    separated), ``asym_V_m3`` / ``asym_p_Pa`` (cavity volume and pressure of that state, SI),
+    ``asym_lower_stable`` (the lower state is stable against every harmonic; None without a snap),
+    ``asym_lower_n`` (its lowest unstable harmonic), ``asym_n_max``, ``asym_states_checked``,
+    ``asym_wall_s``."""
+
+    asym_first: bool = False
+    asym_n: int | None = None
+    asym_ns: str | None = None
+    asym_V_m3: float | None = None
+    asym_p_Pa: float | None = None
+    asym_lower_stable: bool | None = None
+    asym_lower_n: int | None = None
+    asym_n_max: int | None = None
+    asym_states_checked: int | None = None
+    asym_wall_s: float | None = None
+
+    def as_row(self) -> dict:
+        """The row's columns of the harmonic check (:func:`snapjump_cli.schema.columns`)."""
+        return {k: getattr(self, k) for k in columns(HARMONIC_CHECK)}
+
+    def as_dict(self) -> dict:
+        """Every key, the diagnostics included."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 def phi_weights(n: int) -> tuple[float, float]:
@@ -154,7 +181,7 @@ class HarmonicOperator:
 
     Parameters
     ----------
-    model : the axisymmetric :class:`snapjump_cli.fe.model.Model`
+    model : the axisymmetric :class:`snapjump_cli.fe.axisym.model.Model`
     n : harmonic number (``n = 0`` uses the model's own constraints: ``K_0`` restricted to
         ``(a, b)`` is the model's ``K_T``, and ``c`` is the decoupled torsion)
     free_body : ignore the ``dirichlet_*`` node sets for ``n >= 1`` (their only role is to remove
@@ -486,26 +513,6 @@ def harmonic_operator(model, n: int, free_body: bool | None = None) -> HarmonicO
     return per_model[key]
 
 
-def harmonic_tangent(model, u: np.ndarray, p: float, n: int, free_body: bool | None = None):
-    """``K_n`` at ``(u, p)`` (scipy CSR, amplitudes numbered by :func:`harmonic_operator`)."""
-    return harmonic_operator(model, n, free_body).matrix(u, p)
-
-
-def harmonic_inertia(model, u: np.ndarray, p: float, n: int, tol: float = ZERO_TOL,
-                     free_body: bool | None = None) -> int:
-    """Number of unstable modes of harmonic ``n >= 1`` at the equilibrium ``(u, p)``.
-
-    For ``n >= 1`` volume control does not constrain the harmonic (docs/harmonics.md), so this is
-    the number of negative eigenvalues of ``K_n`` (rigid modes removed, eigenvalues above
-    ``-tol * mu_min`` of the pencil ``(K_n, M_n)`` counted as zero); -1 if the state is outside
-    the Gent domain.
-    """
-    if n < 1:
-        raise ValueError("harmonic_inertia needs n >= 1 (n = 0 is constrained by the cavity volume: "
-                         "see snapjump_cli.fe.lower_state.constrained_instability)")
-    return harmonic_operator(model, n, free_body).inertia(u, p, tol)
-
-
 def _unstable_harmonics(ops, u, p, tol, first_only: bool) -> list[int]:
     """The harmonics of ``ops`` unstable at ``(u, p)`` (the first only, with ``first_only``); the
     element pass at ``u`` is made once for all of them (:func:`state_parts`)."""
@@ -555,7 +562,7 @@ class _State:
 
 
 def check_harmonics(result, n_max: int, tol: float = ZERO_TOL, free_body: bool | None = None,
-                    scan_all: bool = False, refine: int = 6) -> dict:
+                    scan_all: bool = False, refine: int = 6) -> HarmonicCheck:
     """Stability against harmonics ``1..n_max`` along a solved scene.
 
     Checks every converged path state up to the snap (``path.points[: k_before + 1]`` and the
@@ -578,13 +585,7 @@ def check_harmonics(result, n_max: int, tol: float = ZERO_TOL, free_body: bool |
 
     Returns
     -------
-    dict
-        ``asym_first`` (bool: some harmonic became unstable before V*), ``asym_n`` (the lowest
-        unstable harmonic at the first unstable state), ``asym_ns`` (all unstable harmonics there,
-        comma separated), ``asym_V_m3`` / ``asym_p_Pa`` (cavity volume and pressure of that state,
-        SI), ``asym_lower_stable`` (bool: the lower state is stable against every harmonic; None
-        without a snap), ``asym_lower_n`` (its lowest unstable harmonic), ``asym_n_max``,
-        ``asym_states_checked``, ``asym_wall_s``.
+    HarmonicCheck
     """
     if n_max < 1:
         raise ValueError(f"n_max must be >= 1, got {n_max}")
@@ -597,22 +598,21 @@ def check_harmonics(result, n_max: int, tol: float = ZERO_TOL, free_body: bool |
         states = list(pts[: st.k_before + 1]) + [upper]
     else:
         states = list(pts)
-    out = {k: None for k in HARMONIC_KEYS}
-    out.update(asym_first=False, asym_n_max=int(n_max))
+    out = HarmonicCheck(asym_first=False, asym_n_max=int(n_max))
     checked = 0
     prev = None
     for pt in states:
         bad = _unstable_harmonics(ops, pt.u, pt.p, tol, first_only=False)
         checked += 1
-        if bad and not out["asym_first"]:
+        if bad and not out.asym_first:
             first = pt
             tracer = getattr(result, "tracer", None)
             if refine > 0 and prev is not None and tracer is not None and upper is not None \
                     and prev.zeta[0] < pt.zeta[0]:
                 first, bad = _refine(tracer, ops, prev, pt, bad, tol, refine)
                 checked += refine
-            out.update(asym_first=True, asym_n=bad[0], asym_ns=",".join(map(str, bad)),
-                       asym_V_m3=float(model.volume(first.u) * L3), asym_p_Pa=float(first.p * S))
+            out.asym_first, out.asym_n, out.asym_ns = True, bad[0], ",".join(map(str, bad))
+            out.asym_V_m3, out.asym_p_Pa = float(model.volume(first.u) * L3), float(first.p * S)
             if not scan_all:
                 break
         prev = pt
@@ -620,11 +620,11 @@ def check_harmonics(result, n_max: int, tol: float = ZERO_TOL, free_body: bool |
     if upper is not None and lower is not None:
         bad = _unstable_harmonics(ops, lower.u, lower.p, tol, first_only=True)
         checked += 1
-        out["asym_lower_stable"] = not bad
-        out["asym_lower_n"] = bad[0] if bad else None
-    out["asym_states_checked"] = checked
-    out["asym_wall_s"] = time.perf_counter() - t0
+        out.asym_lower_stable = not bad
+        out.asym_lower_n = bad[0] if bad else None
+    out.asym_states_checked = checked
+    out.asym_wall_s = time.perf_counter() - t0
     log.info("harmonics 1..%d: %s (%d states, %.2f s)", n_max,
-             f"harmonic {out['asym_n']} unstable at V = {out['asym_V_m3']:.4g} m^3" if out["asym_first"]
-             else "stable up to the snap", checked, out["asym_wall_s"])
+             f"harmonic {out.asym_n} unstable at V = {out.asym_V_m3:.4g} m^3" if out.asym_first
+             else "stable up to the snap", checked, out.asym_wall_s)
     return out

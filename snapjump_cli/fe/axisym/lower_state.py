@@ -1,7 +1,7 @@
 """The post-snap (lower) state at the volume ``V*`` of the upper state (docs/physics.md section 5).
 
 :func:`find_lower_state` is the entry point. The lower state the snap tracker found on the path
-(:mod:`snapjump_cli.fe.snap`) is kept if it is stable under volume control
+(:mod:`snapjump_cli.fe.axisym.snap`) is kept if it is stable under volume control
 (:func:`constrained_instability`: the inertia of the band LDL^T). Otherwise, and where the path did
 not come back to ``V*``, the lower state is found off the path, at fixed volume
 (``lower_state_method="descent"``): by displacement control of the snap
@@ -53,8 +53,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from snapjump_cli.fe.continuation import ContinuationFailed, PathPoint, Tracer, start_point, trace
-from snapjump_cli.fe.descent import constrained_negatives, descend_at_volume, descent_starts
-from snapjump_cli.fe.snap import SnapStates, root_on_step
+from snapjump_cli.fe.axisym.descent import constrained_negatives, descend_at_volume, descent_starts
+from snapjump_cli.fe.axisym.snap import SnapStates, root_on_step
 from snapjump_kernels.calls import band_ldlt_solve, sym_band_matvec
 
 log = logging.getLogger(__name__)
@@ -109,7 +109,7 @@ def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint]
     why : why the path gave no lower state (the continuation's failure or stop reason), for the
         messages
     control : another control than the cavity volume (a gas in series,
-        :class:`snapjump_cli.fe.air_snap.GasControlled`): a tracer whose problem's first measure is
+        :class:`snapjump_cli.fe.axisym.air_snap.GasControlled`): a tracer whose problem's first measure is
         the controlled volume; the lower state is then found at that volume
 
     Returns
@@ -219,7 +219,7 @@ class FixedVolumeProblem:
 
     Parameters
     ----------
-    model : the FE model (:class:`snapjump_cli.fe.model.Model`)
+    model : the FE model (:class:`snapjump_cli.fe.axisym.model.Model`)
     V_star : the volume (scaled, as ``Linearization.V``)
     e : the controlled direction (length ``model.n``; a unit vector on one dof is a point force)
     c_V : weight of the volume equation (force / volume)

@@ -408,7 +408,7 @@ def factor_bordered(owner, data: np.ndarray, b: np.ndarray, c_u: np.ndarray, c_p
     """The bordered band factorisation of a problem's tangent ``data`` (lower band, ``owner.n`` x
     ``owner.kl + 1``, envelope ``owner.band_ext``), counted and timed in ``owner.n_factorizations``
     and ``owner.t_factor``; ``None`` if it is singular. Shared by :class:`Model` and
-    :class:`snapjump_cli.fe.multiharmonic.MultiHarmonicModel`."""
+    :class:`snapjump_cli.fe.branch.model.MultiHarmonicModel`."""
     t0 = time.perf_counter()
     n = owner.n
     try:

@@ -1,6 +1,6 @@
 """Arc-length continuation (modified Riks) over a small problem interface.
 
-The continuation sees only (see :mod:`snapjump_cli.fe.model`): ``n``, ``residual(u, p)``,
+The continuation sees only (see :mod:`snapjump_cli.fe.axisym.model`): ``n``, ``residual(u, p)``,
 ``measures(u, p)`` and ``factor_bordered(u, p, c_u, c_p)``. The arc length is measured in the
 space of scaled path measures ``zeta = (V / s_V, p / s_p, w / s_w)`` (cavity volume, pressure,
 pole displacement), so a step means the same thing for every design and neither u nor p
@@ -36,8 +36,8 @@ from typing import Callable
 
 import numpy as np
 
-from snapjump_cli.fe.path import ContinuationFailed, ContinuationSettings, Path, PathPoint, Problem
-from snapjump_cli.fe.tracer import Tracer, start_point
+from snapjump_cli.fe.continuation.path import ContinuationFailed, ContinuationSettings, Path, PathPoint, Problem
+from snapjump_cli.fe.continuation.tracer import Tracer, start_point
 
 log = logging.getLogger(__name__)
 

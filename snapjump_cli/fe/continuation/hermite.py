@@ -2,8 +2,8 @@
 
 The continuation interpolates between two converged path points from their values and arc-length
 tangents: to predict a point inside a step (:meth:`snapjump_cli.fe.continuation.Tracer.step_between`),
-to place a first estimate of a root (:mod:`snapjump_cli.fe.snap`), and to integrate ``p dV`` and test
-the path for self-crossings (:mod:`snapjump_cli.fe.metrics`). The one definition lives here.
+to place a first estimate of a root (:mod:`snapjump_cli.fe.axisym.snap`), and to integrate ``p dV`` and test
+the path for self-crossings (:mod:`snapjump_cli.fe.axisym.metrics`). The one definition lives here.
 """
 
 from __future__ import annotations

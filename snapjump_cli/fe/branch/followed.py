@@ -1,0 +1,177 @@
+"""The design's answer with its followed branch: the one module that sees both the branch's trace
+(:mod:`snapjump_cli.fe.branch.trace`) and its secondary bifurcations
+(:mod:`snapjump_cli.fe.branch.secondary`) (docs/harmonics.md, section 10).
+
+:func:`followed_metrics` locates the bifurcation of the first unstable harmonic, follows its
+branch to its snap and, for a branch that keeps only multiples of ``n_c >= 2``, the branch that
+leaves it where it loses stability to the other harmonics first (:func:`leave_at_secondary`);
+:func:`apply_followed` makes that snap the design's answer (the keys of
+:data:`snapjump_cli.schema.FOLLOWED`).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
+from snapjump_cli.fe.branch.secondary import follow_secondary
+from snapjump_cli.fe.branch.trace import MICRO_FOLD_DE, FollowResult, follow_branch
+from snapjump_cli.fe.limits import TimeLimitExceeded
+from snapjump_cli.schema import FOLLOWED, keys
+
+if TYPE_CHECKING:
+    from snapjump_cli.fe.stability.harmonics import HarmonicCheck
+
+__all__ = ["FOLLOW_KEYS", "REPLACED_KEYS", "FollowedAnswer", "axisym_answer", "followed_metrics",
+           "leave_at_secondary", "apply_followed"]
+
+#: Keys :func:`followed_metrics` adds to a design's metrics (SI units): the followed stage's keys
+#: of :data:`snapjump_cli.schema.FOLLOWED`, columns and diagnostics.
+FOLLOW_KEYS: tuple[str, ...] = keys(FOLLOWED)
+
+
+#: The row keys a followed answer replaces (the axisymmetric values of the first five stay in
+#: ``axisym_*``).
+REPLACED_KEYS: tuple[str, ...] = (
+    "dE_J", "dE_norm", "dE_energy_J", "dE_path_J", "dE_rel_diff", "dy_pole_m", "dy_pole_norm", "dy_pole_upper_m",
+    "h_imp_m", "V_star_m3", "p_star_Pa", "p_lower_Pa", "L0_m", "lower_state_method")
+
+
+@dataclass
+class FollowedAnswer:
+    """The design's answer with its followed branch (:func:`followed_metrics`): ``values``, the keys
+    of :data:`FOLLOW_KEYS` and, for a branch traced to a snap, that snap's metrics (SI units);
+    ``branch``, the followed branch (``None`` when none was traced)."""
+
+    values: dict
+    branch: FollowResult | None = None
+
+    @property
+    def followed(self) -> bool:
+        """Whether the followed snap is the design's answer."""
+        return bool(self.values.get("followed"))
+
+    def as_row(self) -> dict:
+        """What the answer sets in the design's metrics: the keys of :data:`FOLLOW_KEYS`,
+        ``follow_amplitude_m`` and, for a followed answer, the :data:`REPLACED_KEYS` of the
+        followed snap."""
+        row = {k: self.values.get(k) for k in FOLLOW_KEYS}
+        row["follow_amplitude_m"] = self.values.get("follow_amplitude_m")
+        if self.values["followed"]:
+            row.update({k: self.values[k] for k in REPLACED_KEYS if k in self.values})
+        return row
+
+
+def axisym_answer(m: dict, note: str = "") -> dict:
+    """The follow keys of a design that keeps its axisymmetric answer (``m``: its metrics)."""
+    out = {k: None for k in FOLLOW_KEYS}
+    out.update({"axisym_" + k: m.get(k) for k in ("dE_J", "dy_pole_m", "h_imp_m", "V_star_m3", "p_star_Pa")})
+    out.update(followed=False, follow_note=note)
+    return out
+
+
+def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: int | None = None,
+                     secondary: bool = True) -> FollowedAnswer:
+    """The design's answer with the followed branch (the keys of :data:`FOLLOW_KEYS` and the
+    followed ``dE_J``, ``dy_pole_m``, ``h_imp_m``, ``V_star_m3``, ``p_star_Pa``), given the
+    axisymmetric ``result`` and its harmonic ``check``.
+
+    A design whose check finds no harmonic unstable before ``V*`` keeps its axisymmetric answer
+    (``followed`` False, the two sets equal). Otherwise the branch of the first unstable harmonic
+    is traced; if it cannot be followed to a snap the axisymmetric answer is kept and
+    ``follow_note`` says why. With ``secondary``, a branch that keeps only multiples of
+    ``n_c >= 2`` is checked against the other harmonics up to its snap
+    (:func:`snapjump_cli.fe.branch.secondary.follow_secondary`); where it loses stability to them first,
+    the branch that leaves it there is traced with every harmonic and its snap is the answer
+    (``follow_sec_n``, ``follow_sec_V_m3``).
+    """
+    m = result.metrics
+    out = axisym_answer(m)
+    if not check.asym_first or result.states is None or result.states.upper is None:
+        return FollowedAnswer(out)
+    t0 = time.perf_counter()
+    n = int(check.asym_n)
+    bif = locate_bifurcation(result, n)
+    if bif is None:
+        out["follow_note"] = f"bifurcation of harmonic {n} not located"
+        return FollowedAnswer(out)
+    fr = follow_branch(result, bif, default_harmonics(n, N), n_phi=n_phi)
+    note_sec = ""
+    if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:
+        fr, note_sec = leave_at_secondary(result, fr)
+    fm = fr.metrics
+    out.update({k: v for k, v in fm.items() if k in FOLLOW_KEYS})
+    if note_sec:
+        out["follow_note"] = "; ".join(x for x in (note_sec, out.get("follow_note")) if x)
+    if fm.get("dE_J") is None:
+        out["follow_note"] = out.get("follow_note") or "the followed branch did not reach a snap"
+        out["follow_wall_s"] = time.perf_counter() - t0
+        return FollowedAnswer(out, fr)
+    dE_axi = m.get("dE_J")
+    if dE_axi and fm["dE_J"] < MICRO_FOLD_DE * dE_axi:
+        # a fold whose lower state was found off the branch (so the tracker could not trace through
+        # it) and that releases almost nothing: the actuator goes on along the branch to a later
+        # snap that was not traced, so this is not the design's answer
+        out["follow_note"] = "; ".join(x for x in (out.get("follow_note"), (
+            f"the branch's first fold releases {fm['dE_J']:.3g} J, < {MICRO_FOLD_DE:g} of the axisymmetric "
+            "dE: not the snap, and the branch beyond it was not traced")) if x)
+        out["follow_wall_s"] = time.perf_counter() - t0
+        return FollowedAnswer(out, fr)
+    if fm.get("dy_pole_m") is not None and not fm["dy_pole_m"] > 0.0:
+        # the pole moves up in the followed snap: no jump the mass-spring model can describe (a sweep
+        # row with it fails its range check and would lose the axisymmetric answer as well)
+        out["follow_note"] = "; ".join(x for x in (out.get("follow_note"), (
+            f"the followed snap moves the pole up (dy_pole {fm['dy_pole_m']:.3g} m, dE {fm['dE_J']:.3g} J): "
+            "not used as the answer")) if x)
+        out["follow_wall_s"] = time.perf_counter() - t0
+        return FollowedAnswer(out, fr)
+    out["followed"] = True
+    for k in fm:
+        if k not in out or k in REPLACED_KEYS:
+            out[k] = fm[k]
+    out["follow_wall_s"] = time.perf_counter() - t0
+    return FollowedAnswer(out, fr)
+
+
+def leave_at_secondary(result, fr: FollowResult) -> tuple[FollowResult, str]:
+    """The branch the actuator takes when the followed branch ``fr`` loses stability outside its
+    harmonics before its snap (:func:`snapjump_cli.fe.branch.secondary.follow_secondary`), with a note;
+    ``fr`` itself (and no note) when it does not. A secondary branch that cannot be traced to a
+    snap is returned all the same: the design then keeps its axisymmetric answer."""
+    fs, chk, sec = follow_secondary(result, fr)
+    if chk.first is None:
+        return fr, ""
+    n = fr.bif.n
+    if sec is None:
+        V1 = chk.first_V_m3 if chk.first_V_m3 is not None else chk.V_m3[chk.first]
+        fr.metrics.update(dE_J=None, follow_sec_V_m3=V1)
+        return fr, (f"the branch of harmonic {n} is unstable outside its harmonics at V = {V1:.4g} m^3 "
+                    f"(harmonics up to {chk.N}) and no secondary bifurcation was located before it (the actuator "
+                    "may reach that state by a jump past a fold of the branch): not traced further")
+    fs.metrics.update(follow_sec_n=sec.n, follow_sec_V_m3=sec.V_m3, follow_sec_p_Pa=sec.p_Pa)
+    if fs.kind == "jump":
+        return fs, (f"the branch of harmonic {n} folds at V = {fs.metrics.get('V_star_m3') or math.nan:.4g} m^3 and "
+                    f"the state it jumps to on the branch is unstable in harmonic {sec.n}: the jump goes on, at "
+                    f"that volume, to a state with every harmonic 0-{chk.N} (energy descent)")
+    return fs, (f"the branch of harmonic {n} loses stability to harmonic {sec.n} at V = {sec.V_m3:.4g} m^3, "
+                f"before its own snap: the branch that leaves it there is traced with harmonics 0-{chk.N}")
+
+
+def apply_followed(result, check: HarmonicCheck, N: int = 0) -> None:
+    """Follow the branch of ``result`` (a :class:`snapjump_cli.fe.solve.SceneResult` with its harmonic
+    ``check``) and make its snap the design's answer in ``result.metrics`` (the keys of
+    :data:`snapjump_cli.schema.FOLLOWED`; the replaced keys of a followed design describe the
+    followed snap). A design that stays axisymmetric, or whose branch cannot be followed to a snap,
+    keeps its axisymmetric answer (``followed`` False; ``follow_note`` says why)."""
+    m = result.metrics
+    t0 = time.perf_counter()
+    try:
+        answer = followed_metrics(result, check, N=N or None)
+    except TimeLimitExceeded as exc:  # keep the axisymmetric answer, say why
+        answer = FollowedAnswer(axisym_answer(m, f"branch not followed to its snap: {exc}"))
+        answer.values["follow_n"] = check.asym_n
+    result.follow = answer.branch
+    m.update(answer.as_row())
+    m["wall_s"] = (m.get("wall_s") or 0.0) + (time.perf_counter() - t0)

@@ -1,0 +1,418 @@
+"""Follow the branch that bifurcates from the axisymmetric path, up to its own snap (docs/harmonics.md, section 10).
+
+Given the bifurcation (:mod:`snapjump_cli.fe.branch.bifurcation`), this module
+
+1. builds the :class:`~snapjump_cli.fe.branch.model.MultiHarmonicModel` with the harmonics
+   ``0, n_c, 2 n_c, ..., N`` (default ``N = 4 n_c``);
+2. leaves the path along the mode: the first Riks step starts at the bifurcation state with the
+   mode as its tangent, so its hyperplane fixes the mode's amplitude and excludes the
+   axisymmetric path (Newton converges there because the branch is a symmetric pitchfork: the
+   mode's cubic term averages to zero over phi);
+3. traces the bifurcated branch under volume control with the same continuation and snap tracker
+   as the axisymmetric path, through its own limit points, to its volume limit and back to it
+   (:class:`BranchTracker`; folds that release almost nothing are traced through:
+   :func:`trace_through_micro_folds`). Whether the branch rises in volume (supercritical: its own
+   limit comes later) or turns back at once (subcritical: the bifurcation point is the volume
+   limit, and the actuator snaps there) is read off the traced branch, not assumed;
+4. finds the lower state at that volume as the axisymmetric solve does
+   (:func:`snapjump_cli.fe.axisym.lower_state.find_lower_state`, on the branch or off it at fixed
+   volume), and computes the metrics (:func:`branch_metrics`, with
+   :mod:`snapjump_cli.fe.branch.metrics`).
+
+:func:`trace_branch` is also what traces a branch that leaves a followed branch at a secondary
+bifurcation (:mod:`snapjump_cli.fe.branch.secondary`).
+"""
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import numpy as np
+
+from snapjump_cli.fe.axisym.lower_state import constrained_instability, find_lower_state
+from snapjump_cli.fe.axisym.snap import SnapStates, SnapTracker
+from snapjump_cli.fe.branch.bifurcation import Bifurcation, default_harmonics, harmonic1_gauge
+from snapjump_cli.fe.branch.metrics import multiharmonic_snap_metrics
+from snapjump_cli.fe.branch.model import MultiHarmonicModel
+from snapjump_cli.fe.continuation import ContinuationFailed, Path, PathPoint, Tracer, start_point, trace
+
+log = logging.getLogger(__name__)
+
+__all__ = ["FoldJump", "FollowResult", "BranchTracker", "MICRO_FOLD_DE", "REJOIN_FRAC", "FOLLOW_STEP_GROW",
+           "MAX_RESTARTS", "ThroughFolds", "trace_through_micro_folds", "tracker_bounds", "micro_energy",
+           "follow_branch", "trace_branch", "axisym_state_at", "branch_metrics"]
+
+
+@dataclass
+class FoldJump:
+    """A fold of a followed branch that the actuator jumps past before inflation goes on: the last
+    path point before the fold (``k``), the fold (its upper state), the state it lands on at the
+    fold's volume, and that state's path index when it is a path point (a restart from a lower
+    state found off the branch) or ``None`` (a lower state on the path, between two points)."""
+
+    k: int
+    upper: PathPoint
+    landing: PathPoint
+    landing_index: int | None = None
+
+
+@dataclass
+class FollowResult:
+    """A followed branch: its path (from the bifurcation), snap states and model."""
+
+    bif: Bifurcation
+    model: MultiHarmonicModel
+    path: Path
+    states: SnapStates
+    tracer: Tracer
+    kind: str  # "supercritical", "subcritical", "jump" (a jump off a branch, secondary.jump_off_branch) or ""
+    first_kind: str = ""  # how the branch leaves the bifurcation (before folds traced through)
+    lower_method: str = ""
+    lower_note: str = ""
+    failure: str = ""
+    micro_folds: list = field(default_factory=list)  # (V, dE) of folds traced through (scaled)
+    metrics: dict = field(default_factory=dict)
+    #: for a branch that leaves another followed branch at a secondary bifurcation: that branch
+    #: (traced up to its snap or its end) and the located point
+    #: (:class:`snapjump_cli.fe.branch.secondary.Secondary`)
+    parent: "FollowResult | None" = None
+    secondary: object = None
+    #: the folds traced through on the way to the snap (:class:`FoldJump`, in path order)
+    folds: list = field(default_factory=list)
+
+
+@dataclass
+class BranchTracker(SnapTracker):
+    """The snap tracker on a branch that starts at its bifurcation point: after the first step it
+    tells a subcritical branch (the volume falls at once: the start is the volume limit) from a
+    supercritical one (it rises, and the tracker finds the branch's own limit).
+
+    A fold whose snap would release less than ``micro_dE`` (scaled energy) is not taken for the
+    actuator's snap: the branch comes back to that volume with almost the same energy (a small
+    dynamic jump, after which inflation goes on along the branch). It is recorded in
+    ``micro_folds`` and the trace goes on to the branch's next volume limit.
+
+    With ``mode_amplitude`` (state -> the amplitude of the critical mode) and ``asym_amplitude``
+    (state -> the largest amplitude of any harmonic ``n >= 1``), the post-snap trace also stops
+    when the branch passes back through the axisymmetric path: the critical mode's amplitude
+    changes sign between two points at which every harmonic ``n >= 1`` is below ``REJOIN_FRAC`` of
+    its largest amplitude on the branch. Beyond it the branch is the mirror image of the part already
+    traced (a closed loop through the bifurcation, which would otherwise be traced round and
+    round until the post-snap budget runs out) and cannot come back to ``V*`` any more than that
+    part did."""
+
+    kind: str = ""
+    first_kind: str = ""  # the verdict of the first step (before any fold was traced through)
+    micro_dE: float = 0.0
+    micro_folds: list = field(default_factory=list)
+    #: ``(k_before, upper, lower)`` of each micro-fold traced through (indices into this trace's path)
+    fold_states: list = field(default_factory=list)
+    mode_amplitude: Callable[[np.ndarray], float] | None = None
+    asym_amplitude: Callable[[np.ndarray], float] | None = None
+    _asym_max: float = 0.0
+    _mode_sign: float = 0.0
+    _asym_prev: float = math.inf
+
+    def _rejoined(self, new: PathPoint) -> bool:
+        """Whether the step to ``new`` passed back through the axisymmetric path (see the class)."""
+        if self.mode_amplitude is None or self.asym_amplitude is None:
+            return False
+        a, m = self.asym_amplitude(new.u), self.mode_amplitude(new.u)
+        small = max(a, self._asym_prev) < REJOIN_FRAC * self._asym_max
+        crossed = self._mode_sign != 0.0 and m * self._mode_sign < 0.0 and small
+        self._asym_max, self._asym_prev = max(self._asym_max, a), a
+        if self._mode_sign == 0.0 and m != 0.0:
+            self._mode_sign = math.copysign(1.0, m)
+        return crossed
+
+    def __call__(self, path: Path) -> str | None:
+        pts = path.points
+        rejoined = self._rejoined(pts[-1])
+        if rejoined and self.states.upper is not None and self.states.lower is None:
+            return "the branch passed back through the axisymmetric path"
+        if len(pts) == 2 and not self.kind:
+            a, b = pts
+            if b.zeta[0] < a.zeta[0]:
+                self.kind = "subcritical"
+                self.states.k_before = 0
+                self.states.upper = a
+            else:
+                self.kind = "supercritical"
+            self.first_kind = self.kind
+        reason = super().__call__(path)
+        st = self.states
+        if reason == "snap characterised" and self.micro_dE > 0:
+            pb = self.tracer.pb
+            dE = pb.energy(st.upper.u) - pb.energy(st.lower.u)
+            if dE < self.micro_dE:
+                self.micro_folds.append((float(st.upper.zeta[0]), float(dE)))
+                self.fold_states.append((int(st.k_before), st.upper, st.lower))
+                log.debug("branch: fold at V = %.9g releases %.3g < %.3g: traced on", st.upper.zeta[0], dE,
+                          self.micro_dE)
+                self.states = SnapStates(p_max=st.p_max)
+                self.kind = "supercritical"
+                return None
+        return reason
+
+
+#: A fold of a followed branch whose snap releases less than this fraction of the axisymmetric
+#: snap's energy is traced through, not reported as the actuator's snap.
+MICRO_FOLD_DE = 1e-2
+
+
+#: :class:`BranchTracker`: "back on the axisymmetric path" means every harmonic ``n >= 1`` below
+#: this fraction of its largest amplitude on the branch.
+REJOIN_FRAC = 0.25
+
+
+#: Step growth of the followed branch's continuation (the axisymmetric trace's is 1.6): on design B
+#: and the Fig. S16 cap a third of the branch's Riks corrections failed at 1.6 and were cut back;
+#: at 1.2 the branch takes 16-18 % fewer assemblies, with answers equal to 1.5e-13
+#: (``python -m bench.follow_profile B --step-grow 1.6 1.2``).
+FOLLOW_STEP_GROW = 1.2
+
+
+#: Folds whose lower state, found off the branch, releases less than ``MICRO_FOLD_DE``: inflation
+#: goes on from that lower state, at most this many times.
+MAX_RESTARTS = 3
+
+
+@dataclass
+class ThroughFolds:
+    """What :func:`trace_through_micro_folds` traced: the joined path, the last trace's tracker (its
+    states indexed into the joined path), failure, lower state, every micro-fold ``(V, dE)`` and the
+    number of restarts from an off-branch lower state."""
+
+    path: Path
+    tracker: "BranchTracker"
+    failure: str
+    lower: object
+    micro_folds: list
+    restarts: int
+    first_kind: str
+    folds: list = field(default_factory=list)  # every fold traced through (:class:`FoldJump`)
+
+
+def trace_through_micro_folds(run: Callable, start: PathPoint, lower_state: Callable, energy: Callable,
+                              restart_at: Callable, micro_dE: float, max_restarts: int = MAX_RESTARTS) -> ThroughFolds:
+    """Trace a branch to its snap, going on past folds that release almost nothing.
+
+    ``run(first) -> (path, tracker, failure)`` traces from ``first`` (a :class:`BranchTracker`
+    stops it; folds whose lower state lies on the path and releases less than ``micro_dE`` are
+    traced through there). When the trace's volume limit has its lower state off the path
+    (``lower_state(tracker, path, why)``, :func:`snapjump_cli.fe.axisym.lower_state.find_lower_state`,
+    method ``"descent"``) and that state releases ``0 < dE < micro_dE`` (``energy(u)``), the
+    actuator makes a small dynamic jump to it and inflation goes on from there: ``run`` again from
+    ``restart_at(lower state)``, at most ``max_restarts`` times. The path returned is the branch up
+    to each such fold followed by the last trace, with the last tracker's indices shifted to it.
+    """
+    path, tracker, failure = run(start)
+    first_kind, micro_folds = tracker.first_kind, list(tracker.micro_folds)
+    kept: list[PathPoint] = []  # the branch before the restarts (up to each restart's fold)
+    restarts, low = 0, None
+    folds: list[FoldJump] = []
+    off = 0  # where the current trace starts in the joined path
+    while True:
+        st = tracker.states
+        low = lower_state(tracker, path, failure or path.stop_reason) if st.upper is not None else None
+        if low is not None:
+            st.lower, st.lower_method = low.state, low.method
+        dE = energy(st.upper.u) - energy(low.state.u) if low is not None and low.state is not None else None
+        if (restarts >= max_restarts or dE is None or low.method != "descent" or micro_dE <= 0.0
+                or not 0.0 < dE < micro_dE):  # (dE <= 0: the search came back to the fold itself)
+            break
+        micro_folds.append((float(st.upper.zeta[0]), float(dE)))
+        log.debug("branch: fold at V = %.9g whose lower state, off the branch, releases %.3g < %.3g: inflation "
+                  "goes on from it", st.upper.zeta[0], dE, micro_dE)
+        try:
+            first = restart_at(low.state)
+        except ContinuationFailed as exc:
+            failure = f"no path from the lower state of a fold releasing {dE:.3g}: {exc}"
+            break
+        kept += path.points[: st.k_before + 1]
+        folds += [FoldJump(k + off, up, lo) for k, up, lo in getattr(tracker, "fold_states", ()) if k <= st.k_before]
+        folds.append(FoldJump(st.k_before + off, st.upper, first, len(kept)))  # lands on the restart's first point
+        off = len(kept)
+        restarts += 1
+        path, tracker, failure = run(first)
+        micro_folds += tracker.micro_folds
+    if kept:  # one path: the branch up to each restart's fold, then the last trace
+        offset = len(kept)
+        path = Path(points=kept + path.points, n_newton=path.n_newton, n_rejected=path.n_rejected,
+                    n_split=path.n_split, n_bifurcations=path.n_bifurcations, stop_reason=path.stop_reason)
+        st = tracker.states
+        for k in ("k_before", "k_return"):
+            if getattr(st, k) is not None:
+                setattr(st, k, getattr(st, k) + offset)
+    st = tracker.states
+    last = st.k_before if st.upper is not None and st.k_before is not None else len(path.points) - 1
+    folds += [FoldJump(k + off, up, lo) for k, up, lo in getattr(tracker, "fold_states", ()) if k + off <= last]
+    return ThroughFolds(path, tracker, failure, low, micro_folds, restarts, first_kind, folds)
+
+
+def tracker_bounds(result, post_snap_steps: int | None = None) -> tuple[float, float, int]:
+    """``(p_stop, V_stop, post_snap_steps)`` of a multi-harmonic trace from the axisymmetric solve
+    ``result``: those of its own tracker (``result.stop_args``), or bounds from its path (1.5 times
+    its largest pressure, 30 times its largest volume, 1500 post-snap steps) when it has none;
+    ``post_snap_steps`` overrides the budget."""
+    stop = getattr(result, "stop_args", None) or {}
+    p_stop = stop.get("p_stop", 1.5 * max(pt.p for pt in result.path.points))
+    V_stop = stop.get("V_stop", 30.0 * max(pt.zeta[0] for pt in result.path.points))
+    post = post_snap_steps if post_snap_steps is not None else stop.get("post_snap_steps", 1500)
+    return p_stop, V_stop, post
+
+
+def micro_energy(result, micro: float) -> float:
+    """The scaled energy below which a fold's snap is a micro-fold: ``micro`` times the axisymmetric
+    snap's energy of ``result`` (0 when it has no snap)."""
+    st0 = result.states
+    if st0 is None or st0.upper is None or st0.lower is None:
+        return 0.0
+    return micro * (result.model.energy(st0.upper.u) - result.model.energy(st0.lower.u))
+
+
+def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: int | None = None,
+                  micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
+                  step_grow: float = FOLLOW_STEP_GROW) -> FollowResult:
+    """Trace the branch of ``bif`` with the harmonics ``hn`` (default :func:`default_harmonics`)
+    from the bifurcation through its volume limit to the lower state at that volume.
+
+    Parameters
+    ----------
+    result : the axisymmetric :class:`snapjump_cli.fe.solve.SceneResult`
+    bif : :func:`locate_bifurcation`'s answer
+    hn, n_phi : harmonics and phi rule of the :class:`MultiHarmonicModel`
+    micro : a fold of the branch releasing less than this fraction of the axisymmetric snap's
+        energy is traced through (``micro_folds``), not reported as the snap
+    max_steps : bound on the branch's continuation steps (default: the axisymmetric trace's)
+    step_grow : the continuation's step growth (:data:`FOLLOW_STEP_GROW`)
+
+    Returns
+    -------
+    FollowResult
+        with ``kind`` and ``metrics`` (:func:`followed_metrics`'s keys without the axisymmetric ones)
+    """
+    t0 = time.perf_counter()
+    base = result.model
+    hn = default_harmonics(bif.n) if hn is None else list(hn)
+    mh = MultiHarmonicModel(base, hn, n_phi=n_phi, gauge=harmonic1_gauge(base, bif.n, bif.u))
+    U_c = mh.embed(bif.u)
+    Phi = mh.embed(np.zeros(base.n), {bif.n: bif.mode})
+    fr = trace_branch(result, bif, mh, U_c, bif.p, Phi, [int(n) for n in mh.hn[1:]], micro=micro,
+                      max_steps=max_steps, step_grow=step_grow)
+    fr.metrics["follow_wall_s"] = time.perf_counter() - t0
+    return fr
+
+
+def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarray, p_c: float, Phi: np.ndarray,
+                 asym_harmonics: list[int], micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
+                 step_grow: float = FOLLOW_STEP_GROW) -> FollowResult:
+    """Trace the branch of the model ``mh`` that leaves the equilibrium ``(U_c, p_c)`` along
+    ``Phi`` (a bifurcation point and its critical mode, as free vectors of ``mh``) through its volume
+    limit to the lower state at that volume (:func:`follow_branch` for a branch of the axisymmetric
+    path, :func:`snapjump_cli.fe.branch.secondary.follow_secondary` for one of a followed branch).
+
+    ``asym_harmonics``: the harmonics whose amplitudes measure the distance from the branch left
+    behind (the post-snap trace stops when it passes back through it: :class:`BranchTracker`);
+    ``bif``: the bifurcation from the axisymmetric path that the answer is reported under; the
+    other parameters as in :func:`follow_branch`.
+    """
+    tr0 = result.tracer
+    cfg = replace(tr0.cfg, fused=False, mixed_tangent=False, step_grow=float(step_grow))
+    if max_steps is not None:
+        cfg = replace(cfg, max_steps=int(max_steps))
+    tr = Tracer(mh, cfg)
+    alpha = tr.alpha
+    if alpha <= 0.0:
+        raise ValueError("following a branch needs u_scale > 0 (the arc length must see the displacement)")
+    du_ds = Phi / (alpha * float(np.linalg.norm(Phi)))
+    z_c = tr.zeta(U_c, p_c)[0]
+    start = PathPoint(U_c, p_c, z_c, np.zeros(len(z_c)), du_ds, 0.0, 0.0)
+    sc = tr0.sc
+    p_stop, V_stop, post = tracker_bounds(result)
+    micro_dE = micro_energy(result, micro)
+    phi_unit = Phi / float(np.linalg.norm(Phi))
+    amplitudes = {
+        "mode_amplitude": lambda u: float(u @ phi_unit),
+        "asym_amplitude": lambda u: max(float(np.abs(mh.harmonic_part(u, int(n))).max()) for n in asym_harmonics),
+    }
+
+    def run(first: PathPoint, kind: str) -> tuple[Path, BranchTracker, str]:
+        tk = BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post, kind=kind, micro_dE=micro_dE,
+                           **amplitudes)
+        try:
+            return trace(mh, cfg, tk, tracer=tr, start=first), tk, ""
+        except ContinuationFailed as exc:
+            return getattr(exc, "path", None) or Path(points=[first]), tk, str(exc)
+
+    def lower_state(tk: BranchTracker, pth: Path, why: str):
+        low = find_lower_state(tr, tk.states, pth.points, why)
+        up = tk.states.upper
+        if up is not None and (low.state is None or (low.method == "descent"
+                                                      and mh.energy(up.u) - mh.energy(low.state.u) <= 0.0)):
+            # the search found nothing below the fold: the axisymmetric path's state at that volume,
+            # if it is stable there (a loop of the branch through the bifurcation folds over a part
+            # of the axisymmetric path that is stable again)
+            alt = axisym_state_at(result, mh, tr, float(up.zeta[0]))
+            if alt is not None and mh.energy(up.u) - mh.energy(alt.u) > 0.0:
+                return replace(low, state=alt, method="descent", solver="axisymmetric path",
+                               message=f"{low.message}; the axisymmetric path's state at that volume, stable")
+        return low
+
+    tb = trace_through_micro_folds(
+        lambda first: run(first, "supercritical" if first is not start else ""), start, lower_state, mh.energy,
+        lambda state: start_point(tr, state.u, state.p), micro_dE)
+    path, tracker, failure, low, micro_folds = tb.path, tb.tracker, tb.failure, tb.lower, tb.micro_folds
+    st = tracker.states
+    kind = (tracker.kind if not tb.restarts else "supercritical") if st.upper is not None else ""
+    first_kind = tb.first_kind
+    fr = FollowResult(bif, mh, path, st, tr, kind, first_kind, failure=failure, micro_folds=micro_folds,
+                      folds=tb.folds)
+    if st.upper is not None and low is not None:
+        fr.lower_method, fr.lower_note = low.method, low.note or low.message
+    fr.metrics = branch_metrics(fr, sc)
+    mh.release_buffers()  # the result keeps the model (plots, shapes): not its ~60 MB of band buffers
+    return fr
+
+
+def axisym_state_at(result, mh: MultiHarmonicModel, tr: Tracer, V: float) -> PathPoint | None:
+    """The axisymmetric path's state at scaled volume ``V`` (before its volume limit) as a state of
+    the multi-harmonic model ``mh`` (traced by ``tr``), if it is stable there under volume control
+    within ``mh``'s harmonics; else ``None``."""
+    st0 = result.states
+    pts = result.path.points[: (st0.k_before if st0 is not None and st0.k_before is not None else
+                                len(result.path.points) - 1) + 1]
+    locate = SnapTracker(result.tracer, p_stop=math.inf, V_stop=math.inf)
+    for k in range(1, len(pts)):
+        a, b = pts[k - 1], pts[k]
+        if a.zeta[0] < V <= b.zeta[0]:
+            q = locate.locate_volume(a, b, V, pts[k - 2] if k > 1 else None)
+            if q is None:
+                return None
+            U = mh.embed(q.u)
+            lin = mh.linearize(U, q.p)
+            if lin is None or constrained_instability(tr, lin) != 0:
+                return None
+            try:
+                return start_point(tr, U, q.p)
+            except ContinuationFailed:
+                return None
+    return None
+
+
+def branch_metrics(fr: FollowResult, sc: np.ndarray) -> dict:
+    """The followed snap's metrics (SI)."""
+    mh, st = fr.model, fr.states
+    L, S = mh.L, mh.S
+    out = {"follow_kind": fr.kind or None, "follow_N": int(mh.hn[-1]), "follow_n": fr.bif.n,
+           "follow_V_bif_m3": float(fr.bif.zeta[0] * sc[0] * L**3), "follow_p_bif_Pa": float(fr.bif.p * S),
+           "follow_lower_method": fr.lower_method or None,
+           "follow_note": "; ".join(x for x in (fr.failure, fr.lower_note, (
+               f"{len(fr.micro_folds)} fold(s) releasing < {MICRO_FOLD_DE:g} of the axisymmetric dE traced through"
+               if fr.micro_folds else "")) if x),
+           "snaps": st.upper is not None and st.lower is not None, "follow_micro_folds": len(fr.micro_folds)}
+    out.update(multiharmonic_snap_metrics(mh, fr.path, st, sc))
+    return out
