@@ -105,6 +105,9 @@ class SolverSettings:
         (needs ``harmonics >= 1``; the axisymmetric answer is kept in the ``axisym_*`` keys)
     follow_N : highest harmonic of the followed branch's Fourier series (0 = the default,
         ``4 n_c`` for the critical harmonic ``n_c``)
+    follow_mode : ``"actuator"`` (the default) traces only what the actuator passes through where
+        that gives the same answer (:func:`snapjump_cli.fe.branch.followed.followed_metrics`);
+        ``"full"`` is the reference: every branch traced to its snap before it is checked
     margins : report the smallest eigenvalue of every harmonic's tangent ``n = 0..harmonics`` along
         the loading path (:mod:`snapjump_cli.fe.stability.margins`; needs ``harmonics >= 1``; about one
         shift-invert eigenvalue solve per harmonic and path state: several times the solve)
@@ -129,6 +132,7 @@ class SolverSettings:
     harmonics: int = 0
     follow: bool = False
     follow_N: int = 0
+    follow_mode: str = "actuator"
     margins: bool = False
     time_limit_s: float = 300.0
     max_nodes: int = 20_000
@@ -149,6 +153,7 @@ class SolverSettings:
             "follow": (lambda v: isinstance(v, bool) and (not v or self.harmonics >= 1),
                        "true or false (true needs harmonics >= 1)"),
             "follow_N": (lambda v: _is_int(v) and 0 <= v <= 16, "an integer in [0, 16]"),
+            "follow_mode": (lambda v: v in ("actuator", "full"), '"actuator" or "full"'),
             "margins": (lambda v: isinstance(v, bool) and (not v or self.harmonics >= 1),
                         "true or false (true needs harmonics >= 1)"),
             "time_limit_s": (lambda v: _is_num(v) and v > 0, "a number of seconds > 0"),

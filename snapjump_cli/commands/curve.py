@@ -283,6 +283,10 @@ def _text(scene, m: dict) -> str:
                    "along the path: asym_margin, asym_margin_n, asym_margin_V_m3, and margin_n0.. columns in --csv.")
 @click.option("--follow-N", "follow_N", type=click.IntRange(0, 16), default=0, show_default=True, metavar="N",
               help="Highest harmonic of the followed branch (0: 4 n_c for the critical harmonic n_c).")
+@click.option("--follow-full", "follow_full", is_flag=True,
+              help="With --follow: the reference mode, every branch traced to its snap before it is checked "
+                   "against other harmonics (slower; the default traces only what the actuator passes through "
+                   "where that gives the same answer).")
 @click.option("--imperfection", "imperfection", type=click.FloatRange(min=0.0, max=1.0), default=None,
               metavar="DELTA",
               help="Also trace the actuator with an initial geometric imperfection: the lowest mode of harmonic "
@@ -301,7 +305,7 @@ def _text(scene, m: dict) -> str:
 @verbosity_options
 def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool, overwrite: bool, harmonics: int,
             shapes_path: Path | None, animation_path: Path | None, export_path: Path | None, revolve: int,
-            air_ml: float | None, gamma: float | None, p0: float | None, follow: bool, follow_N: int, margins: bool,
+            air_ml: float | None, gamma: float | None, p0: float | None, follow: bool, follow_N: int, follow_full: bool, margins: bool,
             time_limit_s: float, max_nodes: int, imperfection: float | None, imperfection_n: int | None,
             **kw) -> None:
     """Trace one scene's pressure-volume path through its limit points and report the snap.
@@ -337,7 +341,8 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
     check_outputs(outputs, revolve, overwrite)
     try:
         res = solve_checked(scene, ms, SolverSettings(full=full, harmonics=harmonics, follow=follow,
-                                                      follow_N=follow_N, margins=margins, time_limit_s=time_limit_s,
+                                                      follow_N=follow_N, follow_mode="full" if follow_full else "actuator",
+                                                      margins=margins, time_limit_s=time_limit_s,
                                                       max_nodes=max_nodes), fluid=fluid)
     except SolveFailed as exc:
         raise click.ClickException(f"solve failed: {exc}") from None

@@ -310,7 +310,7 @@ def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: Solve
         if solver.follow:
             from snapjump_cli.fe.branch.followed import apply_followed
 
-            apply_followed(res, h, solver.follow_N)
+            apply_followed(res, h, solver.follow_N, mode=solver.follow_mode)
     return res
 
 

@@ -115,6 +115,28 @@ def test_a_bracket_started_inside_the_step_finds_the_same_point(located):
                                 start=late) is None
 
 
+def test_the_actuator_mode_traces_the_branch_only_to_its_first_fold_and_finds_the_same_point(located):
+    """follow_mode "actuator" (the default): the branch of n_c >= 2 is traced only up to its first
+    volume limit before the check (the states the actuator passes through), and the point and the
+    branch leaving it are those of the full trace, which passes through the same states first."""
+    from snapjump_cli.fe.branch.trace import UPPER_LOCATED
+
+    res, fr, fs, sec = located
+    head = follow_branch(res, fr.bif, list(fr.model.hn), stop_at_upper=True)
+    st = head.states
+    assert head.path.stop_reason == UPPER_LOCATED and st.upper is not None and st.lower is None
+    assert head.metrics.get("dE_J") is None  # no snap: its lower state was never sought
+    k = st.k_before
+    assert k == fr.states.k_before and len(head.path.points) == k + 2 < len(fr.path.points)
+    assert st.upper.zeta[0] == fr.states.upper.zeta[0]
+    for a, b in zip(head.path.points, fr.path.points[: k + 2]):  # the same states, bit for bit
+        assert np.array_equal(a.u, b.u) and a.p == b.p
+    hs, chk, hsec = follow_secondary(res, head, max_steps=8)
+    assert hsec is not None and (hsec.n, hsec.index) == (sec.n, sec.index)
+    assert hsec.V_m3 == sec.V_m3 and hsec.p_Pa == sec.p_Pa
+    assert all(np.array_equal(a.u, b.u) for a, b in zip(hs.path.points, fs.path.points))
+
+
 def test_the_secondary_branch_leaves_along_the_other_harmonics(located):
     res, fr, fs, sec = located
     full = fs.model

@@ -24,8 +24,13 @@ from snapjump_cli.schema import FOLLOWED, keys
 if TYPE_CHECKING:
     from snapjump_cli.fe.stability.harmonics import HarmonicCheck
 
-__all__ = ["FOLLOW_KEYS", "REPLACED_KEYS", "FollowedAnswer", "axisym_answer", "followed_metrics",
+__all__ = ["FOLLOW_MODES", "first_secondary", "secondary_note", "FOLLOW_KEYS", "REPLACED_KEYS", "FollowedAnswer", "axisym_answer", "followed_metrics",
            "leave_at_secondary", "apply_followed"]
+
+#: How a branch is followed (:func:`followed_metrics`): ``"actuator"`` (the default: only the
+#: states the actuator passes through before a secondary bifurcation are traced) or ``"full"``
+#: (the reference: the whole branch to its snap, then the check).
+FOLLOW_MODES: tuple[str, ...] = ("actuator", "full")
 
 #: Keys :func:`followed_metrics` adds to a design's metrics (SI units): the followed stage's keys
 #: of :data:`snapjump_cli.schema.FOLLOWED`, columns and diagnostics.
@@ -73,7 +78,7 @@ def axisym_answer(m: dict, note: str = "") -> dict:
 
 
 def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: int | None = None,
-                     secondary: bool = True) -> FollowedAnswer:
+                     secondary: bool = True, mode: str = "actuator") -> FollowedAnswer:
     """The design's answer with the followed branch (the keys of :data:`FOLLOW_KEYS` and the
     followed ``dE_J``, ``dy_pole_m``, ``h_imp_m``, ``V_star_m3``, ``p_star_Pa``), given the
     axisymmetric ``result`` and its harmonic ``check``.
@@ -86,7 +91,15 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
     (:func:`snapjump_cli.fe.branch.secondary.follow_secondary`); where it loses stability to them first,
     the branch that leaves it there is traced with every harmonic and its snap is the answer
     (``follow_sec_n``, ``follow_sec_V_m3``).
+
+    ``mode``: ``"actuator"`` traces such a branch only up to its first volume limit before the
+    check (:func:`first_secondary`): when it loses stability to the other harmonics before it, as
+    most such branches do, its fold, the branch beyond it and its lower state are never needed;
+    otherwise it is traced on as in ``"full"`` (the reference), which traces the whole branch
+    to its snap before the check. Both give the same answer.
     """
+    if mode not in FOLLOW_MODES:
+        raise ValueError(f"follow mode must be one of {FOLLOW_MODES}, got {mode!r}")
     m = result.metrics
     out = axisym_answer(m)
     if not check.asym_first or result.states is None or result.states.upper is None:
@@ -97,10 +110,14 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
     if bif is None:
         out["follow_note"] = f"bifurcation of harmonic {n} not located"
         return FollowedAnswer(out)
-    fr = follow_branch(result, bif, default_harmonics(n, N), n_phi=n_phi)
-    note_sec = ""
-    if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:
-        fr, note_sec = leave_at_secondary(result, fr)
+    hn = default_harmonics(n, N)
+    fr, note_sec = None, ""
+    if secondary and mode == "actuator" and len(hn) > 1 and int(hn[1]) > 1:
+        fr, note_sec = first_secondary(result, bif, hn, n_phi)
+    if fr is None:
+        fr = follow_branch(result, bif, hn, n_phi=n_phi)
+        if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:
+            fr, note_sec = leave_at_secondary(result, fr)
     fm = fr.metrics
     out.update({k: v for k, v in fm.items() if k in FOLLOW_KEYS})
     if note_sec:
@@ -135,6 +152,32 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
     return FollowedAnswer(out, fr)
 
 
+def first_secondary(result, bif, hn: list[int], n_phi: int | None = None) -> tuple[FollowResult | None, str]:
+    """The branch leaving a secondary bifurcation that the branch of ``bif`` (harmonics ``hn``, a
+    multiple of ``n_c >= 2``) meets before its first volume limit, traced up to that limit only;
+    ``(None, "")`` when there is none there (the branch must then be traced to its snap:
+    :func:`leave_at_secondary`). The states checked, the point located and the branch leaving it
+    are those of the full trace, which passes through the same states first."""
+    head = follow_branch(result, bif, hn, n_phi=n_phi, stop_at_upper=True)
+    if head.states.upper is None:
+        return None, ""
+    fs, chk, sec = follow_secondary(result, head)
+    if sec is None or fs is None or fs.kind == "jump":
+        return None, ""
+    return fs, secondary_note(fs, chk, sec, bif.n)
+
+
+def secondary_note(fs: FollowResult, chk, sec, n: int) -> str:
+    """The note of a followed answer that left its branch at a secondary bifurcation ``sec``."""
+    fs.metrics.update(follow_sec_n=sec.n, follow_sec_V_m3=sec.V_m3, follow_sec_p_Pa=sec.p_Pa)
+    if fs.kind == "jump":
+        return (f"the branch of harmonic {n} folds at V = {fs.metrics.get('V_star_m3') or math.nan:.4g} m^3 and "
+                f"the state it jumps to on the branch is unstable in harmonic {sec.n}: the jump goes on, at "
+                f"that volume, to a state with every harmonic 0-{chk.N} (energy descent)")
+    return (f"the branch of harmonic {n} loses stability to harmonic {sec.n} at V = {sec.V_m3:.4g} m^3, "
+            f"before its own snap: the branch that leaves it there is traced with harmonics 0-{chk.N}")
+
+
 def leave_at_secondary(result, fr: FollowResult) -> tuple[FollowResult, str]:
     """The branch the actuator takes when the followed branch ``fr`` loses stability outside its
     harmonics before its snap (:func:`snapjump_cli.fe.branch.secondary.follow_secondary`), with a note;
@@ -150,16 +193,10 @@ def leave_at_secondary(result, fr: FollowResult) -> tuple[FollowResult, str]:
         return fr, (f"the branch of harmonic {n} is unstable outside its harmonics at V = {V1:.4g} m^3 "
                     f"(harmonics up to {chk.N}) and no secondary bifurcation was located before it (the actuator "
                     "may reach that state by a jump past a fold of the branch): not traced further")
-    fs.metrics.update(follow_sec_n=sec.n, follow_sec_V_m3=sec.V_m3, follow_sec_p_Pa=sec.p_Pa)
-    if fs.kind == "jump":
-        return fs, (f"the branch of harmonic {n} folds at V = {fs.metrics.get('V_star_m3') or math.nan:.4g} m^3 and "
-                    f"the state it jumps to on the branch is unstable in harmonic {sec.n}: the jump goes on, at "
-                    f"that volume, to a state with every harmonic 0-{chk.N} (energy descent)")
-    return fs, (f"the branch of harmonic {n} loses stability to harmonic {sec.n} at V = {sec.V_m3:.4g} m^3, "
-                f"before its own snap: the branch that leaves it there is traced with harmonics 0-{chk.N}")
+    return fs, secondary_note(fs, chk, sec, n)
 
 
-def apply_followed(result, check: HarmonicCheck, N: int = 0) -> None:
+def apply_followed(result, check: HarmonicCheck, N: int = 0, mode: str = "actuator") -> None:
     """Follow the branch of ``result`` (a :class:`snapjump_cli.fe.solve.SceneResult` with its harmonic
     ``check``) and make its snap the design's answer in ``result.metrics`` (the keys of
     :data:`snapjump_cli.schema.FOLLOWED`; the replaced keys of a followed design describe the
@@ -168,7 +205,7 @@ def apply_followed(result, check: HarmonicCheck, N: int = 0) -> None:
     m = result.metrics
     t0 = time.perf_counter()
     try:
-        answer = followed_metrics(result, check, N=N or None)
+        answer = followed_metrics(result, check, N=N or None, mode=mode)
     except TimeLimitExceeded as exc:  # keep the axisymmetric answer, say why
         answer = FollowedAnswer(axisym_answer(m, f"branch not followed to its snap: {exc}"))
         answer.values["follow_n"] = check.asym_n

@@ -102,10 +102,15 @@ class BranchTracker(SnapTracker):
     its largest amplitude on the branch. Beyond it the branch is the mirror image of the part already
     traced (a closed loop through the bifurcation, which would otherwise be traced round and
     round until the post-snap budget runs out) and cannot come back to ``V*`` any more than that
-    part did."""
+    part did.
+
+    With ``stop_at_upper`` the trace stops at the branch's first volume limit (its upper state)
+    without searching its lower state: the states the actuator passes through before it, which
+    is all a check of the branch against other harmonics needs (:mod:`snapjump_cli.fe.branch.followed`)."""
 
     kind: str = ""
-    first_kind: str = ""  # the verdict of the first step (before any fold was traced through)
+    first_kind: str = ""
+    stop_at_upper: bool = False  # the verdict of the first step (before any fold was traced through)
     micro_dE: float = 0.0
     micro_folds: list = field(default_factory=list)
     #: ``(k_before, upper, lower)`` of each micro-fold traced through (indices into this trace's path)
@@ -144,6 +149,8 @@ class BranchTracker(SnapTracker):
             self.first_kind = self.kind
         reason = super().__call__(path)
         st = self.states
+        if reason is None and self.stop_at_upper and st.upper is not None and st.lower is None:
+            return UPPER_LOCATED
         if reason == "snap characterised" and self.micro_dE > 0:
             pb = self.tracer.pb
             dE = pb.energy(st.upper.u) - pb.energy(st.lower.u)
@@ -156,6 +163,10 @@ class BranchTracker(SnapTracker):
                 self.kind = "supercritical"
                 return None
         return reason
+
+
+#: The stop reason of a branch traced only up to its upper state (``BranchTracker.stop_at_upper``).
+UPPER_LOCATED = "upper state located; the branch beyond it not traced"
 
 
 #: A fold of a followed branch whose snap releases less than this fraction of the axisymmetric
@@ -276,9 +287,10 @@ def micro_energy(result, micro: float) -> float:
 
 def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: int | None = None,
                   micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
-                  step_grow: float = FOLLOW_STEP_GROW) -> FollowResult:
+                  step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False) -> FollowResult:
     """Trace the branch of ``bif`` with the harmonics ``hn`` (default :func:`default_harmonics`)
-    from the bifurcation through its volume limit to the lower state at that volume.
+    from the bifurcation through its volume limit to the lower state at that volume (with
+    ``stop_at_upper``: only up to its first volume limit, :class:`BranchTracker`).
 
     Parameters
     ----------
@@ -302,14 +314,14 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     U_c = mh.embed(bif.u)
     Phi = mh.embed(np.zeros(base.n), {bif.n: bif.mode})
     fr = trace_branch(result, bif, mh, U_c, bif.p, Phi, [int(n) for n in mh.hn[1:]], micro=micro,
-                      max_steps=max_steps, step_grow=step_grow)
+                      max_steps=max_steps, step_grow=step_grow, stop_at_upper=stop_at_upper)
     fr.metrics["follow_wall_s"] = time.perf_counter() - t0
     return fr
 
 
 def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarray, p_c: float, Phi: np.ndarray,
                  asym_harmonics: list[int], micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
-                 step_grow: float = FOLLOW_STEP_GROW) -> FollowResult:
+                 step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False) -> FollowResult:
     """Trace the branch of the model ``mh`` that leaves the equilibrium ``(U_c, p_c)`` along
     ``Phi`` (a bifurcation point and its critical mode, as free vectors of ``mh``) through its volume
     limit to the lower state at that volume (:func:`follow_branch` for a branch of the axisymmetric
@@ -318,7 +330,8 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     ``asym_harmonics``: the harmonics whose amplitudes measure the distance from the branch left
     behind (the post-snap trace stops when it passes back through it: :class:`BranchTracker`);
     ``bif``: the bifurcation from the axisymmetric path that the answer is reported under; the
-    other parameters as in :func:`follow_branch`.
+    other parameters as in :func:`follow_branch`. With ``stop_at_upper`` the result has no lower
+    state (no snap metrics): the branch up to its first volume limit.
     """
     tr0 = result.tracer
     cfg = replace(tr0.cfg, fused=False, mixed_tangent=False, step_grow=float(step_grow))
@@ -342,7 +355,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
 
     def run(first: PathPoint, kind: str) -> tuple[Path, BranchTracker, str]:
         tk = BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post, kind=kind, micro_dE=micro_dE,
-                           **amplitudes)
+                           stop_at_upper=stop_at_upper, **amplitudes)
         try:
             return trace(mh, cfg, tk, tracer=tr, start=first), tk, ""
         except ContinuationFailed as exc:
@@ -362,6 +375,14 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
                                message=f"{low.message}; the axisymmetric path's state at that volume, stable")
         return low
 
+    if stop_at_upper:
+        path, tracker, failure = run(start, "")
+        st = tracker.states
+        fr = FollowResult(bif, mh, path, st, tr, tracker.kind if st.upper is not None else "", tracker.first_kind,
+                          failure=failure)
+        fr.metrics = branch_metrics(fr, sc)
+        mh.release_buffers()
+        return fr
     tb = trace_through_micro_folds(
         lambda first: run(first, "supercritical" if first is not start else ""), start, lower_state, mh.energy,
         lambda state: start_point(tr, state.u, state.p), micro_dE)
