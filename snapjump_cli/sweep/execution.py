@@ -29,7 +29,8 @@ from snapjump_cli.errors import SweepError, SweepInputError
 from snapjump_cli.geometry.caps import Design
 from snapjump_cli.sweep.rows import fill_row
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.sweep.storage import now_utc
+from snapjump_cli.files import own_files, remove_own
+from snapjump_cli.sweep.storage import MARKER_NAME, now_utc
 
 __all__ = ["SolveFn", "default_solver", "die_with_parent", "solve_task", "execute", "connect"]
 
@@ -107,9 +108,13 @@ def solve_task(task: dict[str, Any], solve_fn: SolveFn, marker_dir: str | None) 
     row = dict(task["row"])
     marker = None
     if marker_dir is not None:
-        try:
+        try:  # a new file, never through a link (O_EXCL, O_NOFOLLOW): nothing else is ever written
             marker = Path(marker_dir) / row["key"]
-            marker.write_text(f"{os.getpid()}\n")
+            fd = os.open(marker, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o666)
+            try:
+                os.write(fd, f"{os.getpid()}\n".encode())
+            finally:
+                os.close(fd)
         except OSError:
             marker = None
     try:
@@ -128,10 +133,7 @@ def solve_task(task: dict[str, Any], solve_fn: SolveFn, marker_dir: str | None) 
         row.update(status="failed", error=f"{type(e).__name__}: {msg}"[:4000])
     row.update(t_total_s=time.perf_counter() - t0, host=socket.gethostname(), pid=os.getpid(), finished_utc=now_utc())
     if marker is not None:
-        try:
-            marker.unlink()
-        except OSError:
-            pass
+        remove_own(marker)
     return row
 
 def _parallel_rows(tasks: list[dict[str, Any]], solve_fn: SolveFn, n_jobs: int, backend: str,
@@ -162,9 +164,9 @@ def execute(tasks: list[dict[str, Any]], solve_fn: SolveFn, n_jobs: int, backend
                     yield row
             return
         except Exception as exc:  # noqa: BLE001 - the pool broke (a worker died), not a design
-            suspects = [p.name for p in marker_dir.iterdir()] if marker_dir is not None and marker_dir.is_dir() else []
+            suspects = [p.name for p in own_files(marker_dir, MARKER_NAME)] if marker_dir is not None else []
             for p in suspects:
-                (marker_dir / p).unlink(missing_ok=True)
+                remove_own(marker_dir / p)
             suspects = [k for k in suspects if k in pending]
             log.warning("the worker pool broke (%s: %s); re-running the %d design(s) it was solving one by one",
                         type(exc).__name__, exc, len(suspects))
@@ -176,7 +178,8 @@ def execute(tasks: list[dict[str, Any]], solve_fn: SolveFn, n_jobs: int, backend
                 try:
                     (row,) = list(_parallel_rows([task], solve_fn, 2, backend, md))
                 except Exception as exc2:  # noqa: BLE001 - this design kills its worker
-                    (marker_dir / key).unlink(missing_ok=True)
+                    if marker_dir is not None:
+                        remove_own(marker_dir / key)
                     row = dict(task["row"])
                     row.update(status="failed", finished_utc=now_utc(),
                                error=f"worker process died while solving this design ({type(exc2).__name__}: {exc2})"[:4000])

@@ -18,8 +18,7 @@ import hashlib
 import json
 import logging
 import os
-import shutil
-import socket
+import re
 import time
 from datetime import datetime, timezone
 from pathlib import Path
@@ -29,7 +28,8 @@ from snapjump_cli.sweep import results as res
 from snapjump_cli.sweep.config import DesignPoint
 from snapjump_cli.errors import SweepInputError
 from snapjump_cli.fe.fluid import FluidSettings
-from snapjump_cli.files import os_error_reason
+from snapjump_cli import files
+from snapjump_cli.files import lock_path, own_files, remove_own, remove_own_folder
 from snapjump_cli.geometry.caps import Design
 from snapjump_cli.settings import MeshSettings, SolverSettings, without_limits
 
@@ -43,6 +43,7 @@ __all__ = [
     "done_keys",
     "OutputLock",
     "PartWriter",
+    "remove_working_files",
     "consolidate",
     "check_compatible",
 ]
@@ -122,9 +123,18 @@ def parts_dir(output: str | Path) -> Path:
     return output.with_name(output.name + ".parts")
 
 
+#: The names of the files a sweep writes into its parts folder: part files, their temporary files
+#: (:func:`snapjump_cli.files.write_atomic`) and, in ``running/``, one marker per design being solved.
+PART_NAME = re.compile(r"part-(\d{6,})\.parquet")
+PART_TMP_NAME = re.compile(r"\.part-\d{6,}\..*\.tmp\.parquet")
+MARKER_NAME = re.compile(r"[0-9a-f]{24}")
+
+
 def part_files(parts: Path) -> list[Path]:
-    """The part files in the folder ``parts`` (none if there is no such folder), in name order."""
-    return sorted(parts.glob("part-*.parquet")) if parts.is_dir() else []
+    """The part files in the folder ``parts`` (none if there is no such folder), in name order:
+    regular files only (a link or anything else with such a name is not the sweep's: it is
+    ignored with a warning and never followed, :func:`snapjump_cli.files.own_files`)."""
+    return own_files(parts, PART_NAME)
 
 
 def result_files(output: str | Path) -> list[Path]:
@@ -168,88 +178,13 @@ def done_keys(output: str | Path) -> dict[str, str]:
 
 
 
-def lock_path(output: str | Path) -> Path:
-    """The lock file of ``output``: ``<output>.lock``."""
-    output = Path(output)
-    return output.with_name(output.name + ".lock")
-
-
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # it exists, owned by someone else
-        return True
-    except OSError:
-        return False
-    return True
-
-
-class OutputLock:
-    """Exclusive right to write into one output (``<output>.lock``, created with ``O_EXCL``), taken
-    by ``sweep`` and ``optimize`` (``command``, recorded in the lock).
-
-    A second sweep into the same output is refused (:class:`SweepInputError` naming the holder's
-    pid, host and start time). A lock left by a process that no longer runs on this host is taken
-    over with a warning. A lock from another host is never broken automatically (its process cannot
-    be checked from here): the message says which file to remove.
-    """
+class OutputLock(files.OutputLock):
+    """:class:`snapjump_cli.files.OutputLock` raising :class:`SweepInputError` (taken by ``sweep`` and
+    ``optimize``): a second sweep into the same output is refused, naming the holder's pid, host
+    and start time; a lock whose process is gone, or whose pid was reused, is taken over."""
 
     def __init__(self, output: str | Path, command: str = "sweep") -> None:
-        self.path = lock_path(output)
-        self.command = command  # recorded in the lock, named to whoever finds it taken
-        self.held = False
-
-    def _holder(self) -> dict[str, Any]:
-        try:
-            return json.loads(self.path.read_text())
-        except (OSError, ValueError):
-            return {}
-
-    def acquire(self) -> "OutputLock":
-        me = {"pid": os.getpid(), "host": socket.gethostname(), "started_utc": now_utc(), "command": self.command}
-        for _ in range(3):
-            try:
-                fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-            except FileExistsError:
-                h = self._holder()
-                pid, host = h.get("pid"), h.get("host")
-                if host == me["host"] and isinstance(pid, int) and not _pid_alive(pid):
-                    log.warning("%s: taking over a stale lock (pid %s on %s, started %s, no longer runs)",
-                                self.path, pid, host, h.get("started_utc"))
-                    self.path.unlink(missing_ok=True)
-                    continue
-                if not h:  # being written right now, or unreadable
-                    holder = "an unreadable lock file"
-                else:
-                    holder = f"pid {pid} on {host}, started {h.get('started_utc')}"
-                raise SweepInputError(
-                    f"{self.path.with_suffix('')}: another {h.get('command', 'sweep')} is writing into this output "
-                    f"({holder}); "
-                    f"wait for it to finish, or remove {self.path} if that process is gone")
-            except OSError as e:
-                raise SweepInputError(f"{self.path}: cannot create the lock file ({e.strerror})") from None
-            try:
-                with os.fdopen(fd, "w") as fh:
-                    json.dump(me, fh)
-            except OSError as e:  # a full disk: leave no empty lock behind (it would block every rerun)
-                self.path.unlink(missing_ok=True)
-                raise SweepInputError(f"{self.path}: cannot write the lock file ({os_error_reason(e)})") from None
-            self.held = True
-            return self
-        raise SweepInputError(f"{self.path}: cannot take the lock")
-
-    def release(self) -> None:
-        if self.held:
-            self.path.unlink(missing_ok=True)
-            self.held = False
-
-    def __enter__(self) -> "OutputLock":
-        return self.acquire()
-
-    def __exit__(self, *exc: Any) -> None:
-        self.release()
+        super().__init__(output, command, error=SweepInputError)
 
 
 def check_compatible(output: str | Path, keys: set[str], config: Mapping[str, Any]) -> None:
@@ -297,7 +232,11 @@ class PartWriter:
         self.chunk_size = max(1, int(chunk_size))
         self.flush_interval_s = flush_interval_s
         self.buffer: list[dict[str, Any]] = []
-        existing = [int(p.stem.split("-")[1]) for p in part_files(parts) if p.stem.split("-")[1].isdigit()]
+        try:  # every name taken, whatever it is (a new part never lands on a name already there)
+            names = os.listdir(parts)
+        except OSError:
+            names = []
+        existing = [int(m.group(1)) for n in names if (m := PART_NAME.fullmatch(n))]
         self.seq = max(existing, default=-1) + 1
         self.last_flush = time.monotonic()
         self.n_written = 0
@@ -365,14 +304,15 @@ def consolidate(output: str | Path, meta: Mapping[str, Any], order: Mapping[str,
     res.write_table_atomic(res._with_metadata(table, full_meta), output)
     for f in files:  # only the parts merged here (never a part that appeared meanwhile)
         if f != output:
-            f.unlink(missing_ok=True)
-    if parts.is_dir():
-        shutil.rmtree(parts / "running", ignore_errors=True)
-        for tmp in parts.glob(".part-*.tmp*"):  # half-written parts of a killed run (never read)
-            tmp.unlink(missing_ok=True)
-        try:
-            parts.rmdir()
-        except OSError:  # not empty: left for the next consolidation
-            pass
+            remove_own(f)
+    remove_working_files(parts)
     return counts
+
+
+def remove_working_files(parts: Path) -> None:
+    """Remove what a sweep left in its parts folder apart from part files (the ``running/``
+    markers, the temporary files of a killed run), and the folder once it is empty: only regular
+    files with the sweep's own names, never through a link (:mod:`snapjump_cli.files`)."""
+    remove_own_folder(parts / "running", MARKER_NAME)
+    remove_own_folder(parts, PART_TMP_NAME)
 
