@@ -49,7 +49,7 @@ log = logging.getLogger(__name__)
 __all__ = ["OutputError", "SYSTEM_FOLDERS", "current_umask", "follow_links", "output_target", "check_writable", "write_atomic",
            "AtomicFiles", "check_readable", "own_folder", "own_files", "remove_own", "remove_own_folder",
            "OutputLock", "LockTaken", "lock_path", "process_start", "foreign_lock",
-           "describe_os_error", "os_error_reason"]
+           "describe_os_error", "os_error_reason", "remedy"]
 
 #: Folders nothing is ever written under (device nodes, kernel interfaces).
 SYSTEM_FOLDERS: tuple[str, ...] = ("/dev", "/proc", "/sys")
@@ -221,6 +221,15 @@ def os_error_reason(e: BaseException) -> str:
     if getattr(e, "errno", None) == errno_mod.ENOSPC or "No space left" in text:
         return "no space left on the device"
     return getattr(e, "strerror", None) or (text.splitlines()[0] if text else type(e).__name__)
+
+
+def remedy(e: BaseException) -> str:
+    """What to do about a failed write, in words: ``free some space`` only when the disk is full."""
+    if getattr(e, "errno", None) in (errno_mod.ENOSPC, errno_mod.EDQUOT) or "No space left" in str(e):
+        return "free some space"
+    if getattr(e, "errno", None) in (errno_mod.EACCES, errno_mod.EPERM, errno_mod.EROFS):
+        return "make the place writable (or choose another output)"
+    return "move what is in the way"
 
 
 def describe_os_error(e: OSError, path: str | os.PathLike | None = None) -> str:

@@ -170,7 +170,7 @@ def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | N
 def _run(sp: Any, out: Path, n_jobs: int | None, budget: int | None, from_path: Path | None, from_df: Any, fmt: str,
          plots: bool, progress: bool) -> None:
     """The run itself, under the output's lock: search, confirm, write the table and plots, report."""
-    from snapjump_cli.files import AtomicFiles, describe_os_error
+    from snapjump_cli.files import AtomicFiles, describe_os_error, remedy
     from snapjump_cli.optimize import OptimizeInputError, cache_paths, make_plots, run_optimize, write_result
     from snapjump_cli.sweep.run import SweepError, SweepInputError
 
@@ -200,7 +200,7 @@ def _run(sp: Any, out: Path, n_jobs: int | None, budget: int | None, from_path: 
         except SweepError as e:
             raise click.ClickException(str(e)) from None
         except OSError as e:  # a full disk, an I/O error: one line, exit 2
-            raise BadInput(f"{describe_os_error(e)}; the {kept}: free some space and run the same command "
+            raise BadInput(f"{describe_os_error(e)}; the {kept}: {remedy(e)} and run the same command "
                            f"again to resume") from None
         finally:
             if bar is not None:

@@ -6,7 +6,8 @@ import logging
 import sys
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Sequence
+from contextlib import ExitStack
+from typing import Any, Sequence
 
 import click
 
@@ -63,10 +64,9 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
             alpha: float, fmt: str, exclude_asymmetric: bool, overwrite: bool) -> None:
     import pyarrow as pa
 
-    from snapjump_cli.files import AtomicFiles, check_writable
+    from snapjump_cli.files import OutputLock, check_writable, follow_links, os_error_reason
     from snapjump_cli.sweep import results as res
     from snapjump_cli.jump import JumpParams
-    from snapjump_cli.jump.rank import RankInputError, rank_results, settings_mix, top_frame, top_table
 
     try:
         params = JumpParams(rho=rho, c_d=c_d, alpha=alpha)
@@ -90,6 +90,24 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
         raise BadInput(f"-o/--output: {out} would overwrite the input results file")
     # every output place is checked before anything is written
     check_writable(out, BadInput, overwrite=overwrite)
+    target = follow_links(out)  # a link: the file it points to is written (its lock beside it)
+    with ExitStack() as held:  # the output's lock, for the whole run: a second rank into it is refused
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            held.enter_context(OutputLock(target, command="rank", error=BadInput))
+        except OSError as e:
+            raise BadInput(f"{out}: cannot create its folder ({os_error_reason(e)})") from None
+        check_writable(out, BadInput, overwrite=overwrite)  # again, under the lock: another run may have written it
+        _rank_locked(results, df, meta, out, plots_dir, params, top, fmt, exclude_asymmetric, overwrite)
+
+
+def _rank_locked(results: Path, df: Any, meta: dict, out: Path, plots_dir: Path | None, params: Any, top: int,
+                 fmt: str, exclude_asymmetric: bool, overwrite: bool) -> None:
+    """Rank, write and report, under the output's lock."""
+    from snapjump_cli.files import AtomicFiles, check_writable
+    from snapjump_cli.sweep import results as res
+    from snapjump_cli.jump.rank import RankInputError, rank_results, settings_mix, top_frame, top_table
+
     if plots_dir is not None:
         from snapjump_cli.viz.figures import PLOT_FILES
 

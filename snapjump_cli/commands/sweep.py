@@ -68,7 +68,7 @@ Exit codes: 0 done (even if some designs failed), 1 the sweep could not run,
 def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str | None,
             chunk_size: int | None, retry_failed: bool, append: bool, max_designs: int | None,
             progress: bool) -> None:
-    from snapjump_cli.files import describe_os_error, follow_links
+    from snapjump_cli.files import describe_os_error, follow_links, remedy
     from snapjump_cli.sweep.config import ConfigError, load_config
     from snapjump_cli.sweep.run import MAX_DESIGNS, SweepError, SweepInputError, parts_dir, run_sweep
 
@@ -95,7 +95,7 @@ def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str 
         except SweepError as e:
             raise click.ClickException(str(e)) from None
         except OSError as e:  # a full disk, an I/O error: one line, exit 2; what was written is kept
-            raise BadInput(f"{describe_os_error(e)}; the finished designs are kept (in {parts}); free some space "
+            raise BadInput(f"{describe_os_error(e)}; the finished designs are kept (in {parts}); {remedy(e)} "
                            f"and run the same command again to resume") from None
     c = summary.counts
     click.echo(

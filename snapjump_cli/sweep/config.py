@@ -326,6 +326,7 @@ def _parse_points(ctx: CheckContext, value: Any, max_designs: int = MAX_DESIGNS)
     if len(rows) > max_designs:
         raise _too_many(ctx, "points", len(rows), max_designs, "")
     out = []
+    first: dict[tuple[float, ...], int] = {}
     for j, row in enumerate(rows):
         m = ctx.mapping(where(j), row, _POINT_KEYS, required=GRID_AXES)
         vals = []
@@ -335,7 +336,12 @@ def _parse_points(ctx: CheckContext, value: Any, max_designs: int = MAX_DESIGNS)
             if not ok(x):
                 raise ctx.fail(f"{where(j)}.{a}", expected, m[a])
             vals.append(x)
-        out.append(tuple(vals))
+        t = tuple(vals)
+        if t in first:  # one design named twice would be solved and counted once: say so
+            raise ConfigError(ctx.source, where(j), f"the same design as {where(first[t])}; give each design once "
+                                                    f"(as the grid's axes are)")
+        first[t] = j
+        out.append(t)
     return tuple(out)
 
 

@@ -163,6 +163,10 @@ def _read_keys(path: Path) -> Any:
 def done_keys(output: str | Path) -> dict[str, str]:
     """Keys already recorded for ``output`` (its consolidated file and its part files).
 
+    Only rows whose status is one the sweep writes (:data:`results.STATUSES`) count as recorded:
+    a row with any other status (edited by hand, written by another tool) is solved again, with a
+    warning naming the file and the statuses.
+
     Returns
     -------
     dict
@@ -170,10 +174,16 @@ def done_keys(output: str | Path) -> dict[str, str]:
     """
     output = Path(output)
     done: dict[str, str] = {}
-    files = ([output] if output.exists() else []) + part_files(parts_dir(output))
+    files = ([output] if output.is_file() else []) + part_files(parts_dir(output))
     for f in files:
         t = _read_keys(f)
-        done.update(zip(t.column("key").to_pylist(), t.column("status").to_pylist()))
+        keys, statuses = t.column("key").to_pylist(), t.column("status").to_pylist()
+        other = sorted({str(s) for s in statuses if s not in res.STATUSES})
+        if other:
+            n = sum(s not in res.STATUSES for s in statuses)
+            log.warning("%s: %d rows have a status snapjump does not write (%s); their designs are solved again",
+                        f, n, ", ".join(repr(s) for s in other))
+        done.update((k, s) for k, s in zip(keys, statuses) if s in res.STATUSES and isinstance(k, str))
     return done
 
 
