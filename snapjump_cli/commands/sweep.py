@@ -11,6 +11,7 @@ import click
 from snapjump_cli.cli import injected, is_quiet, verbosity_options
 from snapjump_cli.commands._stop import sigterm_as_interrupt
 from snapjump_cli.errors import BadInput
+from snapjump_cli.sweep.checks import JOBS_PER_CORE, max_jobs
 
 __all__ = ["command", "main"]
 
@@ -48,13 +49,13 @@ Exit codes: 0 done (even if some designs failed), 1 the sweep could not run,
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Result parquet file. [default: `output` of the config, else results/<GRID stem>.parquet]")
 @click.option("-j", "--jobs", "n_jobs", type=int, default=None, metavar="N",
-              help="Worker processes (joblib n_jobs: -1 = every core, 1 = in this process). "
-                   "[default: `n_jobs` of the config, else -1]")
+              help=f"Worker processes (joblib n_jobs: -1 = every core, 1 = in this process), at most "
+                   f"{JOBS_PER_CORE} per core (here {max_jobs()}). [default: `n_jobs` of the config, else -1]")
 @click.option("--scheduler", metavar="ADDRESS", default=None,
               help="Run on a dask.distributed cluster at ADDRESS (e.g. tcp://10.0.0.5:8786) through "
                    "joblib's dask backend instead of local processes. Needs snapjump[dask].")
-@click.option("--chunk-size", type=click.IntRange(min=1), default=None, metavar="N",
-              help="Finished designs per part file. [default: `chunk_size` of the config, else 16]")
+@click.option("--chunk-size", type=click.IntRange(min=1, max=100_000), default=None, metavar="N",
+              help="Finished designs per part file, at most 100000. [default: `chunk_size` of the config, else 16]")
 @click.option("--retry-failed", is_flag=True, help="Solve designs recorded as failed again.")
 @click.option("--append", is_flag=True,
               help="Add to an output that holds rows of another grid, mesh, solver or material "
@@ -76,8 +77,10 @@ def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str 
         config = load_config(grid, max_designs or MAX_DESIGNS)
     except ConfigError as e:
         raise BadInput(str(e)) from None
-    if n_jobs == 0:
-        raise BadInput("-j/--jobs: expected a non-zero integer (-1 = every core), got 0")
+    from snapjump_cli.sweep.checks import jobs_error
+
+    if n_jobs is not None and (why := jobs_error(n_jobs)):
+        raise BadInput(f"-j/--jobs: {why}")
     out = output if output is not None else config.output
 
     parts = parts_dir(follow_links(out))

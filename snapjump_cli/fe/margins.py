@@ -22,6 +22,7 @@ import logging
 import numpy as np
 
 from snapjump_cli.fe.harmonics import HarmonicOperator, harmonic_operator
+from snapjump_cli.fe.limits import check_time
 
 log = logging.getLogger(__name__)
 
@@ -91,6 +92,7 @@ def smallest_eigenvalue(op: HarmonicOperator, u: np.ndarray, p: float, shift: fl
     mu = float(np.min(op.model.mu))
     sigma = -shift * mu
     for _ in range(6):
+        check_time()
         lam = eig_near(op, u, p, sigma)
         if lam is None:
             return None
@@ -109,6 +111,7 @@ def state_margins(model, u: np.ndarray, p: float, n_max: int, free_body: bool | 
     """The margins of harmonics ``0..n_max`` at one state, ``(n_max + 1,)`` (NaN outside the domain)."""
     out = np.full(n_max + 1, np.nan)
     for n in range(n_max + 1):
+        check_time()  # the design's CPU-time limit: the eigen-solves call no model evaluation that checks it
         lam = smallest_eigenvalue(harmonic_operator(model, n, free_body), u, p)
         if lam is not None:
             out[n] = lam

@@ -54,7 +54,7 @@ import numpy as np
 from snapjump_cli.fe.fluid import FLUID_KEYS, WATER, FluidSettings, fluid_from_mapping
 from snapjump_cli.geometry.caps import J_M_DEFAULT, MU_ELITE_DOUBLE_32, R_I_DEFAULT, RADIUS_RANGE_M
 from snapjump_cli.settings import MeshSettings, SettingsError, SolverSettings
-from snapjump_cli.sweep.checks import CheckContext, ConfigError, read_yaml
+from snapjump_cli.sweep.checks import CheckContext, ConfigError, regular_input, read_yaml
 
 __all__ = [
     "ConfigError",
@@ -280,6 +280,7 @@ def _read_points_file(ctx: CheckContext, value: str, max_designs: int = MAX_DESI
     path = Path(value)
     if not path.is_absolute() and not ctx.source.startswith("<"):
         path = Path(ctx.source).parent / path
+    regular_input(ctx.source, path, "points")  # a FIFO or a device would be read for ever
     try:
         if path.suffix.lower() == ".csv":
             with open(path, "rb") as fh:  # lines counted (fast) before the file is parsed
@@ -454,7 +455,7 @@ def parse_config(doc: Any, source: str = "<dict>", max_designs: int = MAX_DESIGN
     if top.get("n_jobs") is not None:
         kw["n_jobs"] = ctx.integer("n_jobs", top["n_jobs"], nonzero=True)
     if top.get("chunk_size") is not None:
-        kw["chunk_size"] = ctx.integer("chunk_size", top["chunk_size"], minimum=1)
+        kw["chunk_size"] = ctx.integer("chunk_size", top["chunk_size"], minimum=1, maximum=MAX_DESIGNS)
     return SweepConfig(**kw)
 
 

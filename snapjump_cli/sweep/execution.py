@@ -27,16 +27,18 @@ from typing import Any, Callable, Iterator, Mapping
 
 from snapjump_cli.errors import SweepError, SweepInputError
 from snapjump_cli.geometry.caps import Design
+from snapjump_cli.sweep.checks import JOBS_PER_CORE, jobs_error, max_jobs
 from snapjump_cli.sweep.rows import fill_row
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.files import own_files, remove_own
 from snapjump_cli.sweep.storage import MARKER_NAME, now_utc
 
-__all__ = ["SolveFn", "default_solver", "die_with_parent", "solve_task", "execute", "connect"]
+__all__ = ["SolveFn", "JOBS_PER_CORE", "max_jobs", "jobs_error", "default_solver", "die_with_parent", "solve_task", "execute", "connect"]
 
 log = logging.getLogger(__name__)
 
 _CONNECT_TIMEOUT_S = 15.0
+
 
 #: What a sweep calls per design: ``solve_fn(design, mesh, solver) -> metrics dict`` (with
 #: ``fluid=FluidSettings`` as a keyword when the sweep's fluid is air).

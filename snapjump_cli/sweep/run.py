@@ -39,6 +39,7 @@ from snapjump_cli.files import check_writable, follow_links, own_folder, remove_
 from snapjump_cli.geometry.caps import Design, InvalidDesign, centre_offset, outer_radius
 from snapjump_cli.sweep import results as res
 from snapjump_cli.sweep.config import MAX_DESIGNS, DesignPoint, SweepConfig
+from snapjump_cli.sweep.checks import jobs_error
 from snapjump_cli.sweep.execution import SolveFn, connect, default_solver, execute
 from snapjump_cli.sweep.rows import settings_json
 from snapjump_cli.settings import MeshSettings, SolverSettings
@@ -266,9 +267,9 @@ def run_sweep(
     """
     t_start = time.perf_counter()
     output = Path(output if output is not None else config.output)
+    if (why := jobs_error(n_jobs if n_jobs is not None else config.n_jobs)):
+        raise SweepInputError(f"-j/--jobs: {why}" if n_jobs is not None else f"{config.source}: n_jobs: {why}")
     n_jobs = int(n_jobs if n_jobs is not None else config.n_jobs)
-    if n_jobs == 0:
-        raise SweepInputError("n_jobs must not be 0")
     if config.n_designs > max_designs:
         raise SweepInputError(
             f"{config.source}: {config.n_designs} designs exceed the limit of {max_designs} "

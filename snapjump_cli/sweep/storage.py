@@ -225,7 +225,7 @@ def check_compatible(output: str | Path, keys: set[str], config: Mapping[str, An
             diffs.append(f"{k} {a} -> {b}")
     grid_old = old.get("points", old.get("grid"))
     grid_new = config.get("points", config.get("grid"))
-    if grid_old is not None and grid_old != grid_new:
+    if grid_old is not None and not _same_designs(grid_old, grid_new):
         diffs.append("the designs (grid or points)")
     what = "; ".join(diffs) if diffs else "its rows were computed for other designs or settings"
     raise SweepInputError(
@@ -233,12 +233,43 @@ def check_compatible(output: str | Path, keys: set[str], config: Mapping[str, An
         f"write to another output, or pass --append to add to this file deliberately")
 
 
+def designs_digest(designs: Any) -> dict[str, Any]:
+    """A short stand-in for a config's ``grid`` or ``points`` (their count and SHA-256)."""
+    text = json.dumps(designs, sort_keys=True, separators=(",", ":"), default=str)
+    n = len(designs) if isinstance(designs, list) else sum(len(v) for v in designs.values()) \
+        if isinstance(designs, Mapping) else None
+    return {"sha256": hashlib.sha256(text.encode()).hexdigest(), "n": n}
+
+
+def part_meta(meta: Mapping[str, Any]) -> dict[str, Any]:
+    """The provenance a part file carries: the run's, with the designs (``grid`` / ``points``) as
+    a digest (:func:`designs_digest`). The full list is stored once, in the consolidated file;
+    carried by every part it made the parts grow as the square of the number of designs."""
+    out = dict(meta)
+    cfg = out.get("config")
+    if isinstance(cfg, Mapping):
+        cfg = dict(cfg)
+        for k in ("grid", "points"):
+            if k in cfg and not (isinstance(cfg[k], Mapping) and "sha256" in cfg[k]):
+                cfg[k] = {"digest": designs_digest(cfg[k])}
+        out["config"] = cfg
+    return out
+
+
+def _same_designs(old: Any, new: Any) -> bool:
+    """Whether a file's recorded ``grid`` / ``points`` (possibly a part's digest) is ``new``."""
+    if isinstance(old, Mapping) and set(old) == {"digest"}:
+        return new is not None and old["digest"] == designs_digest(new)
+    return old == new
+
+
 class PartWriter:
-    """Buffers rows and writes them as atomic part files ``part-NNNNNN.parquet``."""
+    """Buffers rows and writes them as atomic part files ``part-NNNNNN.parquet`` (with the run's
+    provenance, its designs as a digest: :func:`part_meta`)."""
 
     def __init__(self, parts: Path, meta: dict[str, Any], chunk_size: int, flush_interval_s: float) -> None:
         self.parts = parts
-        self.meta = meta
+        self.meta = part_meta(meta)
         self.chunk_size = max(1, int(chunk_size))
         self.flush_interval_s = flush_interval_s
         self.buffer: list[dict[str, Any]] = []
