@@ -104,6 +104,12 @@ def main(argv: Sequence[str] | None = None, **inject: Any) -> int:
     ``inject`` passes Python objects to the commands (tests and notebooks), e.g.
     ``main(["sweep", ...], solve_fn=my_solver, warm_up_fn=None)``.
     """
+    for stream in (sys.stdout, sys.stderr):  # a file name that is not valid UTF-8 is shown, never a traceback
+        if getattr(stream, "errors", None) == "strict" and hasattr(stream, "reconfigure"):
+            try:
+                stream.reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):  # pragma: no cover - a stream that cannot change
+                pass
     try:
         rc = cli.main(args=list(argv) if argv is not None else None, prog_name="snapjump", standalone_mode=False,
                       obj=dict(inject))

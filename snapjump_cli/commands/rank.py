@@ -72,17 +72,17 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
         params = JumpParams(rho=rho, c_d=c_d, alpha=alpha)
     except (ValueError, TypeError) as e:
         raise BadInput(f"jump parameters: {e}") from None
-    if not results.exists():
-        raise BadInput(f"{results}: file not found")
-    if results.is_dir():
-        raise BadInput(f"{results}: expected a parquet file, got a directory")
-    if not results.is_file():  # a FIFO or a device would block or never end
-        raise BadInput(f"{results}: expected a parquet file, got a special file")
-    try:
+    try:  # the one reader of result files: a FIFO, a CSV, a column of the wrong kind, metadata not JSON
         df = res.read_results(results)
         meta = res.read_metadata(results)
+    except res.ResultsFileError as e:
+        raise BadInput(str(e)) from None
     except (pa.ArrowException, OSError) as e:
         raise BadInput(f"{results}: not a readable parquet file ({str(e).splitlines()[0]})") from None
+    if "rank" in meta or "rank" in df.columns:
+        src = (meta.get("rank") or {}).get("source") if isinstance(meta.get("rank"), dict) else None
+        raise BadInput(f"{results}: is a ranked table (written by snapjump rank" + (f" from {src}" if src else "")
+                       + "); give rank the results file of the sweep")
     out = output if output is not None else results.with_name(results.name.removesuffix(".parquet") + ".ranked.parquet")
     if out.suffix.lower() not in (".parquet", ".csv"):
         raise BadInput(f"-o/--output: {out}: expected a .parquet or .csv file name")

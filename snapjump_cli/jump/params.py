@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import math
+import sys
 from dataclasses import dataclass
 
 from snapjump_cli.settings import JUMP_ALPHA, JUMP_C_D, JUMP_RHO
@@ -31,6 +32,9 @@ def check_real(name: str, value: float, *, positive: bool = False, nonneg: bool 
         raise ValueError(f"{name} must be a real number, got {value!r}") from None
     if isinstance(value, bool) or not math.isfinite(x):
         raise ValueError(f"{name} must be a finite real number, got {value!r}")
+    if x != 0.0 and abs(x) < sys.float_info.min:
+        raise ValueError(f"{name} must be a normal number, got {value!r} (subnormal, below {sys.float_info.min:.4g}: "
+                         f"a typo in the exponent?)")
     if positive and not x > 0.0:
         raise ValueError(f"{name} must be > 0, got {x!r}")
     if nonneg and not x >= 0.0:

@@ -9,6 +9,7 @@ import dataclasses
 import math
 import os
 import re
+import sys
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -68,6 +69,9 @@ class CheckContext:
             raise self.fail(path, expected, value)
         if not math.isfinite(x):
             raise self.fail(path, expected, value)
+        if x != 0.0 and abs(x) < sys.float_info.min:  # subnormal: no setting means that, and it loses digits
+            raise ConfigError(self.source, path, f"expected {expected}, got {value!r}, a subnormal number (below "
+                                                 f"{sys.float_info.min:.4g}): a typo in the exponent?")
         return x
 
     def positive(self, path: str, value: Any) -> float:

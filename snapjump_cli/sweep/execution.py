@@ -33,7 +33,7 @@ from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.files import own_files, remove_own
 from snapjump_cli.sweep.storage import MARKER_NAME, now_utc
 
-__all__ = ["SolveFn", "JOBS_PER_CORE", "max_jobs", "jobs_error", "default_solver", "die_with_parent", "solve_task", "execute", "connect"]
+__all__ = ["SolveFn", "SCHEDULER_SCHEMES", "check_scheduler", "default_solver", "die_with_parent", "solve_task", "execute", "connect"]
 
 log = logging.getLogger(__name__)
 
@@ -187,13 +187,42 @@ def execute(tasks: list[dict[str, Any]], solve_fn: SolveFn, n_jobs: int, backend
                                error=f"worker process died while solving this design ({type(exc2).__name__}: {exc2})"[:4000])
                 yield row
 
+#: The address schemes of dask.distributed's communications (``tcp://host:port``; no scheme = tcp).
+SCHEDULER_SCHEMES: tuple[str, ...] = ("tcp", "tls", "inproc", "ucx", "ws", "wss")
+
+
+def check_scheduler(address: str) -> str:
+    """``address`` if it has the form of a dask scheduler address (``[SCHEME://]HOST[:PORT]``,
+    :data:`SCHEDULER_SCHEMES`), checked before anything is started or written.
+
+    Raises
+    ------
+    SweepInputError
+        One line naming the address and what is expected.
+    """
+    expected = f"expected SCHEME://HOST:PORT with SCHEME one of {', '.join(SCHEDULER_SCHEMES)} (e.g. tcp://10.0.0.5:8786)"
+    if not isinstance(address, str) or not address.strip() or any(c.isspace() for c in address):
+        raise SweepInputError(f"--scheduler: {address!r}: {expected}")
+    scheme, sep, rest = address.partition("://")
+    if sep and scheme.lower() not in SCHEDULER_SCHEMES:
+        raise SweepInputError(f"--scheduler: {address!r}: the scheme {scheme!r} is not one dask speaks; {expected}")
+    if sep and not rest:
+        raise SweepInputError(f"--scheduler: {address!r}: no host; {expected}")
+    return address
+
+
 def connect(address: str) -> Any:
     """A dask.distributed client for ``address`` (dask imported here only)."""
+    check_scheduler(address)
     try:
         from dask.distributed import Client
     except ImportError as e:  # pragma: no cover - depends on the install
         raise SweepError("--scheduler needs dask[distributed] (pip install 'snapjump[dask]')") from e
     try:
         return Client(address, timeout=_CONNECT_TIMEOUT_S, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as e:
-        raise SweepInputError(f"cannot connect to the dask scheduler at {address!r}: {e}") from None
+    except (KeyboardInterrupt, SystemExit):
+        raise
+    except Exception as e:  # noqa: BLE001 - whatever dask raises for an address it cannot reach: one line
+        why = " ".join(str(e).split())[:300] or type(e).__name__
+        raise SweepInputError(f"--scheduler: cannot connect to the dask scheduler at {address!r} ({why}); check "
+                              f"that it runs and the address") from None

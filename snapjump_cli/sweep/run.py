@@ -40,7 +40,7 @@ from snapjump_cli.geometry.caps import Design, InvalidDesign, centre_offset, out
 from snapjump_cli.sweep import results as res
 from snapjump_cli.sweep.config import MAX_DESIGNS, DesignPoint, SweepConfig
 from snapjump_cli.sweep.checks import jobs_error
-from snapjump_cli.sweep.execution import SolveFn, connect, default_solver, execute
+from snapjump_cli.sweep.execution import SolveFn, check_scheduler, connect, default_solver, execute
 from snapjump_cli.sweep.rows import settings_json
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.sweep.storage import (
@@ -275,6 +275,8 @@ def run_sweep(
             f"{config.source}: {config.n_designs} designs exceed the limit of {max_designs} "
             f"(~{_fmt_duration(estimate_seconds(config.n_designs, config.mesh, os.cpu_count() or 1))} on this "
             f"machine); check the grid, or raise the limit with --max-designs")
+    if scheduler is not None:
+        check_scheduler(scheduler)
     chunk = int(chunk_size if chunk_size is not None else config.chunk_size)
     if output.exists() and output.is_dir():
         raise SweepInputError(f"{output}: is a directory, expected a parquet file path")
@@ -354,8 +356,8 @@ def _solve_all(tasks: list[dict[str, Any]], solve_fn: SolveFn, warm_up_fn: Calla
     and ``record`` each row as it finishes."""
     backend = "loky"
     if scheduler is not None:
-        client = connect(scheduler)
-        clients.append(client)
+        if not clients:
+            clients.append(connect(scheduler))
         backend, n_jobs = "dask", -1
     if warm_up_fn is not None:
         t0 = time.perf_counter()
@@ -437,6 +439,8 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
     clients: list[Any] = []
     stopped_by: BaseException | None = None
     try:
+        if scheduler is not None and tasks:  # reached before any row is written (a bad address writes nothing)
+            clients.append(connect(scheduler))
         for row in invalid_rows:
             record(row, advance=False)
         if tasks:

@@ -145,13 +145,10 @@ def result_files(output: str | Path) -> list[Path]:
 
 
 def _read_keys(path: Path) -> Any:
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
     try:
-        t = pq.read_table(path, columns=["key", "status"])
-    except (pa.ArrowInvalid, KeyError, OSError) as e:
-        why = " ".join(str(e).split())
+        t = res.read_table(path, columns=["key", "status"])
+    except res.ResultsFileError as e:
+        why = str(e).removeprefix(f"{path}: ")
         if path.parent.name.endswith(".parts"):  # a part of an interrupted run: its rows are solved again
             raise SweepInputError(f"{path}: damaged part file ({why}); delete this file and run the same command "
                                   f"again (its designs are solved again, the other parts are kept)") from None
@@ -319,7 +316,10 @@ def consolidate(output: str | Path, meta: Mapping[str, Any], order: Mapping[str,
     schema = res.result_schema()
     tables = []
     for f in files:
-        t = pq.read_table(f)
+        try:
+            t = res.read_table(f)
+        except res.ResultsFileError as e:
+            raise SweepInputError(str(e)) from None
         t = t.replace_schema_metadata(None)
         # tolerate files written with an older column set: add the missing columns as nulls
         for fld in schema:
