@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import socket
 import sys
 import threading
@@ -81,6 +82,10 @@ def die_with_parent(parent_pid: int, interval_s: float = 0.5) -> None:
     """
     if os.getppid() != parent_pid:
         os._exit(1)
+    try:  # Ctrl-C reaches every process of the terminal: the sweep (the parent) stops the workers itself
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except (ValueError, OSError):  # pragma: no cover - not the main thread
+        pass
 
     def watch() -> None:
         while True:
