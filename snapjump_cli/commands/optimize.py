@@ -164,6 +164,10 @@ def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | N
 
     with ExitStack() as lock:
         try:
+            out.parent.mkdir(parents=True, exist_ok=True)  # as sweep and rank do: the lock lives beside the output
+        except OSError as e:
+            raise BadInput(f"-o/--output: {out}: cannot create its folder ({e.strerror})") from None
+        try:
             lock.enter_context(OutputLock(out, command="optimize"))
             check_output(out, sp, overwrite)
         except (SweepInputError, OptimizeInputError) as e:

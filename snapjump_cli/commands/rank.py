@@ -149,16 +149,22 @@ def _rank_locked(results: Path, df: Any, meta: dict, out: Path, plots_dir: Path 
     say = (lambda line: click.echo(line, err=True)) if fmt != "text" else click.echo
     summary = (f"{results}: {len(ranked)} designs ({', '.join(f'{k} {v}' for k, v in sorted(counts.items()))}); "
                f"{n_jumped} jump")
+    reasons = res.failure_reasons(ranked, source=results)
     if fmt == "text":
         click.echo(summary)
         if top > 0:
             click.echo(top_table(ranked, top))
+
     elif fmt == "csv":
         click.echo(top_frame(ranked, top).to_csv(index=False), nl=False)
     else:
         rows = json.loads(top_frame(ranked, top).to_json(orient="records"))
         click.echo(json.dumps({"source": str(results), "n_designs": int(len(ranked)), "status_counts": counts,
-                               "n_jumped": n_jumped, "top": rows, "files": [str(f) for f in files]}, indent=1))
+                               "n_jumped": n_jumped, "top": rows, "files": [str(f) for f in files],
+                               "reasons": reasons}, indent=1))
+    if not is_quiet():  # on stderr: stdout keeps the table (or the CSV / JSON) alone
+        for line in reasons:
+            click.echo(line, err=True)
     if not is_quiet():
         for f in files:
             say(f"wrote {f}")

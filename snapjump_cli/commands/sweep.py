@@ -106,6 +106,22 @@ def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str 
         f"in {summary.wall_s:.1f} s): ok {c.get('ok', 0)}, no_snap {c.get('no_snap', 0)}, "
         f"invalid_geometry {c.get('invalid_geometry', 0)}, failed {c.get('failed', 0)}"
     )
+    if (c.get("invalid_geometry") or c.get("failed")) and not is_quiet():
+        _echo_reasons(summary.output)
+
+
+def _echo_reasons(output: Path) -> None:
+    """The reasons of the invalid and failed designs of ``output``, grouped (they are in its
+    ``error`` column; a newcomer would not look there)."""
+    from snapjump_cli.sweep import results as res
+
+    try:
+        df = res.read_table(output, columns=["status", "error"]).to_pandas()
+    except (res.ResultsFileError, OSError) as e:  # the summary above stands; the reasons are extra
+        log.warning("could not read the reasons back from %s: %s", output, e)
+        return
+    for line in res.failure_reasons(df, source=output):
+        click.echo(line, err=True)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -26,6 +26,7 @@ from snapjump_cli.sweep.config import (
     parse_config,
     read_yaml,
 )
+from snapjump_cli.sweep.checks import warn_if_radians
 from snapjump_cli.jump import JumpParams
 from snapjump_cli.settings import MeshSettings, without_limits
 
@@ -243,6 +244,8 @@ def parse_spec(doc: Any, source: str = "<dict>") -> OptimizeSpec:
     top = ctx.mapping("", doc, _TOP_KEYS, required=("bounds",))
     b = ctx.mapping("bounds", top["bounds"], {p: _BOUND_EXPECTED for p in PARAMETERS}, required=PARAMETERS)
     bounds = {p: _parse_bound(ctx, p, b[p]) for p in PARAMETERS}
+    for a in ("theta_i", "theta_o"):
+        warn_if_radians(source, f"bounds.{a}", sorted(set(bounds[a])))
     if all(lo == hi for lo, hi in bounds.values()):
         raise ConfigError(source, "bounds", "expected at least one free parameter ([lo, hi] with lo < hi), got all fixed")
     kw: dict[str, Any] = {"bounds": bounds, "source": source, "raw": dict(top)}

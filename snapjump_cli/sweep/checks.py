@@ -6,6 +6,7 @@ integer, a boolean or a mapping of known keys, or raises that error.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import os
 import re
@@ -13,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any, Mapping
 
-__all__ = ["ConfigError", "CheckContext", "read_yaml", "YAML_MAX_BYTES", "JOBS_PER_CORE", "max_jobs", "jobs_error"]
+__all__ = ["ConfigError", "CheckContext", "warn_if_radians", "read_yaml", "YAML_MAX_BYTES", "JOBS_PER_CORE", "max_jobs", "jobs_error"]
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _FLOAT_RE = re.compile(rf"^\s*({_NUM})\s*$")
@@ -123,6 +124,23 @@ class CheckContext:
                 kp = f"{path}.{k}" if path else k
                 raise ConfigError(self.source, kp, f"missing required key; expected {allowed[k]}")
         return dict(value)
+
+
+log = logging.getLogger(__name__)
+
+
+def warn_if_radians(source: str, path: str, values: Any) -> bool:
+    """Warn (naming the key) when every angle given for a field in degrees is at most 2 pi, as
+    radians would be; returns whether it warned. (Such shallow caps are legal, so it is not an
+    error: their designs are usually recorded as ``invalid_geometry``.)"""
+    vals = [float(v) for v in values]
+    if not vals or not all(0.0 < v <= 2.0 * math.pi for v in vals):
+        return False
+    shown = ", ".join(f"{v:g}" for v in vals[:4]) + (", ..." if len(vals) > 4 else "")
+    deg = ", ".join(f"{math.degrees(v):.4g}" for v in vals[:4]) + (", ..." if len(vals) > 4 else "")
+    log.warning("%s: %s: %s look like radians, but this angle is in degrees (in degrees they would be %s); "
+                "convert them if they are radians", source, path, shown, deg)
+    return True
 
 
 # ---- reading a YAML file -------------------------------------------------------------------

@@ -54,7 +54,7 @@ import numpy as np
 from snapjump_cli.fe.fluid import FLUID_KEYS, WATER, FluidSettings, fluid_from_mapping
 from snapjump_cli.geometry.caps import J_M_DEFAULT, MU_ELITE_DOUBLE_32, R_I_DEFAULT, RADIUS_RANGE_M
 from snapjump_cli.settings import MeshSettings, SettingsError, SolverSettings
-from snapjump_cli.sweep.checks import CheckContext, ConfigError, regular_input, read_yaml
+from snapjump_cli.sweep.checks import CheckContext, ConfigError, read_yaml, regular_input, warn_if_radians
 
 __all__ = [
     "ConfigError",
@@ -415,6 +415,9 @@ def parse_config(doc: Any, source: str = "<dict>", max_designs: int = MAX_DESIGN
     kw: dict[str, Any] = {"source": source, "raw": dict(top)}
     if "points" in top:
         kw["points"] = _parse_points(ctx, top["points"], max_designs)
+        for j, a in enumerate(GRID_AXES):
+            if a.startswith("theta"):
+                warn_if_radians(source, f"points (column {a})", [p[j] for p in kw["points"]])
         kw["grid"] = {a: () for a in GRID_AXES}
     elif "grid" not in top:
         raise ConfigError(source, "grid", "missing required key; expected " + _TOP_KEYS["grid"] + " (or points:)")
@@ -424,6 +427,8 @@ def parse_config(doc: Any, source: str = "<dict>", max_designs: int = MAX_DESIGN
         if math.prod(sizes) > max_designs:
             raise _too_many(ctx, "grid", math.prod(sizes), max_designs, " x ".join(map(str, sizes)) + " = ")
         kw["grid"] = {a: _parse_axis(ctx, a, g[a]) for a in GRID_AXES}
+        for a in ("theta_i", "theta_o"):
+            warn_if_radians(source, f"grid.{a}", kw["grid"][a])
 
     if "R_i" in top:
         kw["R_i"] = ctx.positive("R_i", top["R_i"])

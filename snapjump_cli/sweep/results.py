@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import logging
 import platform
+import re
 import subprocess
 import sys
 from datetime import datetime, timezone
@@ -57,6 +58,7 @@ __all__ = [
     "pandas_types_mapper",
     "read_metadata",
     "provenance",
+    "failure_reasons",
 ]
 
 log = logging.getLogger(__name__)
@@ -347,3 +349,39 @@ def provenance(config: Mapping[str, Any] | None = None, **extra: Any) -> dict[st
     }
     meta.update(extra)
     return meta
+
+
+# ---- why designs were not solved ---------------------------------------------------------------
+_VALUE_RE = re.compile(r"(=|<=|>=|<|>|got|step|at|after|of)\s+-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+
+
+def _reason(error: Any) -> str:
+    """An error message with the values of one design replaced by ``#`` (so alike reasons group)."""
+    text = " ".join(error.split()) if isinstance(error, str) else ""
+    return _VALUE_RE.sub(lambda m: f"{m.group(1)} #", text)
+
+
+def failure_reasons(df: pd.DataFrame, statuses: tuple[str, ...] = ("invalid_geometry", "failed"),
+                    top: int = 5, source: str | Path | None = None) -> list[str]:
+    """The reasons of the designs of ``statuses`` (their ``error`` column), grouped: for each status
+    with rows, a line ``<status>: <n> designs``, then up to ``top`` lines ``<count> x <reason>``
+    (values of one design shown as ``#``), most frequent first. ``[]`` if there are none."""
+    from collections import Counter
+
+    if "status" not in df.columns:
+        return []
+    lines = []
+    errors = df["error"] if "error" in df.columns else None
+    for st in statuses:
+        mask = (df["status"] == st).fillna(False).to_numpy(dtype=bool)
+        n = int(mask.sum())
+        if not n:
+            continue
+        groups = Counter(_reason(e) for e in (errors[mask] if errors is not None else [""] * n))
+        lines.append(f"{st}: {n} design{'s' if n != 1 else ''}, why:")
+        for reason, k in groups.most_common(top):
+            lines.append(f"  {k} x {reason or '(no reason recorded)'}")
+        if len(groups) > top:
+            where = f" (column 'error' of {source})" if source is not None else " (column 'error')"
+            lines.append(f"  ... and {len(groups) - top} other reasons{where}")
+    return lines
