@@ -154,7 +154,6 @@ def _rank_locked(results: Path, df: Any, meta: dict, out: Path, plots_dir: Path 
         click.echo(summary)
         if top > 0:
             click.echo(top_table(ranked, top))
-
     elif fmt == "csv":
         click.echo(top_frame(ranked, top).to_csv(index=False), nl=False)
     else:
