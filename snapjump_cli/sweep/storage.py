@@ -312,7 +312,7 @@ def consolidate(output: str | Path, meta: Mapping[str, Any], order: Mapping[str,
 
     output = Path(output)
     parts = parts_dir(output)
-    files = ([output] if output.exists() else []) + part_files(parts)
+    files = ([output] if output.is_file() else []) + part_files(parts)
     schema = res.result_schema()
     tables = []
     for f in files:
