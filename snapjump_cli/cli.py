@@ -1,13 +1,43 @@
 """The ``snapjump`` command group. Each command lives in ``snapjump_cli/commands/<name>.py``
-and is imported only when it is run (``snapjump --help`` stays fast)."""
+and is imported only when it is run (``snapjump --help`` stays fast).
+
+Ctrl-C (or SIGTERM where a command asks for it) at any moment ends the command with exit code 130
+and one line, ``interrupted``: while this module is imported by the ``snapjump`` program, a SIGINT
+ends the process at once with that line (nothing has been written yet); from :func:`main` on, it is
+Python's ``KeyboardInterrupt``, which the commands turn into a clean stop.
+"""
 from __future__ import annotations
 
-import importlib
-import logging
+import os
+import signal
 import sys
-from typing import Any, Sequence
+import threading
 
-import click
+#: The one line of an interrupted command, and its exit code.
+INTERRUPTED, EXIT_INTERRUPTED = "interrupted", 130
+
+
+def _interrupted_at_start(signum: int, frame: object) -> None:  # pragma: no cover - timing dependent
+    os.write(2, f"{INTERRUPTED}\n".encode())
+    os._exit(EXIT_INTERRUPTED)
+
+
+def _is_program() -> bool:
+    """Whether this process is the ``snapjump`` program (not a library user importing the CLI)."""
+    arg0 = sys.argv[0] if sys.argv and sys.argv[0] else ""
+    name = os.path.basename(arg0)
+    return name == "snapjump" or (name == "__main__.py" and os.path.basename(os.path.dirname(arg0)) == "snapjump_cli")
+
+
+if _is_program() and threading.current_thread() is threading.main_thread() \
+        and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+    signal.signal(signal.SIGINT, _interrupted_at_start)  # Ctrl-C during the imports below: one line, 130
+
+import importlib  # noqa: E402
+import logging  # noqa: E402
+from typing import Any, Sequence  # noqa: E402
+
+import click  # noqa: E402
 
 from snapjump_cli import __version__
 
@@ -104,6 +134,14 @@ def main(argv: Sequence[str] | None = None, **inject: Any) -> int:
     ``inject`` passes Python objects to the commands (tests and notebooks), e.g.
     ``main(["sweep", ...], solve_fn=my_solver, warm_up_fn=None)``.
     """
+    if signal.getsignal(signal.SIGINT) is _interrupted_at_start:  # from here on, Ctrl-C stops cleanly
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    for stream in (sys.stdout, sys.stderr):  # a file name that is not valid UTF-8 is shown, never a traceback
+        if getattr(stream, "errors", None) == "strict" and hasattr(stream, "reconfigure"):
+            try:
+                stream.reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):  # pragma: no cover - a stream that cannot change
+                pass
     try:
         rc = cli.main(args=list(argv) if argv is not None else None, prog_name="snapjump", standalone_mode=False,
                       obj=dict(inject))
@@ -114,9 +152,9 @@ def main(argv: Sequence[str] | None = None, **inject: Any) -> int:
     except click.ClickException as e:  # UsageError, BadParameter, ... -> exit 2 (one line, no traceback)
         e.show()
         return 2 if e.exit_code in (1, 2) and isinstance(e, (click.UsageError, click.BadParameter)) else e.exit_code
-    except click.exceptions.Abort:
-        click.echo("Aborted!", err=True)
-        return 1
+    except (click.exceptions.Abort, KeyboardInterrupt):  # Ctrl-C (click turns it into Abort): one line, 130
+        click.echo(INTERRUPTED, err=True)
+        return EXIT_INTERRUPTED
     except OSError as e:  # a full disk, an I/O error, an output that may not be written: one line, exit 2
         from snapjump_cli.files import describe_os_error
 

@@ -14,6 +14,7 @@ import click
 from snapjump_cli.cli import injected, is_quiet, verbosity_options
 from snapjump_cli.commands._stop import sigterm_as_interrupt
 from snapjump_cli.errors import BadInput
+from snapjump_cli.sweep.checks import JOBS_PER_CORE, max_jobs
 
 __all__ = ["command", "main"]
 
@@ -114,9 +115,10 @@ def _text(summary: dict, result: Any, output: Path, files: list[Path], from_path
               help="Result parquet file (every evaluation). [default: `output` of the spec, else "
                    "results/<SPEC stem>.parquet]")
 @click.option("-j", "--jobs", "n_jobs", type=int, default=None, metavar="N",
-              help="Worker processes (joblib n_jobs: -1 = every core). [default: `n_jobs` of the spec, else -1]")
-@click.option("--budget", type=click.IntRange(min=1), default=None, metavar="N",
-              help="Number of solves (overrides `budget:` of the spec).")
+              help=f"Worker processes (joblib n_jobs: -1 = every core), at most {JOBS_PER_CORE} per core "
+                   f"(here {max_jobs()}). [default: `n_jobs` of the spec, else -1]")
+@click.option("--budget", type=click.IntRange(min=1, max=100_000), default=None, metavar="N",
+              help="Number of solves (overrides `budget:` of the spec), at most 100000.")
 @click.option("--from", "from_path", type=click.Path(path_type=Path), default=None, metavar="RESULTS.parquet",
               help="Sweep results whose best rows inside the box seed the search (a parquet file, or the "
                    ".parts folder of an unfinished sweep).")
@@ -142,8 +144,10 @@ def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | N
         sp = load_spec(spec)
     except ConfigError as e:
         raise BadInput(str(e)) from None
-    if n_jobs == 0:
-        raise BadInput("-j/--jobs: expected a non-zero integer (-1 = every core), got 0")
+    from snapjump_cli.sweep.checks import jobs_error
+
+    if n_jobs is not None and (why := jobs_error(n_jobs)):
+        raise BadInput(f"-j/--jobs: {why}")
     out = output if output is not None else sp.output
     if out.exists() and out.is_dir():
         raise BadInput(f"-o/--output: {out} is a directory, expected a parquet file path")
@@ -160,6 +164,10 @@ def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | N
 
     with ExitStack() as lock:
         try:
+            out.parent.mkdir(parents=True, exist_ok=True)  # as sweep and rank do: the lock lives beside the output
+        except OSError as e:
+            raise BadInput(f"-o/--output: {out}: cannot create its folder ({e.strerror})") from None
+        try:
             lock.enter_context(OutputLock(out, command="optimize"))
             check_output(out, sp, overwrite)
         except (SweepInputError, OptimizeInputError) as e:
@@ -170,7 +178,7 @@ def command(spec: Path, output: Path | None, n_jobs: int | None, budget: int | N
 def _run(sp: Any, out: Path, n_jobs: int | None, budget: int | None, from_path: Path | None, from_df: Any, fmt: str,
          plots: bool, progress: bool) -> None:
     """The run itself, under the output's lock: search, confirm, write the table and plots, report."""
-    from snapjump_cli.files import AtomicFiles, describe_os_error
+    from snapjump_cli.files import AtomicFiles, describe_os_error, remedy
     from snapjump_cli.optimize import OptimizeInputError, cache_paths, make_plots, run_optimize, write_result
     from snapjump_cli.sweep.run import SweepError, SweepInputError
 
@@ -200,7 +208,7 @@ def _run(sp: Any, out: Path, n_jobs: int | None, budget: int | None, from_path: 
         except SweepError as e:
             raise click.ClickException(str(e)) from None
         except OSError as e:  # a full disk, an I/O error: one line, exit 2
-            raise BadInput(f"{describe_os_error(e)}; the {kept}: free some space and run the same command "
+            raise BadInput(f"{describe_os_error(e)}; the {kept}: {remedy(e)} and run the same command "
                            f"again to resume") from None
         finally:
             if bar is not None:

@@ -6,7 +6,8 @@ import logging
 import sys
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Sequence
+from contextlib import ExitStack
+from typing import Any, Sequence
 
 import click
 
@@ -63,26 +64,25 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
             alpha: float, fmt: str, exclude_asymmetric: bool, overwrite: bool) -> None:
     import pyarrow as pa
 
-    from snapjump_cli.files import AtomicFiles, check_writable
+    from snapjump_cli.files import OutputLock, check_writable, follow_links, os_error_reason
     from snapjump_cli.sweep import results as res
     from snapjump_cli.jump import JumpParams
-    from snapjump_cli.jump.rank import RankInputError, rank_results, settings_mix, top_frame, top_table
 
     try:
         params = JumpParams(rho=rho, c_d=c_d, alpha=alpha)
     except (ValueError, TypeError) as e:
         raise BadInput(f"jump parameters: {e}") from None
-    if not results.exists():
-        raise BadInput(f"{results}: file not found")
-    if results.is_dir():
-        raise BadInput(f"{results}: expected a parquet file, got a directory")
-    if not results.is_file():  # a FIFO or a device would block or never end
-        raise BadInput(f"{results}: expected a parquet file, got a special file")
-    try:
+    try:  # the one reader of result files: a FIFO, a CSV, a column of the wrong kind, metadata not JSON
         df = res.read_results(results)
         meta = res.read_metadata(results)
+    except res.ResultsFileError as e:
+        raise BadInput(str(e)) from None
     except (pa.ArrowException, OSError) as e:
         raise BadInput(f"{results}: not a readable parquet file ({str(e).splitlines()[0]})") from None
+    if "rank" in meta or "rank" in df.columns:
+        src = (meta.get("rank") or {}).get("source") if isinstance(meta.get("rank"), dict) else None
+        raise BadInput(f"{results}: is a ranked table (written by snapjump rank" + (f" from {src}" if src else "")
+                       + "); give rank the results file of the sweep")
     out = output if output is not None else results.with_name(results.name.removesuffix(".parquet") + ".ranked.parquet")
     if out.suffix.lower() not in (".parquet", ".csv"):
         raise BadInput(f"-o/--output: {out}: expected a .parquet or .csv file name")
@@ -90,6 +90,24 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
         raise BadInput(f"-o/--output: {out} would overwrite the input results file")
     # every output place is checked before anything is written
     check_writable(out, BadInput, overwrite=overwrite)
+    target = follow_links(out)  # a link: the file it points to is written (its lock beside it)
+    with ExitStack() as held:  # the output's lock, for the whole run: a second rank into it is refused
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            held.enter_context(OutputLock(target, command="rank", error=BadInput))
+        except OSError as e:
+            raise BadInput(f"{out}: cannot create its folder ({os_error_reason(e)})") from None
+        check_writable(out, BadInput, overwrite=overwrite)  # again, under the lock: another run may have written it
+        _rank_locked(results, df, meta, out, plots_dir, params, top, fmt, exclude_asymmetric, overwrite)
+
+
+def _rank_locked(results: Path, df: Any, meta: dict, out: Path, plots_dir: Path | None, params: Any, top: int,
+                 fmt: str, exclude_asymmetric: bool, overwrite: bool) -> None:
+    """Rank, write and report, under the output's lock."""
+    from snapjump_cli.files import AtomicFiles, check_writable
+    from snapjump_cli.sweep import results as res
+    from snapjump_cli.jump.rank import RankInputError, rank_results, settings_mix, top_frame, top_table
+
     if plots_dir is not None:
         from snapjump_cli.viz.figures import PLOT_FILES
 
@@ -131,6 +149,7 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
     say = (lambda line: click.echo(line, err=True)) if fmt != "text" else click.echo
     summary = (f"{results}: {len(ranked)} designs ({', '.join(f'{k} {v}' for k, v in sorted(counts.items()))}); "
                f"{n_jumped} jump")
+    reasons = res.failure_reasons(ranked, source=results)
     if fmt == "text":
         click.echo(summary)
         if top > 0:
@@ -140,7 +159,11 @@ def command(results: Path, top: int, output: Path | None, plots_dir: Path | None
     else:
         rows = json.loads(top_frame(ranked, top).to_json(orient="records"))
         click.echo(json.dumps({"source": str(results), "n_designs": int(len(ranked)), "status_counts": counts,
-                               "n_jumped": n_jumped, "top": rows, "files": [str(f) for f in files]}, indent=1))
+                               "n_jumped": n_jumped, "top": rows, "files": [str(f) for f in files],
+                               "reasons": reasons}, indent=1))
+    if not is_quiet():  # on stderr: stdout keeps the table (or the CSV / JSON) alone
+        for line in reasons:
+            click.echo(line, err=True)
     if not is_quiet():
         for f in files:
             say(f"wrote {f}")

@@ -11,6 +11,7 @@ import click
 from snapjump_cli.cli import injected, is_quiet, verbosity_options
 from snapjump_cli.commands._stop import sigterm_as_interrupt
 from snapjump_cli.errors import BadInput
+from snapjump_cli.sweep.checks import JOBS_PER_CORE, max_jobs
 
 __all__ = ["command", "main"]
 
@@ -48,13 +49,13 @@ Exit codes: 0 done (even if some designs failed), 1 the sweep could not run,
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Result parquet file. [default: `output` of the config, else results/<GRID stem>.parquet]")
 @click.option("-j", "--jobs", "n_jobs", type=int, default=None, metavar="N",
-              help="Worker processes (joblib n_jobs: -1 = every core, 1 = in this process). "
-                   "[default: `n_jobs` of the config, else -1]")
+              help=f"Worker processes (joblib n_jobs: -1 = every core, 1 = in this process), at most "
+                   f"{JOBS_PER_CORE} per core (here {max_jobs()}). [default: `n_jobs` of the config, else -1]")
 @click.option("--scheduler", metavar="ADDRESS", default=None,
               help="Run on a dask.distributed cluster at ADDRESS (e.g. tcp://10.0.0.5:8786) through "
                    "joblib's dask backend instead of local processes. Needs snapjump[dask].")
-@click.option("--chunk-size", type=click.IntRange(min=1), default=None, metavar="N",
-              help="Finished designs per part file. [default: `chunk_size` of the config, else 16]")
+@click.option("--chunk-size", type=click.IntRange(min=1, max=100_000), default=None, metavar="N",
+              help="Finished designs per part file, at most 100000. [default: `chunk_size` of the config, else 16]")
 @click.option("--retry-failed", is_flag=True, help="Solve designs recorded as failed again.")
 @click.option("--append", is_flag=True,
               help="Add to an output that holds rows of another grid, mesh, solver or material "
@@ -68,7 +69,7 @@ Exit codes: 0 done (even if some designs failed), 1 the sweep could not run,
 def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str | None,
             chunk_size: int | None, retry_failed: bool, append: bool, max_designs: int | None,
             progress: bool) -> None:
-    from snapjump_cli.files import describe_os_error, follow_links
+    from snapjump_cli.files import describe_os_error, follow_links, remedy
     from snapjump_cli.sweep.config import ConfigError, load_config
     from snapjump_cli.sweep.run import MAX_DESIGNS, SweepError, SweepInputError, parts_dir, run_sweep
 
@@ -76,8 +77,10 @@ def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str 
         config = load_config(grid, max_designs or MAX_DESIGNS)
     except ConfigError as e:
         raise BadInput(str(e)) from None
-    if n_jobs == 0:
-        raise BadInput("-j/--jobs: expected a non-zero integer (-1 = every core), got 0")
+    from snapjump_cli.sweep.checks import jobs_error
+
+    if n_jobs is not None and (why := jobs_error(n_jobs)):
+        raise BadInput(f"-j/--jobs: {why}")
     out = output if output is not None else config.output
 
     parts = parts_dir(follow_links(out))
@@ -95,7 +98,7 @@ def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str 
         except SweepError as e:
             raise click.ClickException(str(e)) from None
         except OSError as e:  # a full disk, an I/O error: one line, exit 2; what was written is kept
-            raise BadInput(f"{describe_os_error(e)}; the finished designs are kept (in {parts}); free some space "
+            raise BadInput(f"{describe_os_error(e)}; the finished designs are kept (in {parts}); {remedy(e)} "
                            f"and run the same command again to resume") from None
     c = summary.counts
     click.echo(
@@ -103,6 +106,22 @@ def command(grid: Path, output: Path | None, n_jobs: int | None, scheduler: str 
         f"in {summary.wall_s:.1f} s): ok {c.get('ok', 0)}, no_snap {c.get('no_snap', 0)}, "
         f"invalid_geometry {c.get('invalid_geometry', 0)}, failed {c.get('failed', 0)}"
     )
+    if (c.get("invalid_geometry") or c.get("failed")) and not is_quiet():
+        _echo_reasons(summary.output)
+
+
+def _echo_reasons(output: Path) -> None:
+    """The reasons of the invalid and failed designs of ``output``, grouped (they are in its
+    ``error`` column; a newcomer would not look there)."""
+    from snapjump_cli.sweep import results as res
+
+    try:
+        df = res.read_table(output, columns=["status", "error"]).to_pandas()
+    except (res.ResultsFileError, OSError) as e:  # the summary above stands; the reasons are extra
+        log.warning("could not read the reasons back from %s: %s", output, e)
+        return
+    for line in res.failure_reasons(df, source=output):
+        click.echo(line, err=True)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

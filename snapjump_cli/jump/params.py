@@ -9,9 +9,15 @@ from __future__ import annotations
 
 import logging
 import math
+import sys
 from dataclasses import dataclass
 
 from snapjump_cli.settings import JUMP_ALPHA, JUMP_C_D, JUMP_RHO
+
+#: Default work limit of one jump simulation (:attr:`JumpParams.max_samples`): sample steps of its
+#: phases. A design of the paper's grid takes a few hundred to a few thousand; this many take
+#: a few seconds (an actuator of R_i = 0.1 mm, heavily over-damped, would need ten times more).
+MAX_SAMPLES = 2.0e7
 
 __all__ = ["JumpParams", "JumpResult"]
 
@@ -26,6 +32,9 @@ def check_real(name: str, value: float, *, positive: bool = False, nonneg: bool 
         raise ValueError(f"{name} must be a real number, got {value!r}") from None
     if isinstance(value, bool) or not math.isfinite(x):
         raise ValueError(f"{name} must be a finite real number, got {value!r}")
+    if x != 0.0 and abs(x) < sys.float_info.min:
+        raise ValueError(f"{name} must be a normal number, got {value!r} (subnormal, below {sys.float_info.min:.4g}: "
+                         f"a typo in the exponent?)")
     if positive and not x > 0.0:
         raise ValueError(f"{name} must be > 0, got {x!r}")
     if nonneg and not x >= 0.0:
@@ -52,6 +61,11 @@ class JumpParams:
         ``JumpResult.complete = False``.
     max_contacts : int
         Limit on the number of ground impacts (same consequence as ``t_max``).
+    max_samples : float
+        Limit on the work of one simulation: the simulated time in sample steps of its phases
+        (a flight's or a rest's oscillation period / 64), so that no design runs for minutes (a
+        tiny, heavily over-damped actuator would need ~10^9 of them to reach ``t_max``); same
+        consequence as ``t_max``. A simulation that ends before it takes no step differently.
     """
 
     rho: float = JUMP_RHO
@@ -60,6 +74,7 @@ class JumpParams:
     alpha: float = JUMP_ALPHA
     t_max: float = 5.0
     max_contacts: int = 200
+    max_samples: float = MAX_SAMPLES
 
     def __post_init__(self) -> None:
         check_real("rho", self.rho, positive=True)
@@ -72,6 +87,7 @@ class JumpParams:
         if isinstance(self.max_contacts, bool) or int(self.max_contacts) != self.max_contacts \
                 or self.max_contacts < 1:
             raise ValueError(f"max_contacts must be an integer >= 1, got {self.max_contacts!r}")
+        check_real("max_samples", self.max_samples, positive=True)
 
 
 @dataclass(frozen=True)
@@ -103,7 +119,7 @@ class JumpResult:
         Start height of ``m_i`` [m].
     complete : bool
         ``True`` when the maximum is certified (energy bound or final rest); ``False`` when
-        ``t_max`` or ``max_contacts`` stopped the simulation first.
+        ``t_max``, ``max_contacts`` or ``max_samples`` stopped the simulation first.
     method : str
         ``"closed-form"`` or ``"ode"``.
     """
@@ -163,7 +179,7 @@ def finish(ymax: float, tpeak: float, n_contacts: int, k: float, mi: float, mo: 
     else:
         reason = "never rises above its start height h_imp"
     if not complete:
-        log.warning("jump simulation (%s) stopped by t_max/max_contacts before the maximum was "
+        log.warning("jump simulation (%s) stopped by t_max/max_contacts/max_samples before the maximum was "
                     "certified (y_jump so far %.6g m)", method, ymax)
     return JumpResult(y_jump_m=float(ymax), t_peak_s=float(tpeak), n_contacts=int(n_contacts),
                       k_s=k, m_i=mi, m_o=mo, jumped=bool(jumped), lift_off=bool(lift_off),

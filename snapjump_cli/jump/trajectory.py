@@ -40,7 +40,8 @@ impacts with ``alpha <= 1``, a workless resting contact), and
 ``M g y_i <= E + (m_o g)^2 / (2 k_s)`` (up to a constant), so once that bound falls below the
 running maximum no later height can exceed it. A resting phase also ends the simulation once a
 lift-off is provably impossible (modal envelope of the upward pull, :meth:`PhaseModel.lift_margin`).
-``JumpResult.complete`` is ``False`` only when ``t_max`` / ``max_contacts`` stop it first (e.g.
+``JumpResult.complete`` is ``False`` only when ``t_max`` / ``max_contacts`` / ``max_samples`` (the work
+limit, a bound on the run time) stop it first (e.g.
 no dissipation at all: ``c_d = 0``, ``alpha = 1``).
 
 Micro-bounces: a rebound slower than ``1e-7`` times the relative-speed scale
@@ -237,13 +238,18 @@ def _simulate(dE_J: float, dy_pole_m: float, h_imp_m: float, m_i_kg: float, m_o_
     complete = False
     resting = h == 0.0 and md.lift_force(e, ed) <= 0.0
 
+    used = 0.0  # the work so far, in sample steps of the phases (p.max_samples)
     while True:
         if md.height_bound(y, v, e, ed) <= ymax:
             complete = True
             break
-        if t >= p.t_max or len(contacts) >= p.max_contacts:
+        if t >= p.t_max or len(contacts) >= p.max_contacts or used >= p.max_samples:
             break
         t_avail = p.t_max - t
+        dt = md.rest.dt if resting else md.rel.dt
+        cut = (p.max_samples - used) * dt < t_avail  # the work limit ends this phase first
+        if cut:
+            t_avail = (p.max_samples - used) * dt
         if not resting:
             ph = Phase("flight", t, t, y, v, e, ed)
             if y == 0.0:
@@ -260,8 +266,10 @@ def _simulate(dE_J: float, dy_pole_m: float, h_imp_m: float, m_i_kg: float, m_o_
             t_loc = t_avail if t_hit is None else t_hit
             yy, vv, ee, eed = md.flight_at(ph).state(t_loc)
             phases.append(Phase("flight", t, t + t_loc, y, v, e, ed))
-            if t_hit is None:  # ran out of time in flight
-                t, y, v, e, ed = p.t_max, yy, vv, ee, eed
+            used += t_loc / dt
+            if t_hit is None:  # ran out of time (or work) in flight
+                t, y, v, e, ed = (t + t_loc if cut else p.t_max), yy, vv, ee, eed
+                used = p.max_samples if cut else used
                 continue
             t += t_hit
             contacts.append(t)
@@ -286,11 +294,14 @@ def _simulate(dE_J: float, dy_pole_m: float, h_imp_m: float, m_i_kg: float, m_o_
             ee, eed = (float(a) for a in md.rest_state(ph, t_loc))
             phases.append(Phase("rest", t, t + t_loc, 0.0, 0.0, e, ed))
             t, y, v, e, ed = t + t_loc, 0.0, 0.0, ee, eed
+            used += t_loc / dt
             if what == "settled":
                 complete = True
                 break
             if what == "lift":
                 resting = False
+            elif cut:
+                used = p.max_samples
             else:
                 t = p.t_max
 

@@ -17,6 +17,7 @@ import pandas as pd
 
 from snapjump_cli.sweep.config import (
     GRID_AXES,
+    MAX_DESIGNS,
     ConfigError,
     SweepConfig,
     axis_check,
@@ -25,6 +26,7 @@ from snapjump_cli.sweep.config import (
     parse_config,
     read_yaml,
 )
+from snapjump_cli.sweep.checks import warn_if_radians
 from snapjump_cli.jump import JumpParams
 from snapjump_cli.settings import MeshSettings, without_limits
 
@@ -41,12 +43,15 @@ STAGES: tuple[str, ...] = ("start", "init", "poll", "pattern", "cross", "model",
 #: A poll point must beat the incumbent by this fraction to be accepted (the objective is only
 #: piecewise smooth: continuation paths and lower states switch between neighbouring designs).
 IMPROVE_REL = 1e-4
+#: Most solves of one run (``budget``, ``--budget``; also the bound of ``search.starts``, ``init``,
+#: ``popsize`` and ``confirm.candidates``): the sweep's design limit.
+MAX_BUDGET = MAX_DESIGNS
 SIG_DIGITS = 10  # design parameters are rounded to this many significant digits (stable keys)
 
 _TOP_KEYS: dict[str, str] = {
     "bounds": "a mapping with keys " + ", ".join(PARAMETERS),
     "objective": "one of " + ", ".join(OBJECTIVES),
-    "budget": "the number of solves (an integer >= 1)",
+    "budget": f"the number of solves (an integer in [1, {MAX_DESIGNS}])",
     "seed": "an integer >= 0",
     "method": "one of " + ", ".join(METHODS),
     "search": "a mapping {starts, init, step, min_step, spread, popsize, poll, model, model_step}",
@@ -239,6 +244,8 @@ def parse_spec(doc: Any, source: str = "<dict>") -> OptimizeSpec:
     top = ctx.mapping("", doc, _TOP_KEYS, required=("bounds",))
     b = ctx.mapping("bounds", top["bounds"], {p: _BOUND_EXPECTED for p in PARAMETERS}, required=PARAMETERS)
     bounds = {p: _parse_bound(ctx, p, b[p]) for p in PARAMETERS}
+    for a in ("theta_i", "theta_o"):
+        warn_if_radians(source, f"bounds.{a}", sorted(set(bounds[a])))
     if all(lo == hi for lo, hi in bounds.values()):
         raise ConfigError(source, "bounds", "expected at least one free parameter ([lo, hi] with lo < hi), got all fixed")
     kw: dict[str, Any] = {"bounds": bounds, "source": source, "raw": dict(top)}
@@ -247,7 +254,7 @@ def parse_spec(doc: Any, source: str = "<dict>") -> OptimizeSpec:
     if top.get("method") is not None:
         kw["method"] = _choice(ctx, "method", top["method"], METHODS)
     if top.get("budget") is not None:
-        kw["budget"] = ctx.integer("budget", top["budget"], minimum=1)
+        kw["budget"] = ctx.integer("budget", top["budget"], minimum=1, maximum=MAX_BUDGET)
     if top.get("seed") is not None:
         kw["seed"] = ctx.integer("seed", top["seed"], minimum=0)
 
@@ -256,9 +263,9 @@ def parse_spec(doc: Any, source: str = "<dict>") -> OptimizeSpec:
         skw: dict[str, Any] = {}
         for k in ("starts", "init"):
             if k in s:
-                skw[k] = ctx.integer(f"search.{k}", s[k], minimum=1)
+                skw[k] = ctx.integer(f"search.{k}", s[k], minimum=1, maximum=MAX_BUDGET)
         if "popsize" in s:
-            skw["popsize"] = ctx.integer("search.popsize", s["popsize"], minimum=2)
+            skw["popsize"] = ctx.integer("search.popsize", s["popsize"], minimum=2, maximum=MAX_BUDGET)
         if "poll" in s:
             skw["poll"] = _choice(ctx, "search.poll", s["poll"], POLLS)
         if "model" in s:
@@ -285,7 +292,7 @@ def parse_spec(doc: Any, source: str = "<dict>") -> OptimizeSpec:
             if "tolerance" in c:
                 ckw["tolerance"] = ctx.positive("confirm.tolerance", c["tolerance"])
             if "candidates" in c:
-                ckw["candidates"] = ctx.integer("confirm.candidates", c["candidates"], minimum=1)
+                ckw["candidates"] = ctx.integer("confirm.candidates", c["candidates"], minimum=1, maximum=MAX_BUDGET)
             kw["confirm"] = ConfirmSettings(**ckw)
 
     if top.get("jump") is not None:

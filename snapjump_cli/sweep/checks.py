@@ -6,12 +6,15 @@ integer, a boolean or a mapping of known keys, or raises that error.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
+import os
 import re
+import sys
 from pathlib import Path
 from typing import Any, Mapping
 
-__all__ = ["ConfigError", "CheckContext", "read_yaml", "YAML_MAX_BYTES"]
+__all__ = ["ConfigError", "CheckContext", "warn_if_radians", "read_yaml", "YAML_MAX_BYTES", "JOBS_PER_CORE", "max_jobs", "jobs_error"]
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _FLOAT_RE = re.compile(rf"^\s*({_NUM})\s*$")
@@ -67,6 +70,9 @@ class CheckContext:
             raise self.fail(path, expected, value)
         if not math.isfinite(x):
             raise self.fail(path, expected, value)
+        if x != 0.0 and abs(x) < sys.float_info.min:  # subnormal: no setting means that, and it loses digits
+            raise ConfigError(self.source, path, f"expected {expected}, got {value!r}, a subnormal number (below "
+                                                 f"{sys.float_info.min:.4g}): a typo in the exponent?")
         return x
 
     def positive(self, path: str, value: Any) -> float:
@@ -75,8 +81,14 @@ class CheckContext:
             raise self.fail(path, "a finite number > 0", value)
         return x
 
-    def integer(self, path: str, value: Any, minimum: int | None = None, nonzero: bool = False) -> int:
-        expected = "an integer" + (f" >= {minimum}" if minimum is not None else "") + (" other than 0" if nonzero else "")
+    def integer(self, path: str, value: Any, minimum: int | None = None, nonzero: bool = False,
+                maximum: int | None = None) -> int:
+        if minimum is not None and maximum is not None:
+            expected = f"an integer >= {minimum} and <= {maximum}"
+        else:
+            expected = "an integer" + (f" >= {minimum}" if minimum is not None else "") + \
+                (f" <= {maximum}" if maximum is not None else "")
+        expected += " other than 0" if nonzero else ""
         if isinstance(value, bool) or value is None:
             raise self.fail(path, expected, value)
         if isinstance(value, int):
@@ -89,7 +101,7 @@ class CheckContext:
             if not float(x).is_integer():
                 raise self.fail(path, expected, value)
             n = int(x)
-        if minimum is not None and n < minimum:
+        if (minimum is not None and n < minimum) or (maximum is not None and n > maximum):
             raise self.fail(path, expected, value)
         if nonzero and n == 0:
             raise self.fail(path, expected, value)
@@ -112,6 +124,23 @@ class CheckContext:
                 kp = f"{path}.{k}" if path else k
                 raise ConfigError(self.source, kp, f"missing required key; expected {allowed[k]}")
         return dict(value)
+
+
+log = logging.getLogger(__name__)
+
+
+def warn_if_radians(source: str, path: str, values: Any) -> bool:
+    """Warn (naming the key) when every angle given for a field in degrees is at most 2 pi, as
+    radians would be; returns whether it warned. (Such shallow caps are legal, so it is not an
+    error: their designs are usually recorded as ``invalid_geometry``.)"""
+    vals = [float(v) for v in values]
+    if not vals or not all(0.0 < v <= 2.0 * math.pi for v in vals):
+        return False
+    shown = ", ".join(f"{v:g}" for v in vals[:4]) + (", ..." if len(vals) > 4 else "")
+    deg = ", ".join(f"{math.degrees(v):.4g}" for v in vals[:4]) + (", ..." if len(vals) > 4 else "")
+    log.warning("%s: %s: %s look like radians, but this angle is in degrees (in degrees they would be %s); "
+                "convert them if they are radians", source, path, shown, deg)
+    return True
 
 
 # ---- reading a YAML file -------------------------------------------------------------------
@@ -166,6 +195,25 @@ def _check_duplicates(source: str, root: Any) -> None:
         raise ConfigError(source, kp, f"duplicate key (lines {first} and {line}); give it once")
 
 
+def regular_input(source: str, path: str | Path, key: str = "") -> None:
+    """Refuse a path that is not a regular file (:func:`snapjump_cli.files.check_readable`) as a
+    :class:`ConfigError`; a missing file is left to the reader (its own message)."""
+    from snapjump_cli.files import check_readable
+
+    if not os.path.exists(path):
+        return
+
+    class _Refused(Exception):
+        pass
+
+    try:
+        check_readable(path, _Refused, "a regular file")
+    except _Refused as e:
+        if os.path.isdir(path) and not key:
+            raise ConfigError(source, "", "expected a YAML file, got a directory") from None
+        raise ConfigError(source, key, str(e)) from None
+
+
 def read_yaml(path: str | Path) -> Any:
     """Read a YAML file (a sweep config or an optimisation spec) into plain data.
 
@@ -191,6 +239,7 @@ def read_yaml(path: str | Path) -> Any:
     import yaml
 
     source = str(path)
+    regular_input(source, path)  # a FIFO or a device would block the read, or never end
     try:
         with open(path, "rb") as fh:
             raw = fh.read(YAML_MAX_BYTES + 1)
@@ -221,3 +270,26 @@ def read_yaml(path: str | Path) -> Any:
         raise ConfigError(source, "", f"YAML syntax error{where}: {problem}") from None
     finally:
         loader.dispose()
+
+
+# ---- the number of worker processes ---------------------------------------------------------
+#: Most worker processes per CPU core (``-j``, ``n_jobs``): each loads the solver (~0.3 GB); more
+#: than a few per core only adds memory and start-up time, and a typo (``-j 100000``) would
+#: exhaust the machine.
+JOBS_PER_CORE = 4
+
+
+def max_jobs() -> int:
+    """The largest ``-j`` / ``n_jobs`` accepted on this machine: :data:`JOBS_PER_CORE` per core."""
+    return JOBS_PER_CORE * (os.cpu_count() or 1)
+
+
+def jobs_error(n: object) -> str:
+    """Why ``n`` is not a valid number of worker processes (``""``: it is). Valid: ``1`` to
+    :func:`max_jobs`, or ``-1`` (every core) down to minus the number of cores (joblib: ``-2``
+    = every core but one)."""
+    cores = os.cpu_count() or 1
+    if isinstance(n, int) and not isinstance(n, bool) and (1 <= n <= max_jobs() or -cores <= n <= -1):
+        return ""
+    return (f"expected 1 to {max_jobs()} ({JOBS_PER_CORE} per core on this machine) or -1 (every core; "
+            f"down to -{cores}), got {n!r}")

@@ -54,7 +54,7 @@ import numpy as np
 from snapjump_cli.fe.axisym.fluid import FLUID_KEYS, WATER, FluidSettings, fluid_from_mapping
 from snapjump_cli.geometry.caps import J_M_DEFAULT, MU_ELITE_DOUBLE_32, R_I_DEFAULT, RADIUS_RANGE_M
 from snapjump_cli.settings import MeshSettings, SettingsError, SolverSettings
-from snapjump_cli.sweep.checks import CheckContext, ConfigError, read_yaml
+from snapjump_cli.sweep.checks import CheckContext, ConfigError, read_yaml, regular_input, warn_if_radians
 
 __all__ = [
     "ConfigError",
@@ -280,6 +280,7 @@ def _read_points_file(ctx: CheckContext, value: str, max_designs: int = MAX_DESI
     path = Path(value)
     if not path.is_absolute() and not ctx.source.startswith("<"):
         path = Path(ctx.source).parent / path
+    regular_input(ctx.source, path, "points")  # a FIFO or a device would be read for ever
     try:
         if path.suffix.lower() == ".csv":
             with open(path, "rb") as fh:  # lines counted (fast) before the file is parsed
@@ -326,6 +327,7 @@ def _parse_points(ctx: CheckContext, value: Any, max_designs: int = MAX_DESIGNS)
     if len(rows) > max_designs:
         raise _too_many(ctx, "points", len(rows), max_designs, "")
     out = []
+    first: dict[tuple[float, ...], int] = {}
     for j, row in enumerate(rows):
         m = ctx.mapping(where(j), row, _POINT_KEYS, required=GRID_AXES)
         vals = []
@@ -335,7 +337,12 @@ def _parse_points(ctx: CheckContext, value: Any, max_designs: int = MAX_DESIGNS)
             if not ok(x):
                 raise ctx.fail(f"{where(j)}.{a}", expected, m[a])
             vals.append(x)
-        out.append(tuple(vals))
+        t = tuple(vals)
+        if t in first:  # one design named twice would be solved and counted once: say so
+            raise ConfigError(ctx.source, where(j), f"the same design as {where(first[t])}; give each design once "
+                                                    f"(as the grid's axes are)")
+        first[t] = j
+        out.append(t)
     return tuple(out)
 
 
@@ -408,6 +415,9 @@ def parse_config(doc: Any, source: str = "<dict>", max_designs: int = MAX_DESIGN
     kw: dict[str, Any] = {"source": source, "raw": dict(top)}
     if "points" in top:
         kw["points"] = _parse_points(ctx, top["points"], max_designs)
+        for j, a in enumerate(GRID_AXES):
+            if a.startswith("theta"):
+                warn_if_radians(source, f"points (column {a})", [p[j] for p in kw["points"]])
         kw["grid"] = {a: () for a in GRID_AXES}
     elif "grid" not in top:
         raise ConfigError(source, "grid", "missing required key; expected " + _TOP_KEYS["grid"] + " (or points:)")
@@ -417,6 +427,8 @@ def parse_config(doc: Any, source: str = "<dict>", max_designs: int = MAX_DESIGN
         if math.prod(sizes) > max_designs:
             raise _too_many(ctx, "grid", math.prod(sizes), max_designs, " x ".join(map(str, sizes)) + " = ")
         kw["grid"] = {a: _parse_axis(ctx, a, g[a]) for a in GRID_AXES}
+        for a in ("theta_i", "theta_o"):
+            warn_if_radians(source, f"grid.{a}", kw["grid"][a])
 
     if "R_i" in top:
         kw["R_i"] = ctx.positive("R_i", top["R_i"])
@@ -448,7 +460,7 @@ def parse_config(doc: Any, source: str = "<dict>", max_designs: int = MAX_DESIGN
     if top.get("n_jobs") is not None:
         kw["n_jobs"] = ctx.integer("n_jobs", top["n_jobs"], nonzero=True)
     if top.get("chunk_size") is not None:
-        kw["chunk_size"] = ctx.integer("chunk_size", top["chunk_size"], minimum=1)
+        kw["chunk_size"] = ctx.integer("chunk_size", top["chunk_size"], minimum=1, maximum=MAX_DESIGNS)
     return SweepConfig(**kw)
 
 

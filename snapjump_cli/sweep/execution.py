@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import socket
 import sys
 import threading
@@ -27,15 +28,18 @@ from typing import Any, Callable, Iterator, Mapping
 
 from snapjump_cli.errors import SweepError, SweepInputError
 from snapjump_cli.geometry.caps import Design
+from snapjump_cli.sweep.checks import JOBS_PER_CORE, jobs_error, max_jobs
 from snapjump_cli.sweep.rows import fill_row
 from snapjump_cli.settings import MeshSettings, SolverSettings
-from snapjump_cli.sweep.storage import now_utc
+from snapjump_cli.files import own_files, remove_own
+from snapjump_cli.sweep.storage import MARKER_NAME, now_utc
 
-__all__ = ["SolveFn", "default_solver", "die_with_parent", "solve_task", "execute", "connect"]
+__all__ = ["SolveFn", "SCHEDULER_SCHEMES", "check_scheduler", "default_solver", "die_with_parent", "solve_task", "execute", "connect"]
 
 log = logging.getLogger(__name__)
 
 _CONNECT_TIMEOUT_S = 15.0
+
 
 #: What a sweep calls per design: ``solve_fn(design, mesh, solver) -> metrics dict`` (with
 #: ``fluid=FluidSettings`` as a keyword when the sweep's fluid is air).
@@ -78,6 +82,10 @@ def die_with_parent(parent_pid: int, interval_s: float = 0.5) -> None:
     """
     if os.getppid() != parent_pid:
         os._exit(1)
+    try:  # Ctrl-C reaches every process of the terminal: the sweep (the parent) stops the workers itself
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except (ValueError, OSError):  # pragma: no cover - not the main thread
+        pass
 
     def watch() -> None:
         while True:
@@ -107,9 +115,13 @@ def solve_task(task: dict[str, Any], solve_fn: SolveFn, marker_dir: str | None) 
     row = dict(task["row"])
     marker = None
     if marker_dir is not None:
-        try:
+        try:  # a new file, never through a link (O_EXCL, O_NOFOLLOW): nothing else is ever written
             marker = Path(marker_dir) / row["key"]
-            marker.write_text(f"{os.getpid()}\n")
+            fd = os.open(marker, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o666)
+            try:
+                os.write(fd, f"{os.getpid()}\n".encode())
+            finally:
+                os.close(fd)
         except OSError:
             marker = None
     try:
@@ -128,10 +140,7 @@ def solve_task(task: dict[str, Any], solve_fn: SolveFn, marker_dir: str | None) 
         row.update(status="failed", error=f"{type(e).__name__}: {msg}"[:4000])
     row.update(t_total_s=time.perf_counter() - t0, host=socket.gethostname(), pid=os.getpid(), finished_utc=now_utc())
     if marker is not None:
-        try:
-            marker.unlink()
-        except OSError:
-            pass
+        remove_own(marker)
     return row
 
 def _parallel_rows(tasks: list[dict[str, Any]], solve_fn: SolveFn, n_jobs: int, backend: str,
@@ -162,9 +171,9 @@ def execute(tasks: list[dict[str, Any]], solve_fn: SolveFn, n_jobs: int, backend
                     yield row
             return
         except Exception as exc:  # noqa: BLE001 - the pool broke (a worker died), not a design
-            suspects = [p.name for p in marker_dir.iterdir()] if marker_dir is not None and marker_dir.is_dir() else []
+            suspects = [p.name for p in own_files(marker_dir, MARKER_NAME)] if marker_dir is not None else []
             for p in suspects:
-                (marker_dir / p).unlink(missing_ok=True)
+                remove_own(marker_dir / p)
             suspects = [k for k in suspects if k in pending]
             log.warning("the worker pool broke (%s: %s); re-running the %d design(s) it was solving one by one",
                         type(exc).__name__, exc, len(suspects))
@@ -176,19 +185,49 @@ def execute(tasks: list[dict[str, Any]], solve_fn: SolveFn, n_jobs: int, backend
                 try:
                     (row,) = list(_parallel_rows([task], solve_fn, 2, backend, md))
                 except Exception as exc2:  # noqa: BLE001 - this design kills its worker
-                    (marker_dir / key).unlink(missing_ok=True)
+                    if marker_dir is not None:
+                        remove_own(marker_dir / key)
                     row = dict(task["row"])
                     row.update(status="failed", finished_utc=now_utc(),
                                error=f"worker process died while solving this design ({type(exc2).__name__}: {exc2})"[:4000])
                 yield row
 
+#: The address schemes of dask.distributed's communications (``tcp://host:port``; no scheme = tcp).
+SCHEDULER_SCHEMES: tuple[str, ...] = ("tcp", "tls", "inproc", "ucx", "ws", "wss")
+
+
+def check_scheduler(address: str) -> str:
+    """``address`` if it has the form of a dask scheduler address (``[SCHEME://]HOST[:PORT]``,
+    :data:`SCHEDULER_SCHEMES`), checked before anything is started or written.
+
+    Raises
+    ------
+    SweepInputError
+        One line naming the address and what is expected.
+    """
+    expected = f"expected SCHEME://HOST:PORT with SCHEME one of {', '.join(SCHEDULER_SCHEMES)} (e.g. tcp://10.0.0.5:8786)"
+    if not isinstance(address, str) or not address.strip() or any(c.isspace() for c in address):
+        raise SweepInputError(f"--scheduler: {address!r}: {expected}")
+    scheme, sep, rest = address.partition("://")
+    if sep and scheme.lower() not in SCHEDULER_SCHEMES:
+        raise SweepInputError(f"--scheduler: {address!r}: the scheme {scheme!r} is not one dask speaks; {expected}")
+    if sep and not rest:
+        raise SweepInputError(f"--scheduler: {address!r}: no host; {expected}")
+    return address
+
+
 def connect(address: str) -> Any:
     """A dask.distributed client for ``address`` (dask imported here only)."""
+    check_scheduler(address)
     try:
         from dask.distributed import Client
     except ImportError as e:  # pragma: no cover - depends on the install
         raise SweepError("--scheduler needs dask[distributed] (pip install 'snapjump[dask]')") from e
     try:
         return Client(address, timeout=_CONNECT_TIMEOUT_S, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as e:
-        raise SweepInputError(f"cannot connect to the dask scheduler at {address!r}: {e}") from None
+    except (KeyboardInterrupt, SystemExit):
+        raise
+    except Exception as e:  # noqa: BLE001 - whatever dask raises for an address it cannot reach: one line
+        why = " ".join(str(e).split())[:300] or type(e).__name__
+        raise SweepInputError(f"--scheduler: cannot connect to the dask scheduler at {address!r} ({why}); check "
+                              f"that it runs and the address") from None

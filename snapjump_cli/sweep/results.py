@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import logging
 import platform
+import re
 import subprocess
 import sys
 from datetime import datetime, timezone
@@ -51,9 +52,13 @@ __all__ = [
     "write_table_atomic",
     "write_frame_atomic",
     "read_results",
+    "read_table",
+    "check_columns",
+    "ResultsFileError",
     "pandas_types_mapper",
     "read_metadata",
     "provenance",
+    "failure_reasons",
 ]
 
 log = logging.getLogger(__name__)
@@ -103,7 +108,11 @@ def write_table_atomic(table: pa.Table, path: str | Path) -> Path:
     """
     import pyarrow.parquet as pq
 
-    return write_atomic(path, lambda tmp: pq.write_table(table, tmp))
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as fh:  # a file object: pyarrow takes no file name that is not valid UTF-8
+            pq.write_table(table, fh)
+
+    return write_atomic(path, write)
 
 
 def write_frame_atomic(df: pd.DataFrame, path: str | Path, meta: Mapping[str, Any] | None = None) -> Path:
@@ -123,25 +132,161 @@ def pandas_types_mapper() -> Callable[[Any], Any]:
     return mapping.get
 
 
+class ResultsFileError(ValueError):
+    """A results file (or part file) that cannot be used: one line naming the file, the column or
+    the value, and what to do."""
+
+
+_PARQUET_MAGIC = b"PAR1"
+
+
+def _type_words(t: Any) -> str:
+    import pyarrow as pa
+
+    if pa.types.is_floating(t):
+        return "numbers"
+    if pa.types.is_integer(t):
+        return "integers"
+    if pa.types.is_boolean(t):
+        return "true/false"
+    if pa.types.is_string(t) or pa.types.is_large_string(t):
+        return "text"
+    return str(t)
+
+
+def _compatible(got: Any, want: Any) -> bool:
+    """Whether a column of type ``got`` is read as ``want`` without changing a value (nulls, wider
+    integers or floats, integers as floats)."""
+    import pyarrow as pa
+
+    if got == want or pa.types.is_null(got):
+        return True
+    if pa.types.is_floating(want):
+        return pa.types.is_floating(got) or pa.types.is_integer(got)
+    if pa.types.is_integer(want):
+        return pa.types.is_integer(got)
+    if pa.types.is_string(want):
+        return pa.types.is_large_string(got)
+    return False
+
+
+def check_columns(table: pa.Table, path: str | Path) -> pa.Table:
+    """``table`` with the columns of the row contract (:func:`result_schema`) it holds cast to
+    their types; a column of another kind (text where numbers belong, ...) is refused.
+
+    Raises
+    ------
+    ResultsFileError
+        Naming the file, the column, its type and the expected one.
+    """
+    schema = result_schema()
+    for f in schema:
+        if f.name not in table.column_names:
+            continue
+        got = table.schema.field(f.name).type
+        if not _compatible(got, f.type):
+            raise ResultsFileError(
+                f"{path}: column {f.name!r} has type {got}, expected {_type_words(f.type)} ({f.type}); the file was "
+                f"not written by snapjump or was edited: run the sweep again, or correct that column")
+        if got != f.type:
+            i = table.schema.get_field_index(f.name)
+            table = table.set_column(i, f.name, table.column(i).cast(f.type))
+    return table
+
+
+def _looks_like_csv(path: str | Path) -> bool:
+    """Whether the file starts with a line of text holding commas or tabs (a CSV header)."""
+    try:
+        with open(path, "rb") as fh:
+            first = fh.read(4096).split(b"\n", 1)[0]
+    except OSError:
+        return False
+    return bool(first) and (b"," in first or b"\t" in first) and all(32 <= b < 127 or b in b"\t\r" for b in first)
+
+
+def read_table(path: str | Path, columns: list[str] | None = None) -> pa.Table:
+    """Read a result, part or ranked parquet file: the one reader of result files.
+
+    The path must be a regular file (never a FIFO or a device: they would block), a parquet file
+    (a CSV is named as such), and its columns of the row contract of their kinds
+    (:func:`check_columns`).
+
+    Raises
+    ------
+    ResultsFileError
+        One line naming the file and what to do.
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from snapjump_cli.files import check_readable
+
+    check_readable(path, ResultsFileError, "a parquet file")
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4)
+    except OSError as e:
+        raise ResultsFileError(f"{path}: cannot read it ({e.strerror})") from None
+    if head != _PARQUET_MAGIC:
+        if str(path).lower().endswith((".csv", ".tsv", ".txt")) or _looks_like_csv(path):
+            raise ResultsFileError(
+                f"{path}: is a text (CSV) file; snapjump reads results as the parquet file a sweep writes "
+                f"(snapjump sweep GRID.yaml -o RESULTS.parquet); a CSV of designs goes into a sweep config as "
+                f"`points: FILE.csv`")
+        raise ResultsFileError(f"{path}: not a readable parquet file (it does not start as one); expected the "
+                               f"results of snapjump sweep")
+    try:  # through a Python file object: pyarrow takes no file name that is not valid UTF-8
+        with open(path, "rb") as fh:
+            table = pq.read_table(fh, columns=columns)
+    except (pa.ArrowException, OSError, KeyError, ValueError) as e:
+        why = " ".join(str(e).split()) or type(e).__name__
+        raise ResultsFileError(f"{path}: not a readable parquet file ({why[:300]})") from None
+    return check_columns(table, path)
+
+
 def read_results(path: str | Path, columns: list[str] | None = None) -> pd.DataFrame:
-    """Read a result (or ranked) parquet file into pandas with nullable dtypes.
+    """Read a result (or ranked) parquet file into pandas with nullable dtypes (:func:`read_table`:
+    a bad file raises :class:`ResultsFileError`).
 
     Integers become ``Int64``, booleans ``boolean``, strings ``string`` (nulls are ``pd.NA``);
     floats stay ``float64`` with NaN for missing values.
     """
-    import pyarrow.parquet as pq
-
-    table = pq.read_table(path, columns=columns)
+    table = read_table(path, columns=columns)
     return table.to_pandas(types_mapper=pandas_types_mapper())
 
 
 def read_metadata(path: str | Path) -> dict[str, Any]:
-    """The provenance dict stored in a parquet file's schema metadata (``{}`` if none)."""
+    """The provenance dict stored in a parquet file's schema metadata (``{}`` if none).
+
+    Raises
+    ------
+    ResultsFileError
+        The file is not a readable parquet file, or its provenance is not a JSON mapping.
+    """
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
-    md = pq.read_schema(path).metadata or {}
+    from snapjump_cli.files import check_readable
+
+    check_readable(path, ResultsFileError, "a parquet file")
+    try:
+        with open(path, "rb") as fh:
+            md = pq.read_schema(fh).metadata or {}
+    except (pa.ArrowException, OSError, ValueError) as e:
+        why = " ".join(str(e).split()) or type(e).__name__
+        raise ResultsFileError(f"{path}: not a readable parquet file ({why[:300]})") from None
     raw = md.get(METADATA_KEY)
-    return json.loads(raw) if raw else {}
+    if not raw:
+        return {}
+    try:
+        meta = json.loads(raw)
+    except (ValueError, UnicodeDecodeError) as e:
+        raise ResultsFileError(f"{path}: its provenance (parquet metadata key 'snapjump') is not JSON ({e}); the "
+                               f"file was edited or damaged: run the sweep again, or drop that metadata key") from None
+    if not isinstance(meta, dict):
+        raise ResultsFileError(f"{path}: its provenance (parquet metadata key 'snapjump') is not a JSON mapping; "
+                               f"run the sweep again, or drop that metadata key")
+    return meta
 
 
 # ---- provenance ---------------------------------------------------------------------------------
@@ -204,3 +349,39 @@ def provenance(config: Mapping[str, Any] | None = None, **extra: Any) -> dict[st
     }
     meta.update(extra)
     return meta
+
+
+# ---- why designs were not solved ---------------------------------------------------------------
+_VALUE_RE = re.compile(r"(=|<=|>=|<|>|got|step|at|after|of)\s+-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+
+
+def _reason(error: Any) -> str:
+    """An error message with the values of one design replaced by ``#`` (so alike reasons group)."""
+    text = " ".join(error.split()) if isinstance(error, str) else ""
+    return _VALUE_RE.sub(lambda m: f"{m.group(1)} #", text)
+
+
+def failure_reasons(df: pd.DataFrame, statuses: tuple[str, ...] = ("invalid_geometry", "failed"),
+                    top: int = 5, source: str | Path | None = None) -> list[str]:
+    """The reasons of the designs of ``statuses`` (their ``error`` column), grouped: for each status
+    with rows, a line ``<status>: <n> designs``, then up to ``top`` lines ``<count> x <reason>``
+    (values of one design shown as ``#``), most frequent first. ``[]`` if there are none."""
+    from collections import Counter
+
+    if "status" not in df.columns:
+        return []
+    lines = []
+    errors = df["error"] if "error" in df.columns else None
+    for st in statuses:
+        mask = (df["status"] == st).fillna(False).to_numpy(dtype=bool)
+        n = int(mask.sum())
+        if not n:
+            continue
+        groups = Counter(_reason(e) for e in (errors[mask] if errors is not None else [""] * n))
+        lines.append(f"{st}: {n} design{'s' if n != 1 else ''}, why:")
+        for reason, k in groups.most_common(top):
+            lines.append(f"  {k} x {reason or '(no reason recorded)'}")
+        if len(groups) > top:
+            where = f" (column 'error' of {source})" if source is not None else " (column 'error')"
+            lines.append(f"  ... and {len(groups) - top} other reasons{where}")
+    return lines

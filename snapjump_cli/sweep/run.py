@@ -27,7 +27,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-import shutil
 import sys
 import time
 from contextlib import ExitStack
@@ -36,15 +35,17 @@ from pathlib import Path
 from typing import Any, Callable
 
 from snapjump_cli.errors import SweepError, SweepInputError
-from snapjump_cli.files import check_writable, follow_links
+from snapjump_cli.files import check_writable, follow_links, own_folder, remove_own_folder
 from snapjump_cli.geometry.caps import Design, InvalidDesign, centre_offset, outer_radius
 from snapjump_cli.sweep import results as res
 from snapjump_cli.sweep.config import MAX_DESIGNS, DesignPoint, SweepConfig
-from snapjump_cli.sweep.execution import SolveFn, connect, default_solver, execute
+from snapjump_cli.sweep.checks import jobs_error
+from snapjump_cli.sweep.execution import SolveFn, check_scheduler, connect, default_solver, execute
 from snapjump_cli.sweep.rows import settings_json
 from snapjump_cli.settings import MeshSettings, SolverSettings
 from snapjump_cli.sweep.storage import (
     KEY_VERSION,
+    MARKER_NAME,
     OutputLock,
     PartWriter,
     check_compatible,
@@ -266,14 +267,16 @@ def run_sweep(
     """
     t_start = time.perf_counter()
     output = Path(output if output is not None else config.output)
+    if (why := jobs_error(n_jobs if n_jobs is not None else config.n_jobs)):
+        raise SweepInputError(f"-j/--jobs: {why}" if n_jobs is not None else f"{config.source}: n_jobs: {why}")
     n_jobs = int(n_jobs if n_jobs is not None else config.n_jobs)
-    if n_jobs == 0:
-        raise SweepInputError("n_jobs must not be 0")
     if config.n_designs > max_designs:
         raise SweepInputError(
             f"{config.source}: {config.n_designs} designs exceed the limit of {max_designs} "
             f"(~{_fmt_duration(estimate_seconds(config.n_designs, config.mesh, os.cpu_count() or 1))} on this "
             f"machine); check the grid, or raise the limit with --max-designs")
+    if scheduler is not None:
+        check_scheduler(scheduler)
     chunk = int(chunk_size if chunk_size is not None else config.chunk_size)
     if output.exists() and output.is_dir():
         raise SweepInputError(f"{output}: is a directory, expected a parquet file path")
@@ -353,8 +356,8 @@ def _solve_all(tasks: list[dict[str, Any]], solve_fn: SolveFn, warm_up_fn: Calla
     and ``record`` each row as it finishes."""
     backend = "loky"
     if scheduler is not None:
-        client = connect(scheduler)
-        clients.append(client)
+        if not clients:
+            clients.append(connect(scheduler))
         backend, n_jobs = "dask", -1
     if warm_up_fn is not None:
         t0 = time.perf_counter()
@@ -366,7 +369,7 @@ def _solve_all(tasks: list[dict[str, Any]], solve_fn: SolveFn, warm_up_fn: Calla
         log.info("solver kernels compiled in %.1f s", time.perf_counter() - t0)
     md = None
     if n_jobs != 1 or backend != "loky":
-        marker_dir.mkdir(parents=True, exist_ok=True)
+        own_folder(marker_dir, SweepInputError)
         md = marker_dir
     if backend == "dask":
         from joblib import parallel_config
@@ -412,12 +415,11 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
     meta = res.provenance(cfg_dict, command="sweep", solver=solver_name, output=str(output), n_jobs=n_jobs,
                           scheduler=scheduler, key_version=KEY_VERSION)
 
-    try:
-        parts.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise SweepInputError(f"{parts}: cannot create the parts folder ({e.strerror})") from None
+    own_folder(parts, SweepInputError)  # a real folder, never a link (nothing is followed in it)
     marker_dir = parts / "running"
-    shutil.rmtree(marker_dir, ignore_errors=True)  # stale markers of a killed run (we hold the lock)
+    remove_own_folder(marker_dir, MARKER_NAME)  # stale markers of a killed run (we hold the lock)
+    if os.path.lexists(marker_dir):  # something else left there: a real folder is used, a link refused
+        own_folder(marker_dir, SweepInputError)
     writer = PartWriter(parts, meta, chunk, flush_interval_s)
 
     bar = None
@@ -437,6 +439,8 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
     clients: list[Any] = []
     stopped_by: BaseException | None = None
     try:
+        if scheduler is not None and tasks:  # reached before any row is written (a bad address writes nothing)
+            clients.append(connect(scheduler))
         for row in invalid_rows:
             record(row, advance=False)
         if tasks:
@@ -457,17 +461,14 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
             bar.close()
         for client in clients:
             client.close()
-        if marker_dir.is_dir():
-            for p in marker_dir.iterdir():
-                p.unlink(missing_ok=True)
-            marker_dir.rmdir()
-        if stopped_by is not None and not any(parts.iterdir()):  # stopped before any row (an unreachable scheduler)
-            parts.rmdir()
+        remove_own_folder(marker_dir, MARKER_NAME)
+        if stopped_by is not None:  # stopped before any row (an unreachable scheduler): no empty folder left
+            remove_own_folder(parts)
 
     if consolidate_output and (tasks or invalid_rows or part_files(parts) or not output.exists()):
         counts = consolidate(output, meta, order)
-    elif parts.is_dir() and not any(parts.iterdir()):
-        parts.rmdir()
+    else:
+        remove_own_folder(parts)
     summary = SweepSummary(output=output, n_designs=len(points), n_resumed=n_resumed, n_solved=len(tasks),
                            counts=counts, wall_s=time.perf_counter() - t_start)
     log.info("sweep done in %.1f s: %s", summary.wall_s, ", ".join(f"{k}={v}" for k, v in counts.items()))

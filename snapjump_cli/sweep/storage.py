@@ -18,8 +18,7 @@ import hashlib
 import json
 import logging
 import os
-import shutil
-import socket
+import re
 import time
 from datetime import datetime, timezone
 from pathlib import Path
@@ -29,7 +28,8 @@ from snapjump_cli.sweep import results as res
 from snapjump_cli.sweep.config import DesignPoint
 from snapjump_cli.errors import SweepInputError
 from snapjump_cli.fe.axisym.fluid import FluidSettings
-from snapjump_cli.files import os_error_reason
+from snapjump_cli import files
+from snapjump_cli.files import lock_path, own_files, remove_own, remove_own_folder
 from snapjump_cli.geometry.caps import Design
 from snapjump_cli.settings import MeshSettings, SolverSettings, without_limits
 
@@ -43,6 +43,7 @@ __all__ = [
     "done_keys",
     "OutputLock",
     "PartWriter",
+    "remove_working_files",
     "consolidate",
     "check_compatible",
 ]
@@ -122,9 +123,18 @@ def parts_dir(output: str | Path) -> Path:
     return output.with_name(output.name + ".parts")
 
 
+#: The names of the files a sweep writes into its parts folder: part files, their temporary files
+#: (:func:`snapjump_cli.files.write_atomic`) and, in ``running/``, one marker per design being solved.
+PART_NAME = re.compile(r"part-(\d{6,})\.parquet")
+PART_TMP_NAME = re.compile(r"\.part-\d{6,}\..*\.tmp\.parquet")
+MARKER_NAME = re.compile(r"[0-9a-f]{24}")
+
+
 def part_files(parts: Path) -> list[Path]:
-    """The part files in the folder ``parts`` (none if there is no such folder), in name order."""
-    return sorted(parts.glob("part-*.parquet")) if parts.is_dir() else []
+    """The part files in the folder ``parts`` (none if there is no such folder), in name order:
+    regular files only (a link or anything else with such a name is not the sweep's: it is
+    ignored with a warning and never followed, :func:`snapjump_cli.files.own_files`)."""
+    return own_files(parts, PART_NAME)
 
 
 def result_files(output: str | Path) -> list[Path]:
@@ -135,13 +145,10 @@ def result_files(output: str | Path) -> list[Path]:
 
 
 def _read_keys(path: Path) -> Any:
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
     try:
-        t = pq.read_table(path, columns=["key", "status"])
-    except (pa.ArrowInvalid, KeyError, OSError) as e:
-        why = " ".join(str(e).split())
+        t = res.read_table(path, columns=["key", "status"])
+    except res.ResultsFileError as e:
+        why = str(e).removeprefix(f"{path}: ")
         if path.parent.name.endswith(".parts"):  # a part of an interrupted run: its rows are solved again
             raise SweepInputError(f"{path}: damaged part file ({why}); delete this file and run the same command "
                                   f"again (its designs are solved again, the other parts are kept)") from None
@@ -153,6 +160,10 @@ def _read_keys(path: Path) -> Any:
 def done_keys(output: str | Path) -> dict[str, str]:
     """Keys already recorded for ``output`` (its consolidated file and its part files).
 
+    Only rows whose status is one the sweep writes (:data:`results.STATUSES`) count as recorded:
+    a row with any other status (edited by hand, written by another tool) is solved again, with a
+    warning naming the file and the statuses.
+
     Returns
     -------
     dict
@@ -160,96 +171,27 @@ def done_keys(output: str | Path) -> dict[str, str]:
     """
     output = Path(output)
     done: dict[str, str] = {}
-    files = ([output] if output.exists() else []) + part_files(parts_dir(output))
+    files = ([output] if output.is_file() else []) + part_files(parts_dir(output))
     for f in files:
         t = _read_keys(f)
-        done.update(zip(t.column("key").to_pylist(), t.column("status").to_pylist()))
+        keys, statuses = t.column("key").to_pylist(), t.column("status").to_pylist()
+        other = sorted({str(s) for s in statuses if s not in res.STATUSES})
+        if other:
+            n = sum(s not in res.STATUSES for s in statuses)
+            log.warning("%s: %d rows have a status snapjump does not write (%s); their designs are solved again",
+                        f, n, ", ".join(repr(s) for s in other))
+        done.update((k, s) for k, s in zip(keys, statuses) if s in res.STATUSES and isinstance(k, str))
     return done
 
 
 
-def lock_path(output: str | Path) -> Path:
-    """The lock file of ``output``: ``<output>.lock``."""
-    output = Path(output)
-    return output.with_name(output.name + ".lock")
-
-
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # it exists, owned by someone else
-        return True
-    except OSError:
-        return False
-    return True
-
-
-class OutputLock:
-    """Exclusive right to write into one output (``<output>.lock``, created with ``O_EXCL``), taken
-    by ``sweep`` and ``optimize`` (``command``, recorded in the lock).
-
-    A second sweep into the same output is refused (:class:`SweepInputError` naming the holder's
-    pid, host and start time). A lock left by a process that no longer runs on this host is taken
-    over with a warning. A lock from another host is never broken automatically (its process cannot
-    be checked from here): the message says which file to remove.
-    """
+class OutputLock(files.OutputLock):
+    """:class:`snapjump_cli.files.OutputLock` raising :class:`SweepInputError` (taken by ``sweep`` and
+    ``optimize``): a second sweep into the same output is refused, naming the holder's pid, host
+    and start time; a lock whose process is gone, or whose pid was reused, is taken over."""
 
     def __init__(self, output: str | Path, command: str = "sweep") -> None:
-        self.path = lock_path(output)
-        self.command = command  # recorded in the lock, named to whoever finds it taken
-        self.held = False
-
-    def _holder(self) -> dict[str, Any]:
-        try:
-            return json.loads(self.path.read_text())
-        except (OSError, ValueError):
-            return {}
-
-    def acquire(self) -> "OutputLock":
-        me = {"pid": os.getpid(), "host": socket.gethostname(), "started_utc": now_utc(), "command": self.command}
-        for _ in range(3):
-            try:
-                fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-            except FileExistsError:
-                h = self._holder()
-                pid, host = h.get("pid"), h.get("host")
-                if host == me["host"] and isinstance(pid, int) and not _pid_alive(pid):
-                    log.warning("%s: taking over a stale lock (pid %s on %s, started %s, no longer runs)",
-                                self.path, pid, host, h.get("started_utc"))
-                    self.path.unlink(missing_ok=True)
-                    continue
-                if not h:  # being written right now, or unreadable
-                    holder = "an unreadable lock file"
-                else:
-                    holder = f"pid {pid} on {host}, started {h.get('started_utc')}"
-                raise SweepInputError(
-                    f"{self.path.with_suffix('')}: another {h.get('command', 'sweep')} is writing into this output "
-                    f"({holder}); "
-                    f"wait for it to finish, or remove {self.path} if that process is gone")
-            except OSError as e:
-                raise SweepInputError(f"{self.path}: cannot create the lock file ({e.strerror})") from None
-            try:
-                with os.fdopen(fd, "w") as fh:
-                    json.dump(me, fh)
-            except OSError as e:  # a full disk: leave no empty lock behind (it would block every rerun)
-                self.path.unlink(missing_ok=True)
-                raise SweepInputError(f"{self.path}: cannot write the lock file ({os_error_reason(e)})") from None
-            self.held = True
-            return self
-        raise SweepInputError(f"{self.path}: cannot take the lock")
-
-    def release(self) -> None:
-        if self.held:
-            self.path.unlink(missing_ok=True)
-            self.held = False
-
-    def __enter__(self) -> "OutputLock":
-        return self.acquire()
-
-    def __exit__(self, *exc: Any) -> None:
-        self.release()
+        super().__init__(output, command, error=SweepInputError)
 
 
 def check_compatible(output: str | Path, keys: set[str], config: Mapping[str, Any]) -> None:
@@ -280,7 +222,7 @@ def check_compatible(output: str | Path, keys: set[str], config: Mapping[str, An
             diffs.append(f"{k} {a} -> {b}")
     grid_old = old.get("points", old.get("grid"))
     grid_new = config.get("points", config.get("grid"))
-    if grid_old is not None and grid_old != grid_new:
+    if grid_old is not None and not _same_designs(grid_old, grid_new):
         diffs.append("the designs (grid or points)")
     what = "; ".join(diffs) if diffs else "its rows were computed for other designs or settings"
     raise SweepInputError(
@@ -288,16 +230,51 @@ def check_compatible(output: str | Path, keys: set[str], config: Mapping[str, An
         f"write to another output, or pass --append to add to this file deliberately")
 
 
+def designs_digest(designs: Any) -> dict[str, Any]:
+    """A short stand-in for a config's ``grid`` or ``points`` (their count and SHA-256)."""
+    text = json.dumps(designs, sort_keys=True, separators=(",", ":"), default=str)
+    n = len(designs) if isinstance(designs, list) else sum(len(v) for v in designs.values()) \
+        if isinstance(designs, Mapping) else None
+    return {"sha256": hashlib.sha256(text.encode()).hexdigest(), "n": n}
+
+
+def part_meta(meta: Mapping[str, Any]) -> dict[str, Any]:
+    """The provenance a part file carries: the run's, with the designs (``grid`` / ``points``) as
+    a digest (:func:`designs_digest`). The full list is stored once, in the consolidated file;
+    carried by every part it made the parts grow as the square of the number of designs."""
+    out = dict(meta)
+    cfg = out.get("config")
+    if isinstance(cfg, Mapping):
+        cfg = dict(cfg)
+        for k in ("grid", "points"):
+            if k in cfg and not (isinstance(cfg[k], Mapping) and "sha256" in cfg[k]):
+                cfg[k] = {"digest": designs_digest(cfg[k])}
+        out["config"] = cfg
+    return out
+
+
+def _same_designs(old: Any, new: Any) -> bool:
+    """Whether a file's recorded ``grid`` / ``points`` (possibly a part's digest) is ``new``."""
+    if isinstance(old, Mapping) and set(old) == {"digest"}:
+        return new is not None and old["digest"] == designs_digest(new)
+    return old == new
+
+
 class PartWriter:
-    """Buffers rows and writes them as atomic part files ``part-NNNNNN.parquet``."""
+    """Buffers rows and writes them as atomic part files ``part-NNNNNN.parquet`` (with the run's
+    provenance, its designs as a digest: :func:`part_meta`)."""
 
     def __init__(self, parts: Path, meta: dict[str, Any], chunk_size: int, flush_interval_s: float) -> None:
         self.parts = parts
-        self.meta = meta
+        self.meta = part_meta(meta)
         self.chunk_size = max(1, int(chunk_size))
         self.flush_interval_s = flush_interval_s
         self.buffer: list[dict[str, Any]] = []
-        existing = [int(p.stem.split("-")[1]) for p in part_files(parts) if p.stem.split("-")[1].isdigit()]
+        try:  # every name taken, whatever it is (a new part never lands on a name already there)
+            names = os.listdir(parts)
+        except OSError:
+            names = []
+        existing = [int(m.group(1)) for n in names if (m := PART_NAME.fullmatch(n))]
         self.seq = max(existing, default=-1) + 1
         self.last_flush = time.monotonic()
         self.n_written = 0
@@ -335,11 +312,14 @@ def consolidate(output: str | Path, meta: Mapping[str, Any], order: Mapping[str,
 
     output = Path(output)
     parts = parts_dir(output)
-    files = ([output] if output.exists() else []) + part_files(parts)
+    files = ([output] if output.is_file() else []) + part_files(parts)
     schema = res.result_schema()
     tables = []
     for f in files:
-        t = pq.read_table(f)
+        try:
+            t = res.read_table(f)
+        except res.ResultsFileError as e:
+            raise SweepInputError(str(e)) from None
         t = t.replace_schema_metadata(None)
         # tolerate files written with an older column set: add the missing columns as nulls
         for fld in schema:
@@ -365,14 +345,15 @@ def consolidate(output: str | Path, meta: Mapping[str, Any], order: Mapping[str,
     res.write_table_atomic(res._with_metadata(table, full_meta), output)
     for f in files:  # only the parts merged here (never a part that appeared meanwhile)
         if f != output:
-            f.unlink(missing_ok=True)
-    if parts.is_dir():
-        shutil.rmtree(parts / "running", ignore_errors=True)
-        for tmp in parts.glob(".part-*.tmp*"):  # half-written parts of a killed run (never read)
-            tmp.unlink(missing_ok=True)
-        try:
-            parts.rmdir()
-        except OSError:  # not empty: left for the next consolidation
-            pass
+            remove_own(f)
+    remove_working_files(parts)
     return counts
+
+
+def remove_working_files(parts: Path) -> None:
+    """Remove what a sweep left in its parts folder apart from part files (the ``running/``
+    markers, the temporary files of a killed run), and the folder once it is empty: only regular
+    files with the sweep's own names, never through a link (:mod:`snapjump_cli.files`)."""
+    remove_own_folder(parts / "running", MARKER_NAME)
+    remove_own_folder(parts, PART_TMP_NAME)
 

@@ -120,7 +120,7 @@ def test_special_files_are_refused_as_inputs(tmp_path, capsys):
     fifo = tmp_path / "r.parquet"
     os.mkfifo(fifo)  # reading it would block until someone writes
     code, _, err = run_cli(capsys, "rank", str(fifo))
-    assert code == 2 and "got a special file" in err
+    assert code == 2 and "expected a parquet file, got a FIFO (named pipe)" in err
     spec = tmp_path / "s.yaml"
     spec.write_text("bounds: {eta_i: [5, 8], theta_i: 80, eta_o: 12, theta_o: 82, mu_ratio: 5.8}\n")
     code, _, err = run_cli(capsys, "optimize", str(spec), "--from", str(fifo), "-o", str(tmp_path / "o.parquet"))

@@ -45,6 +45,10 @@ def test_the_first_duplicate_in_the_file_is_named_and_merge_keys_still_work(tmp_
     assert read_yaml(p)["mesh"] == {"order": 2, "nt": 3}
 
 
-def test_a_file_that_never_ends_is_read_only_up_to_the_limit(tmp_path):
+def test_a_file_that_never_ends_is_refused_or_read_only_up_to_the_limit(tmp_path):
+    with pytest.raises(ConfigError, match="expected a regular file, got a character device"):
+        read_yaml("/dev/zero")  # a device: refused before it is opened (issue 38)
+    big = tmp_path / "big.yaml"
+    big.write_bytes(b"#" * (2 << 20))
     with pytest.raises(ConfigError, match="larger than 1 MB"):
-        read_yaml("/dev/zero")  # read, never written: bounded by the size limit, not by memory
+        read_yaml(big)  # a regular file: bounded by the size limit, not by memory

@@ -20,6 +20,7 @@ import logging
 
 import numpy as np
 
+from snapjump_cli.fe.limits import check_time
 from snapjump_cli.fe.stability.harmonics import ZERO_TOL, HarmonicOperator, harmonic_operator
 from snapjump_kernels.calls import band_ldlt, envelope_extents
 
@@ -102,6 +103,7 @@ def smallest_eigenvalue(op: HarmonicOperator, u: np.ndarray, p: float, shift: fl
     mu = float(np.min(op.model.mu))
     sigma = -shift * mu
     for _ in range(6):
+        check_time()  # the design's CPU-time limit: the eigen-solves call no model evaluation that checks it
         lam = eig_near(op, u, p, sigma)
         if lam is None:
             return None

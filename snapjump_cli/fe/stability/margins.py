@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from snapjump_cli.fe.limits import check_time
 from snapjump_cli.fe.stability.eigen import smallest_eigenvalue
 from snapjump_cli.fe.stability.harmonics import harmonic_operator
 from snapjump_cli.schema import MARGINS, columns
@@ -56,6 +57,7 @@ def state_margins(model, u: np.ndarray, p: float, n_max: int, free_body: bool | 
     """The margins of harmonics ``0..n_max`` at one state, ``(n_max + 1,)`` (NaN outside the domain)."""
     out = np.full(n_max + 1, np.nan)
     for n in range(n_max + 1):
+        check_time()
         lam = smallest_eigenvalue(harmonic_operator(model, n, free_body), u, p)
         if lam is not None:
             out[n] = lam
