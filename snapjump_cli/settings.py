@@ -8,9 +8,10 @@ __all__ = ["MeshSettings", "SolverSettings", "SettingsError", "NT_MAX", "ASPECT_
 #: Bounds of the mesh density, the same for the YAML configs and the command-line options.
 NT_MAX = 64
 ASPECT_MAX = 100.0
-#: The solver settings that bound a design's resources (CPU time, mesh size) without changing its
-#: answer: left out of design keys, of a row's ``solver_settings`` and of the comparison of runs.
-LIMIT_SETTINGS: tuple[str, ...] = ("time_limit_s", "max_nodes")
+#: The solver settings that bound a design's resources (CPU time, mesh size, how much of a followed
+#: branch is traced) without changing its answer: left out of design keys, of a row's
+#: ``solver_settings`` and of the comparison of runs.
+LIMIT_SETTINGS: tuple[str, ...] = ("time_limit_s", "max_nodes", "follow_mode")
 
 
 def without_limits(solver: object) -> object:
