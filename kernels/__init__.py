@@ -4,9 +4,12 @@ Modules: ``gent`` (energy density and its first/second derivatives in the axisym
 deformation-gradient components), ``elements`` (Q4/Q9 shape functions and quadrature),
 ``assembly`` (element loops filling a CSR pattern), ``cavity`` (exact cavity volume with its
 gradient and Hessian), ``banded`` (band LDL^T with the border), ``corrector`` (the Newton
-corrector in one call), ``harmonics`` (the Fourier-harmonic tangents); ``band_layout`` (the
-envelope of a sparsity pattern, plain numpy); ``calls`` (the kernels as the solver calls them) and
-``aot`` (their ahead-of-time build).
+corrector in one call), ``harmonics`` (the Fourier-harmonic tangents); the multi-harmonic solid of a
+followed branch (JIT-compiled only): ``mh_basis`` (the Fourier layout, phi rule and gradients),
+``mh_material`` (the 3D Gent law), ``mh_element`` (energy, residual and tangent of the elements),
+``mh_cavity`` (the exact 3D cavity volume); ``band_layout`` (the envelope of a sparsity pattern,
+plain numpy); ``calls`` (the kernels as the solver calls them) and ``aot`` (their ahead-of-time
+build).
 
 Every kernel is ``@njit(cache=True)``. numba keys a cached function on its own source file only,
 so a kernel that calls into another file (the corrector calls the assembly) would keep stale

@@ -257,6 +257,13 @@ class _LazyJit:
         return self._f(*args)
 
 
+def lazy_jit(module: str, name: str) -> Callable:
+    """The JIT dispatcher of ``snapjump_kernels.<module>.<name>``, its module imported (with numba)
+    when it is first called: a kernel that is never compiled ahead of time
+    (:data:`snapjump_kernels.calls.JIT_KERNELS`)."""
+    return _LazyJit(module, name)
+
+
 def kernel(module: str, name: str, table: tuple[dict, Any] | None = None) -> Callable:
     """``snapjump_kernels.<module>.<name>`` as the solver calls it: the compiled variants first
     (exact argument match), the JIT dispatcher otherwise; the plain dispatcher when there is no

@@ -59,22 +59,59 @@ def band_ldlt(ab: np.ndarray, ext: np.ndarray):
     storing the trailing entries once per column.
 
     The trailing update keeps the block's columns of ``L`` transposed in ``P`` (one contiguous row
-    per column) and runs its innermost loop over the rows of one trailing column, with the 6
-    products of an entry written out, and the loops index views from 0 (an offset index such as
-    ``row[r - c]`` kept them scalar): contiguous loops that LLVM vectorises, with the same result
+    per column) and runs its innermost loop over the rows of two trailing columns at a time, with
+    the 6 products of an entry written out, and the loops index views from 0 (an offset index such
+    as ``row[r - c]`` kept them scalar): contiguous loops that LLVM vectorises, with the same result
     bit for bit as the blocked loop with the block's columns innermost, and 2.0-2.5x less CPU time
     than it on D and C (455 to 1111 dofs, ``nt = 2`` and ``3``; D, ``nt = 2``: 0.10-0.17 ms instead
-    of 0.20-0.34 ms on a shared machine).
+    of 0.20-0.34 ms on a shared machine, with one trailing column at a time).
 
     Returns
     -------
     (ok, n_negative) : (bool, int)
     """
+    return _ldlt(ab, ext, ab, False)
+
+
+@njit(cache=True)
+def band_ldlt_into(out: np.ndarray, ext: np.ndarray, src: np.ndarray):
+    """:func:`band_ldlt` of the lower band ``src`` with the factors written into ``out`` (same
+    shape; ``src`` is not changed): the envelope of each column is copied into ``out`` just before
+    the column is first updated (while it is about to be used, instead of in a pass of its own over
+    the whole band). Entries outside the envelope are neither read nor written: a buffer that is
+    zero there stays a valid band of ``L``. The same factors, bit for bit, as ``band_ldlt`` of a
+    copy of ``src``.
+
+    Returns
+    -------
+    (ok, n_negative) : (bool, int)
+    """
+    return _ldlt(out, ext, src, True)
+
+
+@njit(cache=True)
+def _ldlt(ab: np.ndarray, ext: np.ndarray, src: np.ndarray, copy: bool):
+    """The LDL^T of :func:`band_ldlt` (in place) and :func:`band_ldlt_into` (``copy``).
+
+    The trailing update of a block, ``A[r, c] -= sum_t L[r, t] d_t L[c, t]`` over the block's 6
+    columns ``t`` (summed in their order), runs over two target columns ``c, c + 1`` at a time,
+    sharing the loads of ``L[r, t]``: the terms of an entry and their order are those of one target
+    column at a time, so the factors are bit for bit those of the column-by-column update (the
+    in-place kernel before 2026-11-28, which the multi-harmonic band's copy duplicated).
+
+    With ``copy``, the matrix is read from ``src`` instead: the envelope of each column is copied
+    into ``ab`` just before the column is first updated (while it is about to be used, instead
+    of in a pass of its own over the whole band).
+
+    Returns
+    -------
+    (ok, n_negative) : (bool, int); ``ok`` False when a pivot is zero to round-off
+    """
     n, m1 = ab.shape
     kl = m1 - 1
     scale = 0.0
     for j in range(n):
-        a = abs(ab[j, 0])
+        a = abs(src[j, 0])  # the diagonal of the matrix (src is ab without copy)
         if a > scale:
             scale = a
     tiny = 1e-14 * scale
@@ -82,6 +119,7 @@ def band_ldlt(ab: np.ndarray, ext: np.ndarray):
     nb = _NB
     P = np.empty((nb, kl + 1))  # P[t, rr] = L[r0 + rr, j0 + t]: the block's columns below the block
     dvec = np.empty(nb)
+    copied = 0  # columns 0 .. copied - 1 of src are in ab
     j0 = 0
     while j0 < n:
         b = min(nb, n - j0)
@@ -89,6 +127,16 @@ def band_ldlt(ab: np.ndarray, ext: np.ndarray):
         for t in range(j0, j0 + b):
             if t + ext[t] > R:
                 R = t + ext[t]
+        if copy:
+            upto = max(R, j0 + b - 1)  # the block's columns and every column it updates
+            for c in range(copied, upto + 1):
+                m = ext[c] + 1
+                dst = ab[c, :m]
+                col = src[c, :m]
+                for x in range(m):
+                    dst[x] = col[x]
+            if upto + 1 > copied:
+                copied = upto + 1
         # the block's columns, each updating the block's later columns (all their rows)
         for j in range(j0, j0 + b):
             d = ab[j, 0]
@@ -103,7 +151,7 @@ def band_ldlt(ab: np.ndarray, ext: np.ndarray):
                 colj[i] = colj[i] / d
             for c in range(j + 1, min(j0 + b, j + m + 1)):
                 f = colj[c - j] * d
-                row = ab[c, :j + m + 1 - c]  # A[c:j+m+1, c] -= L[c:j+m+1, j] d L[c, j]
+                row = ab[c, :j + m + 1 - c]
                 lj = colj[c - j:m + 1]
                 for k in range(row.size):
                     row[k] -= lj[k] * f
@@ -122,7 +170,30 @@ def band_ldlt(ab: np.ndarray, ext: np.ndarray):
                 for rr in range(hi, h):
                     p[rr] = 0.0
             if b == 6:
-                for cc in range(h):  # A[r0+cc:r0+h, r0+cc] -= sum_t L[:, t] d_t L[r0+cc, t]
+                cc = 0
+                while cc + 1 < h:  # columns cc and cc + 1: rows cc.. and cc + 1..
+                    w0, w1, w2 = P[0, cc] * dvec[0], P[1, cc] * dvec[1], P[2, cc] * dvec[2]
+                    w3, w4, w5 = P[3, cc] * dvec[3], P[4, cc] * dvec[4], P[5, cc] * dvec[5]
+                    v0, v1, v2 = P[0, cc + 1] * dvec[0], P[1, cc + 1] * dvec[1], P[2, cc + 1] * dvec[2]
+                    v3, v4, v5 = P[3, cc + 1] * dvec[3], P[4, cc + 1] * dvec[4], P[5, cc + 1] * dvec[5]
+                    ra = ab[r0 + cc, :h - cc]
+                    ra[0] -= (P[0, cc] * w0 + P[1, cc] * w1 + P[2, cc] * w2 + P[3, cc] * w3 + P[4, cc] * w4
+                              + P[5, cc] * w5)
+                    ra = ra[1:]
+                    rb = ab[r0 + cc + 1, :h - cc - 1]
+                    p0, p1, p2 = P[0, cc + 1:h], P[1, cc + 1:h], P[2, cc + 1:h]
+                    p3, p4, p5 = P[3, cc + 1:h], P[4, cc + 1:h], P[5, cc + 1:h]
+                    for k in range(h - cc - 1):
+                        x0 = p0[k]
+                        x1 = p1[k]
+                        x2 = p2[k]
+                        x3 = p3[k]
+                        x4 = p4[k]
+                        x5 = p5[k]
+                        ra[k] -= x0 * w0 + x1 * w1 + x2 * w2 + x3 * w3 + x4 * w4 + x5 * w5
+                        rb[k] -= x0 * v0 + x1 * v1 + x2 * v2 + x3 * v3 + x4 * v4 + x5 * v5
+                    cc += 2
+                if cc < h:  # the last column, if h is odd
                     row = ab[r0 + cc, :h - cc]
                     p0, p1, p2 = P[0, cc:h], P[1, cc:h], P[2, cc:h]
                     p3, p4, p5 = P[3, cc:h], P[4, cc:h], P[5, cc:h]
@@ -130,7 +201,7 @@ def band_ldlt(ab: np.ndarray, ext: np.ndarray):
                     w3, w4, w5 = p3[0] * dvec[3], p4[0] * dvec[4], p5[0] * dvec[5]
                     for k in range(h - cc):
                         row[k] -= p0[k] * w0 + p1[k] * w1 + p2[k] * w2 + p3[k] * w3 + p4[k] * w4 + p5[k] * w5
-            else:  # the last block, if _NB does not divide n (or _NB != 6)
+            else:  # a last block of fewer columns (never has rows below it: kept for generality)
                 for cc in range(h):
                     row = ab[r0 + cc]
                     for rr in range(cc, h):
@@ -217,6 +288,27 @@ def bordered_factor(K: np.ndarray, ext: np.ndarray, b: np.ndarray, c: np.ndarray
     Kib = band_ldlt_solve(fac, b, ext)
     schur = d - np.dot(c, Kib)
     return True, nneg, fac, Kib, schur
+
+
+@njit(cache=True)
+def bordered_factor_into(K: np.ndarray, ext: np.ndarray, b: np.ndarray, c: np.ndarray, d: float,
+                         fac: np.ndarray):
+    """Factorise the bordered matrix ``[[K, b], [c^T, d]]`` as :func:`bordered_factor` does (the
+    same results bit for bit), with the band LDL^T of ``K`` written into ``fac`` (same shape as
+    ``K``; :func:`band_ldlt_into`: only its envelope is written, so entries outside it must be
+    zero, as a fresh ``np.zeros`` band is).
+
+    Returns
+    -------
+    (ok, n_negative, Kib, schur)
+        ``Kib = K^-1 b``, ``schur = d - c^T K^-1 b``; ``ok`` False if ``K`` is singular to round-off.
+    """
+    ok, nneg = band_ldlt_into(fac, ext, K)
+    if not ok:
+        return False, nneg, np.zeros(0), 0.0
+    Kib = band_ldlt_solve(fac, b, ext)
+    schur = d - np.dot(c, Kib)
+    return True, nneg, Kib, schur
 
 
 @njit(cache=True)

@@ -1,9 +1,11 @@
 """The kernels as the solver calls them: compiled ahead of time when built for these sources
-(:mod:`snapjump_kernels.aot`), the ``@njit`` dispatchers otherwise. Importing this module imports
-numba only when there is no matching ahead-of-time build."""
+(:mod:`snapjump_kernels.aot`), the ``@njit`` dispatchers otherwise; the multi-harmonic kernels
+(:data:`JIT_KERNELS`, a followed branch's) are always JIT-compiled, their module imported when one
+is first called. Importing this module imports numba only when there is no matching
+ahead-of-time build. The library takes every kernel from here."""
 from __future__ import annotations
 
-from snapjump_kernels.aot import active, kernel
+from snapjump_kernels.aot import active, kernel, lazy_jit
 from snapjump_kernels.band_layout import envelope_extents
 from snapjump_kernels.elements import element_tables, quadrature_geometry
 
@@ -16,11 +18,22 @@ KERNELS: dict[str, tuple[str, ...]] = {
     "harmonics": ("harmonic_band", "harmonic_cavity_matrices", "harmonic_element_parts", "scatter_band"),
 }
 
+#: kernel module -> the kernels called from Python that are never compiled ahead of time (the
+#: multi-harmonic model's: a followed branch; their module is imported, with numba, on first call)
+JIT_KERNELS: dict[str, tuple[str, ...]] = {
+    "banded": ("band_ldlt_into", "bordered_factor_into"),
+    "mh_basis": ("phi_rule", "point_gradients"),
+    "mh_element": ("mh_elements", "mh_assemble_band", "scatter_vector"),
+    "mh_cavity": ("mh_cavity",),
+}
+
 # each name of KERNELS, as the solver calls it (``from snapjump_kernels.calls import evaluate``)
 globals().update({name: kernel(module, name) for module, names in KERNELS.items() for name in names})
+globals().update({name: lazy_jit(module, name) for module, names in JIT_KERNELS.items() for name in names})
 
 #: whether the ahead-of-time compiled kernels are in use in this process
 AOT: bool = active()
 
-__all__ = ["KERNELS", "AOT", "envelope_extents", "element_tables", "quadrature_geometry",
-           *(name for names in KERNELS.values() for name in names)]
+__all__ = ["KERNELS", "JIT_KERNELS", "AOT", "envelope_extents", "element_tables", "quadrature_geometry",
+           *(name for names in KERNELS.values() for name in names),
+           *(name for names in JIT_KERNELS.values() for name in names)]

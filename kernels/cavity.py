@@ -79,45 +79,6 @@ def _edge_terms(x, nodes, N, dN, ge, he):
 
 
 @njit(cache=True)
-def cavity_volume_derivatives(x: np.ndarray, edges: np.ndarray):
-    """Volume, gradient and Hessian entries of the cavity volume.
-
-    Returns
-    -------
-    V : float
-    grad : (n, 2) float64
-        ``dV/dx`` per node and component.
-    hrows, hcols, hvals : int64, int64, float64 arrays
-        COO triplets of ``d2V/dx2`` in the global dof numbering ``2*node + component``
-        (duplicates are to be summed).
-    """
-    ne, nen = edges.shape
-    N = np.empty(nen)
-    dN = np.empty(nen)
-    ge = np.empty(2 * nen)
-    he = np.empty((2 * nen, 2 * nen))
-    grad = np.zeros((x.shape[0], 2))
-    nh = ne * (2 * nen) * (2 * nen)
-    hr = np.empty(nh, np.int64)
-    hc = np.empty(nh, np.int64)
-    hv = np.zeros(nh)
-    v = 0.0
-    k = 0
-    for e in range(ne):
-        v += _edge_terms(x, edges[e], N, dN, ge, he)
-        for a in range(nen):
-            for ca in range(2):
-                grad[edges[e, a], ca] += ge[2 * a + ca]
-                for b in range(nen):
-                    for cb in range(2):
-                        hr[k] = 2 * edges[e, a] + ca
-                        hc[k] = 2 * edges[e, b] + cb
-                        hv[k] = he[2 * a + ca, 2 * b + cb]
-                        k += 1
-    return v, grad, hr, hc, hv
-
-
-@njit(cache=True)
 def cavity_assemble(x, edges, edge_dofs, edge_pos, coef, want, g_out, data_out):
     """Cavity volume; adds ``dV/du`` into ``g_out`` (free dofs) and, for ``want >= 2``,
     ``coef * d2V/du2`` into the CSR values ``data_out``.

@@ -1,6 +1,6 @@
 """The continuation's Newton corrector as one compiled call (no Python between its iterations).
 
-It is :meth:`snapjump_cli.fe.tracer.Tracer.correct` for the pressurised solid of
+It is :meth:`snapjump_cli.fe.continuation.tracer.Tracer.correct` for the pressurised solid of
 :mod:`snapjump_kernels.assembly` with the path measures ``zeta = (V / s_V, p / s_p, w / s_w)``
 (cavity volume, pressure, pole displacement): each iteration evaluates the residual and the
 stiffness (:func:`snapjump_kernels.assembly.evaluate`), factorises the bordered matrix and solves
@@ -30,7 +30,7 @@ converged state, is the same.
 
 With the Riks constraint the call also returns the path tangent at the accepted state, solved with
 the bordered matrix of the last iteration (whose border row is the previous tangent's, as
-:meth:`snapjump_cli.fe.tracer.Tracer.tangent` uses): ``[[K, -g], [c^T, c_p]] [v; q] = [0; 1]``.
+:meth:`snapjump_cli.fe.continuation.tracer.Tracer.tangent` uses): ``[[K, -g], [c^T, c_p]] [v; q] = [0; 1]``.
 """
 from __future__ import annotations
 

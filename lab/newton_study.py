@@ -314,7 +314,12 @@ def _accepted(a: argparse.Namespace) -> None:
 def _contraction(a: argparse.Namespace) -> None:
     """Contraction of the Newton corrections (each one over the one before) on the path steps, for
     the steps that converged and those that failed, with the give-up rule switched off: why Newton
-    stops at a contraction above ``theta_max`` (ContinuationSettings)."""
+    stops at a contraction above ``theta_max`` (ContinuationSettings).
+
+    Needs the tracer's ``on_increment`` hook, which the library no longer has (issue 35): this
+    study is retired; ``git show 51d9ff8:lab/newton_study.py`` runs it on that commit."""
+    raise SystemExit("lab/newton_study.py contraction: the tracer's on_increment hook was removed (issue 35); "
+                     "run it on commit 51d9ff8")
     from snapjump_cli.fe import continuation as C
     from snapjump_cli.sweep.config import load_config
     from snapjump_cli.fe.solve import solve_scene

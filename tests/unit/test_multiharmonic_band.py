@@ -1,13 +1,13 @@
 """The multi-harmonic model's band assembly and factorisation (docs/harmonics.md, section 10.4).
 
-``kernels/multiharmonic_band.py``'s :func:`envelope_ldlt` and :func:`bordered_factor_into` do the
-arithmetic of :func:`snapjump_kernels.banded.band_ldlt` and ``bordered_factor`` term by term in
-the same order (only the loops are arranged differently, and the factors go into a buffer the
-caller keeps): they must return the same factors, inertia, ``K^-1 b`` and Schur complement *bit
-for bit*, which the tests check with ``array_equal`` (and, independently, against dense algebra).
-The fused assembly (:func:`snapjump_kernels.multiharmonic.mh_assemble_band`) must give the band
-that the element matrices scattered by ``scatter_band`` give, also bit for bit, and the model's
-reused band buffers must never hand out a band still in use.
+:func:`snapjump_kernels.banded.band_ldlt_into` and :func:`~snapjump_kernels.banded.bordered_factor_into`
+factorise a band into a buffer the caller keeps, copying each column just before it is first
+used: they must return the factors, inertia, ``K^-1 b`` and Schur complement of ``band_ldlt`` and
+``bordered_factor`` (which factorise a copy) *bit for bit*, which the tests check with
+``array_equal`` (and, independently, against dense algebra). The fused assembly
+(:func:`snapjump_kernels.mh_element.mh_assemble_band`) must give the band that the element
+matrices of :func:`~snapjump_kernels.mh_element.mh_elements` scattered by ``scatter_band`` give,
+also bit for bit, and the model's reused band buffers must never hand out a band still in use.
 """
 from __future__ import annotations
 
@@ -16,9 +16,10 @@ import gc
 import numpy as np
 import pytest
 
+from snapjump_cli.fe.axisym.model import Linearization, factor_bordered
 from snapjump_cli.fe.branch.model import MultiHarmonicModel
-from snapjump_kernels.banded import band_ldlt, bordered_factor
-from snapjump_kernels.multiharmonic_band import bordered_factor_into, envelope_ldlt
+from snapjump_kernels.banded import band_ldlt, band_ldlt_into, bordered_factor, bordered_factor_into
+from snapjump_kernels.calls import mh_cavity, mh_elements, scatter_band, scatter_vector
 from tests.unit.test_banded import _extents_of, _random_profile_matrix, _to_band
 from tests.unit.test_harmonics_fd import _model, _state
 from tests.unit.test_imperfection import _imperfection
@@ -32,23 +33,23 @@ def _profile(n: int, kl: int, seed: int, shift: float):
 
 @pytest.mark.parametrize("n, kl, seed", [(120, 9, 3), (97, 23, 5), (61, 60, 7), (6, 5, 1), (13, 2, 2)])
 @pytest.mark.parametrize("shift", [8.0, 0.5, -1.5])  # positive definite / a few / many negative eigenvalues
-def test_envelope_ldlt_is_band_ldlt_bit_for_bit(n, kl, seed, shift):
+def test_band_ldlt_into_is_band_ldlt_bit_for_bit(n, kl, seed, shift):
     A, ab, ext = _profile(n, kl, seed, shift)
-    f0, f1 = ab.copy(), ab.copy()
+    f0, f1, src = ab.copy(), np.zeros_like(ab), ab.copy()
     ok0, neg0 = band_ldlt(f0, ext)
-    ok1, neg1 = envelope_ldlt(f1, ext)
-    assert ok0 and ok1
+    ok1, neg1 = band_ldlt_into(f1, ext, src)
+    assert ok0 and ok1 and np.array_equal(src, ab)  # (the source is not changed)
     assert neg1 == neg0 == int(np.sum(np.linalg.eigvalsh(A) < 0))  # the inertia (Sylvester)
     assert np.array_equal(f1, f0)
     if shift < 8.0:
         assert neg1 > 0  # indefinite indeed
 
 
-def test_envelope_ldlt_reports_a_zero_pivot_as_band_ldlt_does():
+def test_band_ldlt_into_reports_a_zero_pivot_as_band_ldlt_does():
     A = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 1.0], [0.0, 1.0, 2.0]])  # the second pivot is 0
     ab = _to_band(A, 2)
     ext = _extents_of(A, 2)
-    assert envelope_ldlt(ab.copy(), ext)[0] is False
+    assert band_ldlt_into(np.zeros_like(ab), ext, ab)[0] is False
     assert band_ldlt(ab.copy(), ext)[0] is False
 
 
@@ -116,26 +117,49 @@ def _mh_state(order: int, hn, imperfect: bool):
     return mh, U
 
 
+def _unfused(mh: MultiHarmonicModel, U: np.ndarray, p: float) -> Linearization:
+    """The model's linearisation as it was formed before 2026-11-28: the element matrices
+    (:func:`mh_elements`, ``want = 2``) and the cavity's scattered by ``scatter_band`` into a fresh
+    band."""
+    M = mh.base
+    A = np.ascontiguousarray(mh.total_amplitudes(U))
+    E, ok, re, Ke = mh_elements(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np, M.Minv,
+                                mh.hn, mh.phis, mh.wphi, 2, mh.Fi, mh.Jimp, mh.Minvp)
+    assert ok
+    Vf, ge, He = mh_cavity(M.X, A, M.edges, mh.hn, mh.phis, mh.wphi, 2)
+    R, g = np.zeros(mh.n), np.zeros(mh.n)
+    scatter_vector(re, mh.edofs, mh.ecoef, 1.0, R)
+    scatter_vector(ge, mh.gdofs, mh.gcoef, 1.0, g)
+    R -= p * g
+    ab = np.zeros((mh.n, mh.kl + 1))
+    scatter_band(Ke, mh.edofs, mh.ecoef, 1.0, ab)
+    scatter_band(He, mh.gdofs, mh.gcoef, -float(p), ab)
+    return Linearization(mh, U, p, R, g, ab.ravel(), Vf + mh.V_offset, E)
+
+
+def _factor_unfused(lin: Linearization, c_u, c_p, shift=0.0):
+    """The factorisation of before 2026-11-28: ``bordered_factor`` of a copy of the band."""
+    data = lin.data.copy()
+    if shift:
+        data[lin.model.diag_pos] += shift
+    return factor_bordered(lin.model, data, -lin.g, c_u, c_p)
+
+
 @pytest.mark.parametrize("order", [1, 2])
 @pytest.mark.parametrize("hn", [[0], [0, 1, 2], [0, 2, 4, 6], [0, 1, 2, 3, 4]])
 @pytest.mark.parametrize("imperfect", [False, True])
 def test_fused_assembly_and_factorisation_are_the_unfused_ones_bit_for_bit(order, hn, imperfect):
     mh, U = _mh_state(order, hn, imperfect)
     p = 0.37
-    assert MultiHarmonicModel.fused_assembly
     new = mh.linearize(U, p)
-    try:
-        MultiHarmonicModel.fused_assembly = False
-        old = mh.linearize(U, p)
-        rng = np.random.default_rng(1)
-        c_u, c_p = rng.standard_normal(mh.n), 0.2
-        s_old = old.factor(c_u, c_p)
-        # harmonic 1 of a free body without a gauge: singular (its rigid modes); then shifted
-        shift = 0.0 if s_old is not None else 1e-3 * float(np.abs(old.diag_abs()).max())
-        if s_old is None:
-            s_old = old.factor(c_u, c_p, shift)
-    finally:
-        MultiHarmonicModel.fused_assembly = True
+    old = _unfused(mh, U, p)
+    rng = np.random.default_rng(1)
+    c_u, c_p = rng.standard_normal(mh.n), 0.2
+    s_old = _factor_unfused(old, c_u, c_p)
+    # harmonic 1 of a free body without a gauge: singular (its rigid modes); then shifted
+    shift = 0.0 if s_old is not None else 1e-3 * float(np.abs(old.diag_abs()).max())
+    if s_old is None:
+        s_old = _factor_unfused(old, c_u, c_p, shift)
     assert new.E == old.E and new.V == old.V
     assert np.array_equal(new.R, old.R) and np.array_equal(new.g, old.g)
     assert np.abs(old.data).max() > 0 and np.array_equal(new.data, old.data)
@@ -171,11 +195,7 @@ def test_band_buffers_in_use_are_not_handed_out_again():
     gc.collect()
     lin4 = mh.linearize(U + 2e-3, p)
     assert lin4.data.__array_interface__["data"][0] == addr
-    try:
-        MultiHarmonicModel.fused_assembly = False
-        ref = mh.linearize(U + 2e-3, p)
-    finally:
-        MultiHarmonicModel.fused_assembly = True
+    ref = _unfused(mh, U + 2e-3, p)
     assert np.array_equal(lin4.data, ref.data)
     # the band outside the envelope is zero (a reused buffer included): the stiffness is exact
     assert (abs(lin4.stiffness() - ref.stiffness())).max() == 0.0

@@ -1,8 +1,8 @@
 """The restructured element kernel of the multi-harmonic model against the straightforward one.
 
-``kernels/multiharmonic.py``'s :func:`mh_elements` forms the tangent harmonic pair by harmonic pair
-in contiguous, vectorised loops (docs/harmonics.md, section 10.4); ``kernels/multiharmonic_reference.py``
-keeps the element-by-element, node-pair-by-node-pair kernel it replaced. On random
+``kernels/mh_element.py``'s :func:`mh_elements` forms the tangent harmonic pair by harmonic pair
+in contiguous, vectorised loops (docs/harmonics.md, section 10.4); the test oracle
+``tests/unit/mh_reference.py`` keeps the element-by-element, node-pair-by-node-pair kernel it replaced. On random
 non-axisymmetric states, with and without an imperfection, Q4 and Q9, several harmonic sets, the
 energy, residuals and tangents must agree to round-off (they are formed from the same terms in the
 same order: bit for bit today; the test allows 1e-12 of each array's largest entry).
@@ -19,14 +19,14 @@ from tests.unit.test_multiharmonic import _smooth_modes
 
 
 def _both(mh: MultiHarmonicModel, U: np.ndarray, p: float, want: int):
-    from snapjump_kernels.multiharmonic import mh_elements
-    from snapjump_kernels.multiharmonic_reference import mh_elements_reference
+    from snapjump_kernels.calls import mh_elements
+    from tests.unit.mh_reference import mh_elements_reference
 
     M = mh.base
     A = np.ascontiguousarray(mh.total_amplitudes(U))
     args = (A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np, M.Minv, mh.hn, mh.phis,
             mh.wphi, want, mh.Fi, mh.Jimp, mh.Minvp)
-    return mh_elements(*args), mh_elements_reference(*args, 5)
+    return mh_elements(*args), mh_elements_reference(*args)
 
 
 @pytest.mark.parametrize("order", [1, 2])

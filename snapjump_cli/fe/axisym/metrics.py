@@ -12,7 +12,6 @@ only where the lower state lies on the path.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -24,17 +23,10 @@ from snapjump_cli.schema import SNAP_VALUE_KEYS
 from snapjump_cli.fe.axisym.model import Model
 from snapjump_cli.fe.axisym.snap import SnapStates
 
-__all__ = ["snap_metrics", "scene_curve", "snap_sequence", "hermite_p_dV", "path_p_dV", "path_self_crosses", "loading_peak",
+__all__ = ["snap_metrics", "scene_curve", "snap_sequence", "path_p_dV", "path_self_crosses", "loading_peak",
            "path_derivatives"]
 
 _G3 = np.polynomial.legendre.leggauss(4)
-
-
-
-def hermite_p_dV(a: PathPoint, b: PathPoint, h: float, sV: float, sp: float) -> float:
-    """``integral p dV`` from ``a`` to ``b`` (arc length ``h``; scaled units), cubic Hermite."""
-    b = dataclasses.replace(b, s=a.s + h)
-    return path_p_dV([a, b], sV, sp)
 
 
 def path_p_dV(points: list[PathPoint], sV: float, sp: float) -> float:

@@ -10,7 +10,7 @@ then e.g. the multiples of a critical harmonic ``n_c``). This subspace (mirror-s
 ``phi = 0``; with the multiples of ``n_c`` only, also ``2 pi / n_c``-periodic) is invariant
 under the equations, and it holds the branch that bifurcates from harmonic ``n_c`` (equivariant
 branching lemma): a trace that starts in it stays in it. The kernels are
-:mod:`snapjump_kernels.multiharmonic` (energy, residual, tangent and the exact 3D cavity volume).
+:mod:`snapjump_kernels.mh_element` (energy, residual, tangent) and :mod:`snapjump_kernels.mh_cavity` (the exact 3D cavity volume).
 
 Constraints per harmonic are those of :class:`snapjump_cli.fe.stability.harmonics.HarmonicOperator`: ``n = 0``
 keeps the axisymmetric model's own (so that with the harmonic 0 alone this *is* that model, to
@@ -34,8 +34,16 @@ import numpy as np
 
 from snapjump_cli.fe.limits import check_time
 from snapjump_cli.mesh.data import number_dofs
-from snapjump_cli.fe.axisym.model import BorderedSolver, Linearization, factor_bordered
-from snapjump_kernels.calls import envelope_extents, scatter_band
+from snapjump_cli.fe.axisym.model import BorderedSolver, Linearization
+from snapjump_kernels.calls import (
+    bordered_factor_into,
+    envelope_extents,
+    mh_assemble_band,
+    mh_cavity,
+    mh_elements,
+    scatter_band,
+    scatter_vector,
+)
 
 log = logging.getLogger(__name__)
 
@@ -75,24 +83,17 @@ class MultiHarmonicModel:
     gauge : ``(node, comp)`` amplitudes of harmonic 1 fixed to zero (removing the rigid modes)
     imperfection : ``(nn, nc)`` nodal amplitudes of an initial geometric imperfection (default
         none): the stress-free body is the perfect one displaced by them, and ``u`` is measured
-        from it (:func:`snapjump_kernels.multiharmonic.imperfect_point`). They must satisfy the
+        from it (:func:`snapjump_kernels.mh_material.imperfect_point`). They must satisfy the
         axis conditions of their harmonics (a mode of :class:`~snapjump_cli.fe.stability.harmonics.HarmonicOperator` does).
     """
 
     solver = "banded"
-    #: the tangent formed with its scatter fused into the element pass
-    #: (:func:`snapjump_kernels.multiharmonic.mh_assemble_band`) and factorised by
-    #: :func:`snapjump_kernels.multiharmonic_band.bordered_factor_into`, both into reused band
-    #: buffers: the same bands and factors bit for bit as with ``False`` (the element matrices,
-    #: :func:`~snapjump_kernels.calls.scatter_band` and :func:`~snapjump_cli.fe.axisym.model.factor_bordered`
-    #: into fresh arrays, as before 2026-11-28; kept for ``bench.follow_profile --compare``)
-    fused_assembly: bool = True
     #: band buffers kept for reuse (each ``n (kl + 1)`` doubles; more are allocated when all are in use)
     pool_size: int = 6
 
     def __init__(self, model, hn, n_phi: int | None = None, free_body: bool | None = None,
                  gauge: list[tuple[int, int]] = (), imperfection: np.ndarray | None = None) -> None:
-        from snapjump_kernels.multiharmonic import phi_rule, point_gradients  # numba: only where used
+        from snapjump_kernels.calls import phi_rule, point_gradients  # (JIT: numba imported on first call)
 
         hn = np.asarray(hn, np.int64)
         if hn.ndim != 1 or hn[0] != 0 or np.any(np.diff(hn) <= 0):
@@ -283,20 +284,20 @@ class MultiHarmonicModel:
 
     # ---- evaluations ---------------------------------------------------------------------------
     def _evaluate(self, u: np.ndarray, p: float, want: int):
-        from snapjump_kernels.multiharmonic import mh_assemble_band, mh_cavity, mh_elements, scatter_vector
-
+        """Energy, residual, cavity volume and (``want >= 2``) the tangent: the elements' tangent is
+        scattered into a reused band buffer as it is formed
+        (:func:`snapjump_kernels.mh_element.mh_assemble_band`), the cavity's added after."""
         check_time()  # the design's CPU-time limit (snapjump_cli.fe.limits)
         t0 = time.perf_counter()
         M = self.base
         A = np.ascontiguousarray(self.total_amplitudes(u))
-        fused = want >= 2 and self.fused_assembly
-        if fused:  # the elements' tangent scattered into a band as it is formed
+        if want >= 2:  # the elements' tangent scattered into a band as it is formed
             ab = self._band_buffer()
             E, ok, re = mh_assemble_band(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
                                          M.Minv, self.hn, self.phis, self.wphi, self.Fi, self.Jimp, self.Minvp,
                                          self.edofs, self.ecoef, self.band_ext, ab)
         else:
-            E, ok, re, Ke = mh_elements(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
+            E, ok, re, _ = mh_elements(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
                                         M.Minv, self.hn, self.phis, self.wphi, max(want, 0), self.Fi, self.Jimp,
                                         self.Minvp)
         if not ok:
@@ -310,9 +311,6 @@ class MultiHarmonicModel:
             scatter_vector(ge, self.gdofs, self.gcoef, 1.0, g)
             R -= p * g
         if want >= 2:
-            if not fused:
-                ab = np.zeros((self.n, self.kl + 1))
-                scatter_band(Ke, self.edofs, self.ecoef, 1.0, ab)
             scatter_band(He, self.gdofs, self.gcoef, -float(p), ab)
             data = ab.ravel()
             self.n_assemblies += 1
@@ -333,8 +331,6 @@ class MultiHarmonicModel:
 
     def volume(self, u: np.ndarray) -> float:
         """Cavity volume (scaled, with the offset)."""
-        from snapjump_kernels.multiharmonic import mh_cavity
-
         M = self.base
         V, _, _ = mh_cavity(M.X, np.ascontiguousarray(self.total_amplitudes(u)), M.edges, self.hn, self.phis, self.wphi, 0)
         return V + self.V_offset
@@ -360,8 +356,6 @@ class MultiHarmonicModel:
             V = lin.V
             dz[0] = lin.g
         else:
-            from snapjump_kernels.multiharmonic import mh_cavity, scatter_vector
-
             M = self.base
             V, ge, _ = mh_cavity(M.X, np.ascontiguousarray(self.total_amplitudes(u)), M.edges, self.hn, self.phis,
                                  self.wphi, 1)
@@ -372,11 +366,8 @@ class MultiHarmonicModel:
 
     def _factor(self, data, b, c_u, c_p) -> BorderedSolver | None:
         """The bordered band factorisation (as :func:`snapjump_cli.fe.axisym.model.factor_bordered`, whose
-        factors it returns bit for bit; with :attr:`fused_assembly`, into a reused band buffer)."""
-        if not self.fused_assembly:
-            return factor_bordered(self, data, b, c_u, c_p)
-        from snapjump_kernels.multiharmonic_band import bordered_factor_into
-
+        factors it returns bit for bit), into a reused band buffer
+        (:func:`snapjump_kernels.banded.bordered_factor_into`)."""
         t0 = time.perf_counter()
         n = self.n
         try:

@@ -45,9 +45,6 @@ class Tracer:
         self.n_newton = 0
         self.last_det_sign = 0
         self.last_n_neg = -1
-        #: called as ``on_increment(iteration, size)`` with every Newton correction of the Python
-        #: corrector (diagnostics; the compiled one does not report them)
-        self.on_increment: Callable[[int, float], None] | None = None
         # weight of the RMS displacement in the arc length (0: measures only)
         self.alpha = 1.0 / (math.sqrt(problem.n) * settings.u_scale) if settings.u_scale > 0 else 0.0
 
@@ -202,8 +199,6 @@ class Tracer:
                 return None
             dz = dz_du @ du + dz_dp * dp
             inc = math.sqrt(float(dz @ dz) + self.alpha**2 * float(du @ du))
-            if self.on_increment is not None:  # diagnostics (lab/newton_study.py)
-                self.on_increment(it, inc)
             if tol_inc > 0.0 and it > 0 and inc < tol_inc and inc < inc_prev:
                 aux_dir = getattr(lin, "aux_dir", None) if getattr(lin, "aux", None) is not None else None
                 aux_next = lin.aux + aux_dir(du) if aux_dir is not None else None

@@ -1,24 +1,48 @@
-"""The element pass of :func:`snapjump_kernels.multiharmonic.mh_elements` as it was before the
-tangent was restructured (2026-11-27): one element at a time, the ``B_k^T D_kl B_l`` blocks node
-pair by node pair through the sparse B. Kept as the straightforward reference that
-``tests/unit/test_multiharmonic_kernel.py`` compares the fast kernel with (bit for bit), and for
-``bench/follow_profile.py --reference`` (the before/after profile). Not used by the solver.
-
-Arrays in, arrays out.
+"""Test oracle: the element pass of :func:`snapjump_kernels.mh_element.mh_elements` as it was
+before the tangent was restructured (2026-11-27): one element at a time, the ``B_k^T D_kl B_l``
+blocks node pair by node pair through the sparse B. The straightforward reference that
+``tests/unit/test_multiharmonic_kernel.py`` compares the fast kernel with (bit for bit). Not part
+of the product (JIT-compiled, not cached: its numba cache would not see a change of the kernels
+it calls).
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-from snapjump_kernels.multiharmonic import _bt_db, _db_cols, _ndof_k, _node_b, _offset, gent3, imperfect_point
+from snapjump_kernels.mh_basis import dof_offset as _offset
+from snapjump_kernels.mh_basis import harmonic_ndof as _ndof_k
+from snapjump_kernels.mh_basis import node_b as _node_b
+from snapjump_kernels.mh_material import gent3, imperfect_point
 
 
-@njit(cache=True)
+@njit(inline="always")
+def _db_cols(D: np.ndarray, bx: float, by: float, bn: float, n: float, out: np.ndarray) -> None:
+    """``out (9, 3) = D (9x9) @ B`` of one node and harmonic ``n`` (the sparse B of :func:`snapjump_kernels.mh_basis.node_b`)."""
+    nbn = n * bn
+    for c in range(9):
+        out[c, 0] = D[c, 0] * bx + D[c, 1] * by + D[c, 4] * bn - D[c, 5] * nbn
+        out[c, 1] = D[c, 2] * bx + D[c, 3] * by - D[c, 8] * nbn
+        out[c, 2] = D[c, 4] * nbn - D[c, 5] * bn + D[c, 6] * bx + D[c, 7] * by
+
+
+@njit(inline="always")
+def _bt_db(bx: float, by: float, bn: float, n: float, DB: np.ndarray, nk: int, nl: int, K: np.ndarray,
+           oa: int, ob: int) -> None:
+    """``K[oa:oa+nk, ob:ob+nl] += B^T DB`` for one node's sparse B (harmonic ``n``)."""
+    nbn = n * bn
+    for j in range(nl):
+        K[oa, ob + j] += bx * DB[0, j] + by * DB[1, j] + bn * DB[4, j] - nbn * DB[5, j]
+        K[oa + 1, ob + j] += bx * DB[2, j] + by * DB[3, j] - nbn * DB[8, j]
+        if nk > 2:
+            K[oa + 2, ob + j] += nbn * DB[4, j] - bn * DB[5, j] + bx * DB[6, j] + by * DB[7, j]
+
+
+@njit
 def mh_elements_reference(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, jm: np.ndarray,
                           kappa: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray, Wq: np.ndarray,
                           Np: np.ndarray, Minv: np.ndarray, hn: np.ndarray, phis: np.ndarray, wphi: np.ndarray,
-                          want: int, Fi: np.ndarray, Jimp: np.ndarray, Minvp: np.ndarray, upto: int):
+                          want: int, Fi: np.ndarray, Jimp: np.ndarray, Minvp: np.ndarray):
     """Energy, element residuals and element tangents of the multi-harmonic solid.
 
     Parameters
@@ -27,7 +51,7 @@ def mh_elements_reference(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: 
     conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv : as in
         :func:`snapjump_kernels.assembly.assemble`
     hn : (K,) harmonic numbers, ``hn[0] = 0``
-    phis, wphi : the phi rule (:func:`phi_rule`)
+    phis, wphi : the phi rule (:func:`snapjump_kernels.mh_basis.phi_rule`)
     want : 0 energy, 1 and residuals, 2 and tangents
     Fi, Jimp : an initial geometric imperfection (empty arrays: none). ``Fi (ne, nq, nphi, 3, 3)``
         is the inverse of the imperfection's deformation gradient ``F0`` (perfect reference ->
@@ -36,9 +60,6 @@ def mh_elements_reference(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: 
         ``F F0^-1`` and every volume integral carries ``Jimp`` (:func:`imperfect_point`)
     Minvp : ``(ne, nphi, np, np)`` with an imperfection: the inverse pressure mass matrices of the
         imperfect body at every phi point (``sum_q W_q Jimp Np Np^T``), used instead of ``Minv``
-    upto : the last phase run (for profiling, ``bench/follow_profile.py``; 5 = all): 1 the pointwise
-        material law, 2 the pressures, energy and residual, 3 the phi-moments of the tangent, 4 the
-        ``B_k^T D_kl B_l`` blocks, 5 the mirror and the volumetric-constraint stiffness
 
     Returns
     -------
@@ -156,8 +177,6 @@ def mh_elements_reference(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: 
                 jw = Jimp[e, q, j] if imperfect else 1.0
                 for k2 in range(npr):
                     g[j, k2] += W * jw * Np[q, k2] * (J - 1.0)
-        if upto <= 1:
-            continue
         # element pressures at every phi point, the volumetric energy
         for j in range(nphi):
             Mi = Minvp[e, j] if imperfect else Minv[e]
@@ -201,7 +220,7 @@ def mh_elements_reference(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: 
                         for c in range(9):
                             s += Bn[a, k, c, dof] * S[k, c]
                         re[e, o + dof] += s
-            if want < 2 or upto <= 2:
+            if want < 2:
                 continue
             # tangent: for each pair of harmonics k <= l the phi-moment of D, then B_k^T Dt B_l
             # (the B of a node is sparse: _db_cols / _bt_db), mirrored afterwards
@@ -240,8 +259,6 @@ def mh_elements_reference(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: 
                                 Dt[c, d] += wsc * Dq[q, j, c, d]
                             for d in range(5, 9):
                                 Dt[c, d] += wss * Dq[q, j, c, d]
-                    if upto <= 3:
-                        continue
                     for b in range(nen):
                         _db_cols(Dt, bq[b, 0], bq[b, 1], bq[b, 2], fl, DB[b])
                     for a in range(nen):
@@ -249,7 +266,7 @@ def mh_elements_reference(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: 
                         for b in range(nen):
                             ob = b * nc + _offset(l)
                             _bt_db(bq[a, 0], bq[a, 1], bq[a, 2], fk, DB[b], nk, nl, Ke[e], oa, ob)
-        if want < 2 or upto <= 4:
+        if want < 2:
             continue
         # the elastic blocks of harmonics k < l were formed once: their transposes are the (l, k) blocks
         for i in range(nd):
