@@ -76,8 +76,8 @@ log = logging.getLogger(__name__)
 # The sweep's time estimate. The figures below are reference measurements of the development
 # machine (an idle 2-core AMD EPYC at 2.45 GHz; docs/performance.md, "The sweep's time estimate"),
 # not of the machine a sweep runs on: the estimate printed before a sweep scales them with the
-# config's mesh and solver settings and says it is rough; the progress line then reports the rate
-# measured on this machine.
+# config's mesh and solver settings and with the load measured at run time (load_factor), and says
+# it is rough; the progress line then reports the rate measured during the run.
 
 #: CPU seconds per solved design on the paper grid's mesh (order 2, nt 2, aspect 3) without the
 #: harmonic check: ``make run`` without the check, 800 CPU-s for 4079 designs (the mesh re-checks
@@ -132,7 +132,27 @@ class SweepSummary:
     wall_s: float = 0.0
 
 
-def estimate_seconds(n_solve: int, mesh: MeshSettings, n_workers: int, solver: SolverSettings | None = None) -> float:
+def load_factor() -> float:
+    """How much slower than its CPU time this process has run since it started (its wall time over
+    its CPU time, from ``/proc``), between 1 and 10; 1 where that cannot be read or the process has
+    used under 0.2 CPU-s. Measured at run time, it says what share of the cores the other jobs on
+    the machine leave (a sweep's imports are CPU-bound)."""
+    try:
+        with open("/proc/self/stat") as f:
+            start_ticks = float(f.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime") as f:
+            uptime = float(f.read().split()[0])
+        wall = uptime - start_ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, AttributeError):
+        return 1.0
+    cpu = time.process_time()
+    if cpu < 0.2 or wall <= 0.0:
+        return 1.0
+    return min(10.0, max(1.0, wall / cpu))
+
+
+def estimate_seconds(n_solve: int, mesh: MeshSettings, n_workers: int, solver: SolverSettings | None = None,
+                     slowdown: float = 1.0) -> float:
     """A rough wall-time estimate of solving ``n_solve`` designs on ``n_workers`` processes.
 
     Derived from the reference figures of the development machine (:data:`REF_CPU_S_PER_DESIGN`,
@@ -140,6 +160,7 @@ def estimate_seconds(n_solve: int, mesh: MeshSettings, n_workers: int, solver: S
     :func:`mesh_scale` and the ``solver`` settings: the harmonic check, and with followed branches
     each class's share of the designs at its mean cost, capped at ``solver.time_limit_s``. The
     designs share the workers evenly; the start-up is added once (none when nothing is solved).
+    The whole is multiplied by ``slowdown`` (:func:`load_factor`: the load of other jobs).
     """
     if n_solve <= 0:
         return 0.0
@@ -151,7 +172,7 @@ def estimate_seconds(n_solve: int, mesh: MeshSettings, n_workers: int, solver: S
             limit = float(solver.time_limit_s) if solver.time_limit_s else math.inf
             per += sum(share * min(cpu * scale, limit) for share, cpu in REF_FOLLOW.values())
     workers = max(1, min(n_workers, n_solve))
-    return REF_STARTUP_S + n_solve * per / workers
+    return (REF_STARTUP_S + n_solve * per / workers) * max(1.0, slowdown)
 
 
 def _fmt_duration(s: float) -> str:
@@ -417,7 +438,7 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
         log.info("resuming %s: %d of %d designs already recorded", output, n_resumed, len(points))
     workers = (os.cpu_count() or 1) if n_jobs < 0 else n_jobs
     if announce is not None:
-        est = estimate_seconds(len(tasks), config.mesh, workers, config.solver)
+        est = estimate_seconds(len(tasks), config.mesh, workers, config.solver, slowdown=load_factor())
         announce(f"sweep: {len(points)} designs ({n_resumed} already recorded, {len(invalid_rows)} invalid geometry, "
                  f"{len(tasks)} to solve" + (f" on {workers} worker{'s' if workers != 1 else ''}, roughly "
                                              f"{_fmt_duration(est)}" if tasks and scheduler is None else "") + ")")

@@ -246,3 +246,13 @@ def test_the_time_estimate_scales_with_the_mesh_and_shares_only_the_workers_it_c
     assert run.mesh_scale(MeshSettings(order=1, nt=2, aspect=3.0)) == pytest.approx(1 / 3)
     # two designs on eight workers take as long as on two
     assert run.estimate_seconds(2, grid, 8) == pytest.approx(run.estimate_seconds(2, grid, 2))
+
+
+def test_the_time_estimate_takes_the_load_measured_at_run_time():
+    from snapjump_cli.settings import MeshSettings
+    from snapjump_cli.sweep import run
+
+    grid = MeshSettings(order=2, nt=2, aspect=3.0)
+    assert 1.0 <= run.load_factor() <= 10.0
+    assert run.estimate_seconds(100, grid, 2, slowdown=3.0) == pytest.approx(3 * run.estimate_seconds(100, grid, 2))
+    assert run.estimate_seconds(100, grid, 2, slowdown=0.5) == pytest.approx(run.estimate_seconds(100, grid, 2))
