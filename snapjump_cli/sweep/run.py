@@ -132,11 +132,17 @@ class SweepSummary:
     wall_s: float = 0.0
 
 
+#: :func:`load_factor` trusts a process this young only (seconds since it started)
+LOAD_WINDOW_S = 120.0
+
+
 def load_factor() -> float:
     """How much slower than its CPU time this process has run since it started (its wall time over
-    its CPU time, from ``/proc``), between 1 and 10; 1 where that cannot be read or the process has
-    used under 0.2 CPU-s. Measured at run time, it says what share of the cores the other jobs on
-    the machine leave (a sweep's imports are CPU-bound)."""
+    its CPU time, from ``/proc``), between 1 and 10; 1 where that cannot be read, the process has
+    used under 0.2 CPU-s, or it started more than :data:`LOAD_WINDOW_S` ago (a notebook or a
+    long-lived process has waited, not computed). Measured at run time at the start of a
+    ``snapjump sweep``, it says what share of the cores the other jobs on the machine leave (the
+    command's imports are CPU-bound)."""
     try:
         with open("/proc/self/stat") as f:
             start_ticks = float(f.read().rsplit(")", 1)[1].split()[19])
@@ -146,7 +152,7 @@ def load_factor() -> float:
     except (OSError, ValueError, IndexError, AttributeError):
         return 1.0
     cpu = time.process_time()
-    if cpu < 0.2 or wall <= 0.0:
+    if cpu < 0.2 or wall <= 0.0 or wall > LOAD_WINDOW_S:
         return 1.0
     return min(10.0, max(1.0, wall / cpu))
 
