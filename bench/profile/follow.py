@@ -107,6 +107,20 @@ def scenes(names: list[str], sample: Path | None, rows: list[int]) -> list[tuple
     return out
 
 
+def _value(check: Any, key: str) -> Any:
+    """A value of the harmonic check's answer (a dict, or a typed result with attributes)."""
+    return check.get(key) if isinstance(check, dict) else getattr(check, key, None)
+
+
+def _followed(fns: dict[str, Any], res, chk, N: int) -> tuple[dict, Any]:
+    """``followed_metrics``' answer as ``(values, branch)``, whether it returns that pair or a
+    typed answer with ``values`` and ``branch``."""
+    ans = fns["followed_metrics"](res, chk, N=N or None)
+    if isinstance(ans, tuple):
+        return ans
+    return ans.values, ans.branch
+
+
 def profile_one(label: str, scene, mesh, solver, fns: dict[str, Any], N: int, top: int | None) -> dict[str, Any]:
     """Profile one design (steps 1-4 of the module's docstring); returns the numbers."""
     t0 = time.process_time()
@@ -118,17 +132,17 @@ def profile_one(label: str, scene, mesh, solver, fns: dict[str, Any], N: int, to
     chk = fns["check_harmonics"](res, solver.harmonics)
     t_axi = time.process_time() - t0
     row: dict[str, Any] = {"design": label, "cpu_axisym_check_first_s": t_first, "cpu_axisym_check_s": t_axi,
-                           "asym_first": bool(chk.get("asym_first")), "asym_n": chk.get("asym_n")}
-    if not chk.get("asym_first"):
+                           "asym_first": bool(_value(chk, "asym_first")), "asym_n": _value(chk, "asym_n")}
+    if not row["asym_first"]:
         return row
-    n = int(chk["asym_n"])
+    n = int(row["asym_n"])
     bif = fns["locate_bifurcation"](res, n)
     if bif is not None:  # compile the multi-harmonic kernels (JIT) outside the timing
         fns["follow_branch"](res, bif, fns["default_harmonics"](n, N or None), max_steps=3)
     t0 = time.process_time()
     try:
         with fns["time_limit"](solver.time_limit_s):
-            out, fr = fns["followed_metrics"](res, chk, N=N or None)
+            out, fr = _followed(fns, res, chk, N)
     except fns["TimeLimitExceeded"] as exc:
         out, fr = {"follow_note": f"at the time limit: {exc}"}, None
         top = None
@@ -142,7 +156,7 @@ def profile_one(label: str, scene, mesh, solver, fns: dict[str, Any], N: int, to
                                         "follow_note")})
     if top is not None:
         prof = cProfile.Profile(time.process_time)
-        prof.runcall(fns["followed_metrics"], res, chk, N=N or None)
+        prof.runcall(_followed, fns, res, chk, N)
         st = pstats.Stats(prof)
         total = max(sum(v[2] for v in st.stats.values()), 1e-12)
         cum: dict[str, float] = {}
