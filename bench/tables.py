@@ -9,7 +9,7 @@
   paper's values (docs/verification.md); one Markdown row per scene and level.
 * ``named-jumps``: the named designs end to end, FE as the sweep solves them (with the mesh check),
   then the jump model with its defaults (README, docs/verification.md).
-* ``harmonics``: the figures of docs/harmonics.md section 9 from a sweep run with the harmonic
+* ``harmonics``: the figures of docs/results.md, "Asymmetric modes on the paper grid" from a sweep run with the harmonic
   check: the designs by status; how many lose stability to a harmonic before V* and by which n
   (overall and by stiffness ratio); where; the lower state's stability; the confusion table
   against the self-crossing flag; dE of the two groups; the ranking's top with and without
@@ -167,7 +167,7 @@ def design_keys(df) -> Any:
 
 
 def harmonics_counts(df) -> dict:
-    """The counts of docs/harmonics.md section 9 over the ``ok`` rows of a result table with the
+    """The counts of docs/results.md, "Asymmetric modes on the paper grid" over the ``ok`` rows of a result table with the
     harmonic check (``asym_*`` columns)."""
     ok = df[df["status"] == "ok"]
     asym = ok["asym_first"].astype("boolean").fillna(False).to_numpy(bool)
@@ -260,7 +260,7 @@ def main(argv: Iterable[str] | None = None) -> int:
     s.add_argument("--jsonl", default=None, help="also write one JSON line per run here")
     n = sub.add_parser("named-jumps", help="the named designs end to end: FE, then the jump model")
     n.add_argument("designs", nargs="*", metavar="DESIGN", help="named designs (default: all of them)")
-    h = sub.add_parser("harmonics", help="the harmonic check over a sweep (docs/harmonics.md section 9)")
+    h = sub.add_parser("harmonics", help="the harmonic check over a sweep (docs/results.md, asymmetric modes on the paper grid)")
     h.add_argument("results", type=Path)
     h.add_argument("--top", type=int, default=20)
     h.add_argument("--crossing", type=Path, metavar="RESULTS",

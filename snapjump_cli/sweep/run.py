@@ -74,19 +74,35 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: CPU seconds per solved design on the paper grid's mesh (order 2, nt 2, aspect 3), the basis of
-#: the time estimate printed before a sweep: the mean over the full paper grid (``make run``) was
-#: 0.117 s on a 2-core Xeon with AVX-512 and 0.35 s on a slower 2-core Xeon (docs/performance.md);
-#: the estimate takes the middle, 0.2 s.
-CPU_S_PER_DESIGN = 0.2
-#: The harmonic check (``solver.harmonics``) adds about this fraction to a design's CPU (+30 % on the
-#: 480-design sample, ``python -m bench.check_profile``).
-CHECK_FACTOR = 1.3
-#: With ``solver.follow``: the share of designs that go asymmetric first (72 % of the paper grid)
-#: and the CPU seconds of one followed design (~100 for an ``n = 1`` branch of the stratified
-#: followed sample, docs/harmonics.md section 10.4; ~350 for an ``n = 2`` branch left for ``n = 1``
-#: on the way, section 10.7; the grid's mix of 2292 and 629 gives ~150).
-FOLLOW_SHARE, FOLLOW_CPU_S = 0.72, 150.0
+# The sweep's time estimate. The figures below are reference measurements of the development
+# machine (an idle 2-core AMD EPYC at 2.45 GHz; docs/performance.md, "The sweep's time estimate"),
+# not of the machine a sweep runs on: the estimate printed before a sweep scales them with the
+# config's mesh and solver settings and with the load measured at run time (load_factor), and says
+# it is rough; the progress line then reports the rate measured during the run.
+
+#: CPU seconds per solved design on the paper grid's mesh (order 2, nt 2, aspect 3) without the
+#: harmonic check: ``make run`` without the check, 800 CPU-s for 4079 designs (the mesh re-checks
+#: included).
+REF_CPU_S_PER_DESIGN = 0.196
+#: The harmonic check (``solver.harmonics``, n <= 4) multiplies a design's CPU by this: 1057
+#: against 800 CPU-s over the same grid.
+REF_CHECK_FACTOR = 1.32
+#: With ``solver.follow``: per critical harmonic, the share of the paper grid's valid designs whose
+#: branch is followed (2310 and 611 of 4079, ``make run``) and the mean seconds of one followed
+#: design of that class on the stratified samples (58 s and 628 s; ``bench/harmonics_sample/``,
+#: docs/results.md), each at most the solver's ``time_limit_s``.
+REF_FOLLOW = {1: (2310 / 4079, 58.0), 2: (611 / 4079, 628.0)}
+#: Seconds of a sweep that do not depend on the number of designs: the imports and the kernels
+#: loaded in the parent, the workers started, each worker's first solve (``configs/smoke.yaml``:
+#: 2 designs of ~0.07 CPU-s each on 2 workers, 3.8 CPU-s for the whole command).
+REF_STARTUP_S = 4.0
+
+
+def mesh_scale(mesh: MeshSettings) -> float:
+    """A design's solve cost on ``mesh`` relative to the paper grid's mesh (order 2, nt 2, aspect
+    3): proportional to the number of elements (``nt^2 / aspect``), a third for bilinear elements
+    (a stated factor, not a measurement per design)."""
+    return (mesh.nt / 2) ** 2 * (3.0 / mesh.aspect) * (1.0 if mesh.order == 2 else 1.0 / 3.0)
 
 
 @dataclass
@@ -117,21 +133,53 @@ class SweepSummary:
     wall_s: float = 0.0
 
 
-def estimate_seconds(n_solve: int, mesh: MeshSettings, n_workers: int, solver: SolverSettings | None = None) -> float:
+#: :func:`load_factor` trusts a process this young only (seconds since it started)
+LOAD_WINDOW_S = 120.0
+
+
+def load_factor() -> float:
+    """How much slower than its CPU time this process has run since it started (its wall time over
+    its CPU time, from ``/proc``), between 1 and 10; 1 where that cannot be read, the process has
+    used under 0.2 CPU-s, or it started more than :data:`LOAD_WINDOW_S` ago (a notebook or a
+    long-lived process has waited, not computed). Measured at run time at the start of a
+    ``snapjump sweep``, it says what share of the cores the other jobs on the machine leave (the
+    command's imports are CPU-bound)."""
+    try:
+        with open("/proc/self/stat") as f:
+            start_ticks = float(f.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime") as f:
+            uptime = float(f.read().split()[0])
+        wall = uptime - start_ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, AttributeError):
+        return 1.0
+    cpu = time.process_time()
+    if cpu < 0.2 or wall <= 0.0 or wall > LOAD_WINDOW_S:
+        return 1.0
+    return min(10.0, max(1.0, wall / cpu))
+
+
+def estimate_seconds(n_solve: int, mesh: MeshSettings, n_workers: int, solver: SolverSettings | None = None,
+                     slowdown: float = 1.0) -> float:
     """A rough wall-time estimate of solving ``n_solve`` designs on ``n_workers`` processes.
 
-    Scales :data:`CPU_S_PER_DESIGN` by the number of elements relative to the paper grid's mesh
-    (``nt^2 / aspect``) and, for bilinear elements, by 1/3 (a factor, not a measurement per design);
-    with ``solver``, by :data:`CHECK_FACTOR` for the harmonic check and, when branches are followed,
-    adds :data:`FOLLOW_CPU_S` (scaled alike) for :data:`FOLLOW_SHARE` of the designs.
+    Derived from the reference figures of the development machine (:data:`REF_CPU_S_PER_DESIGN`,
+    :data:`REF_CHECK_FACTOR`, :data:`REF_FOLLOW`, :data:`REF_STARTUP_S`), scaled by
+    :func:`mesh_scale` and the ``solver`` settings: the harmonic check, and with followed branches
+    each class's share of the designs at its mean cost, capped at ``solver.time_limit_s``. The
+    designs share the workers evenly; the start-up is added once (none when nothing is solved).
+    The whole is multiplied by ``slowdown`` (:func:`load_factor`: the load of other jobs).
     """
-    scale = (mesh.nt / 2) ** 2 * (3.0 / mesh.aspect) * (1.0 if mesh.order == 2 else 1.0 / 3.0)
-    per = CPU_S_PER_DESIGN
+    if n_solve <= 0:
+        return 0.0
+    scale = mesh_scale(mesh)
+    per = REF_CPU_S_PER_DESIGN * scale
     if solver is not None and solver.harmonics > 0:
-        per *= CHECK_FACTOR
+        per *= REF_CHECK_FACTOR
         if solver.follow:
-            per += FOLLOW_SHARE * FOLLOW_CPU_S
-    return n_solve * per * scale / max(1, n_workers)
+            limit = float(solver.time_limit_s) if solver.time_limit_s else math.inf
+            per += sum(share * min(cpu * scale, limit) for share, cpu in REF_FOLLOW.values())
+    workers = max(1, min(n_workers, n_solve))
+    return (REF_STARTUP_S + n_solve * per / workers) * max(1.0, slowdown)
 
 
 def _fmt_duration(s: float) -> str:
@@ -399,7 +447,7 @@ def _run_locked(config: SweepConfig, output: Path, parts: Path, n_jobs: int, sch
         log.info("resuming %s: %d of %d designs already recorded", output, n_resumed, len(points))
     workers = (os.cpu_count() or 1) if n_jobs < 0 else n_jobs
     if announce is not None:
-        est = estimate_seconds(len(tasks), config.mesh, workers, config.solver)
+        est = estimate_seconds(len(tasks), config.mesh, workers, config.solver, slowdown=load_factor())
         announce(f"sweep: {len(points)} designs ({n_resumed} already recorded, {len(invalid_rows)} invalid geometry, "
                  f"{len(tasks)} to solve" + (f" on {workers} worker{'s' if workers != 1 else ''}, roughly "
                                              f"{_fmt_duration(est)}" if tasks and scheduler is None else "") + ")")

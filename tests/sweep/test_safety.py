@@ -222,9 +222,37 @@ def test_the_time_estimate_counts_the_harmonic_check_and_the_followed_branches()
     from snapjump_cli.sweep import run
 
     m = MeshSettings(order=2, nt=2, aspect=3.0)
+    start = run.REF_STARTUP_S
     plain = run.estimate_seconds(100, m, 2)
-    assert plain == pytest.approx(100 * run.CPU_S_PER_DESIGN / 2)
+    assert plain == pytest.approx(start + 100 * run.REF_CPU_S_PER_DESIGN / 2)
     checked = run.estimate_seconds(100, m, 2, SolverSettings(harmonics=4))
-    followed = run.estimate_seconds(100, m, 2, SolverSettings(harmonics=4, follow=True))
-    assert checked == pytest.approx(plain * run.CHECK_FACTOR)
-    assert followed == pytest.approx(checked + 100 * run.FOLLOW_SHARE * run.FOLLOW_CPU_S / 2)
+    followed = run.estimate_seconds(100, m, 2, SolverSettings(harmonics=4, follow=True, time_limit_s=900))
+    assert checked - start == pytest.approx((plain - start) * run.REF_CHECK_FACTOR)
+    per_followed = sum(share * cpu for share, cpu in run.REF_FOLLOW.values())
+    assert followed == pytest.approx(checked + 100 * per_followed / 2)
+    # a followed design costs at most the time limit; nothing to solve costs nothing
+    capped = run.estimate_seconds(100, m, 2, SolverSettings(harmonics=4, follow=True, time_limit_s=60))
+    assert capped == pytest.approx(checked + 100 * sum(share * min(cpu, 60.0) for share, cpu in run.REF_FOLLOW.values()) / 2)
+    assert run.estimate_seconds(0, m, 2) == 0.0
+
+
+def test_the_time_estimate_scales_with_the_mesh_and_shares_only_the_workers_it_can_use():
+    from snapjump_cli.settings import MeshSettings
+    from snapjump_cli.sweep import run
+
+    grid = MeshSettings(order=2, nt=2, aspect=3.0)
+    assert run.mesh_scale(grid) == pytest.approx(1.0)
+    assert run.mesh_scale(MeshSettings(order=2, nt=4, aspect=3.0)) == pytest.approx(4.0)
+    assert run.mesh_scale(MeshSettings(order=1, nt=2, aspect=3.0)) == pytest.approx(1 / 3)
+    # two designs on eight workers take as long as on two
+    assert run.estimate_seconds(2, grid, 8) == pytest.approx(run.estimate_seconds(2, grid, 2))
+
+
+def test_the_time_estimate_takes_the_load_measured_at_run_time():
+    from snapjump_cli.settings import MeshSettings
+    from snapjump_cli.sweep import run
+
+    grid = MeshSettings(order=2, nt=2, aspect=3.0)
+    assert 1.0 <= run.load_factor() <= 10.0
+    assert run.estimate_seconds(100, grid, 2, slowdown=3.0) == pytest.approx(3 * run.estimate_seconds(100, grid, 2))
+    assert run.estimate_seconds(100, grid, 2, slowdown=0.5) == pytest.approx(run.estimate_seconds(100, grid, 2))

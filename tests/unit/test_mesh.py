@@ -481,7 +481,7 @@ def test_gmsh_finalized_after_error(monkeypatch):
     assert not gmsh.isInitialized()
 
 
-# Meshing time is measured in `make bench` (bench/timings.py), never asserted in a test.
+# Meshing time is measured in `make bench-mesh` (bench/timings.py), never asserted in a test.
 
 
 # ---------------------------------------------------------------------------------------------
