@@ -36,7 +36,7 @@ test: install
 bench: install
 	$(BIN)/python -m bench.regression compare -j 2 --phase-sample 40 --report bench/out/THROUGHPUT.md --out bench/out/regression_rows.json $(BENCH_ARGS)
 
-# the tables the README and docs quote (bench/tables.py): the paper's scenes at three mesh levels
+# the tables the docs quote (bench/tables.py): the paper's scenes at three mesh levels
 # (~2 min), the named designs end to end (~10 s), the harmonic check over a sweep run with
 # solver: {harmonics: 4} (RESULTS=..., default results/paper_grid_h4.parquet)
 scenes-table: install

@@ -54,7 +54,7 @@ def band_ldlt(ab: np.ndarray, ext: np.ndarray):
     block's reach in the envelope, receive the block's rank-``_NB`` update in one pass. The
     arithmetic is that of the column-by-column algorithm with the ``_NB`` updates of an entry
     summed first, in the order of the block's columns. On the actuators the blocking made it
-    1.8-1.9x faster than the column algorithm (python -m bench.profile_designs): the column
+    1.8-1.9x faster than the column algorithm (bench/profile_designs.py@51d9ff8): the column
     algorithm's inner loops are ~20 long, so it was bound by loop overhead and by loading and
     storing the trailing entries once per column.
 
@@ -237,7 +237,7 @@ def band_ldlt_solve(fac: np.ndarray, b: np.ndarray, ext: np.ndarray) -> np.ndarr
     The forward substitution runs over the columns of ``L`` (contiguous axpys, with the division
     by ``D`` in the same pass), the backward one over the same columns as rows of ``L^T`` (dot
     products, summed in any order by :func:`dot_any_order`): 1.9-2.2x faster than with sequential sums,
-    and equal to them to round-off (against dense numpy: ``python -m bench.profile_designs --kernels D``).
+    and equal to them to round-off (against dense numpy: ``bench/profile_designs.py@51d9ff8 --kernels D``).
     """
     x = b.copy()
     _solve_in_place(fac, x, ext)
@@ -322,7 +322,7 @@ def bordered_solve(fac: np.ndarray, K: np.ndarray, ext: np.ndarray, b: np.ndarra
     solves and product, the refined solve takes 2.0-2.3x less CPU time than before. Summed in any
     order, its result moves by round-off, which on the actuators' bordered matrices (condition
     numbers 2e9 to 4e9) is at the level of its error: within 1e-10 to 2e-10 of a solution refined
-    with extended-precision residuals (``python -m bench.profile_designs --kernels D [--nt 3]``).
+    with extended-precision residuals (``bench/profile_designs.py@51d9ff8 --kernels D [--nt 3]``).
     """
     n = fac.shape[0]
     s = rhs[n]

@@ -254,7 +254,7 @@ def node_order(n_nodes: int, conn: np.ndarray, start: int, fixed: np.ndarray) ->
 #: Node orders (:func:`node_order`, :func:`cuthill_mckee`) of the meshes seen last, by the mesh's
 #: connectivity, start node (and constrained dofs). An order depends on the topology alone, and a
 #: sweep meshes the same topology again and again (the structured meshes of 347 paper-grid
-#: designs have 75 distinct ones, ``python -m bench.profile_designs --topologies 400``): five
+#: designs have 75 distinct ones, ``bench/profile_designs.py@51d9ff8 --topologies 400``): five
 #: breadth-first searches (~6-8 ms a design) become dictionary look-ups.
 _ORDER_CACHE: dict = {}
 _ORDER_CACHE_SIZE = 1024

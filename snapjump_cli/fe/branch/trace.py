@@ -182,7 +182,7 @@ REJOIN_FRAC = 0.25
 #: Step growth of the followed branch's continuation (the axisymmetric trace's is 1.6): on design B
 #: and the Fig. S16 cap a third of the branch's Riks corrections failed at 1.6 and were cut back;
 #: at 1.2 the branch takes 16-18 % fewer assemblies, with answers equal to 1.5e-13
-#: (``python -m bench.follow_profile B --step-grow 1.6 1.2``).
+#: (``bench/follow_profile.py@51d9ff8 B --step-grow 1.6 1.2``).
 FOLLOW_STEP_GROW = 1.2
 
 

@@ -84,7 +84,7 @@ class ContinuationSettings:
         tolerance) is more than ``theta_max`` times the one before: converging steps contract by
         ~1e-3 per iteration (90 % below 2e-2; above 0.5 in 3 of ~800 steps), failing ones by ~0.9
         in the median (often growing), and iterating on to ``max_newton`` cost ~9 element passes
-        per failed step (``lab/newton_study.py contraction``)
+        per failed step (``lab/newton_study.py@51d9ff8 contraction``)
     mixed_tangent : linearise with the auxiliary field carried along the path, if the problem has one
     step_grow : growth of the next step after a step whose Newton took at most ``n_opt`` iterations
         (:data:`snapjump_cli.fe.continuation.stepping.STEP_GROW` by default; a followed branch grows more

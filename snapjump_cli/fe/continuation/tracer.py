@@ -220,7 +220,7 @@ class Tracer:
 
         The predictor is the tangent line, or with ``prev`` (the point before ``pt``) the cubic
         Hermite extrapolation through both points and their tangents (fewer steps than the
-        quadratic through ``prev`` tangent at ``pt``: python -m bench.profile_designs, docs/performance.md).
+        quadratic through ``prev`` tangent at ``pt``: bench/profile_designs.py@51d9ff8, docs/performance.md).
         The auxiliary field, if the points carry one, is extrapolated along its tangent.
         ``error_test``: accept the state by the error test (ordinary path points), else by the
         residual test (snap states, roots).
