@@ -17,6 +17,7 @@ COMMANDS = {
     "sweep": "Solve a YAML grid of designs in parallel into a parquet file (resumable).",
     "rank": "Apply the jump model to sweep results and rank the designs by jump height.",
     "optimize": "Search the continuous design space for the highest jump, then confirm it (resumable).",
+    "info": "Summarise a result file: designs by status, why some were not solved, config, versions.",
 }
 
 
