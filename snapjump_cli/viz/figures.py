@@ -353,64 +353,104 @@ def make_plots(ranked: pd.DataFrame, out_dir: str | Path, batch: Any = None) -> 
     return files
 
 
-def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "", branch: dict | None = None) -> Path:
-    """The pressure-volume path of one scene, normalised as the paper's Fig. 2A
-    (``p / mu_i`` against ``dV / R_i^3``), with the released energy dE shaded (the area between
-    the path and the vertical line ``V = V*``), the volume limit point (black) and the isochoric
-    point on the lower branch (white) marked. ``branch`` (:func:`snapjump_cli.fe.follow.branch_curve`):
-    the followed non-axisymmetric branch, drawn from its bifurcation with its own snap shaded, as
-    in the paper's Fig. S16 (and where it left the first branch, for a secondary bifurcation)."""
-    plt = _pyplot()
+def _pv_axes(curve: dict, normalised: bool):
+    """``(fx, fy, xlabel, ylabel)``: the p-V plot's axes, physical (kPa against ml) or normalised as
+    the paper's Fig. 2A (``p / mu_i`` against ``dV / R_i^3``)."""
     L, mu, V0 = curve["L_m"], curve["mu_Pa"], curve["V0_m3"]
-    x = (np.asarray(curve["V_m3"]) - V0) / L**3
-    y = np.asarray(curve["p_Pa"]) / mu
-    fig, ax = plt.subplots(figsize=(6.4, 4.4))
-    axisym = branch is not None
-    ax.plot(x, y, "-", color="tab:blue", lw=1.4, label="axisymmetric path" if axisym else "equilibrium path")
-    if metrics.get("snaps") and "snap_V_m3" in curve:
-        sx = (np.asarray(curve["snap_V_m3"]) - V0) / L**3
-        sy = np.asarray(curve["snap_p_Pa"]) / mu
-        dE = metrics.get("axisym_dE_J") if axisym and metrics.get("axisym_dE_J") is not None else metrics["dE_J"]
-        ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:blue", alpha=0.25,
-                label=f"dE = {dE * 1e3:.4g} mJ" + ("" if axisym else f" ({metrics['lower_state_method']})"))
-        ax.plot(sx[0], sy[0], "o", mfc="k", mec="k", ms=7, label="volume limit V*")
-        ax.plot(sx[-1], sy[-1], "o", mfc="w", mec="k", ms=7, label="isochoric point")
-    if axisym:
-        bx = (np.asarray(branch["V_m3"]) - V0) / L**3
-        by = np.asarray(branch["p_Pa"]) / mu
-        if branch.get("n_sec") is not None and branch.get("landing_V_m3") is not None:  # a jump off it
-            what = (f"n = {branch['n']} ({branch.get('parent_kind') or '?'}) to its fold, then a jump, N = "
-                    f"{branch['N']}")
-        elif branch.get("n_sec") is not None:  # the first branch, then the one leaving it
-            what = (f"n = {branch['n']} ({branch.get('parent_kind') or '?'}), then n = {branch['n_sec']} "
-                    f"({branch['kind'] or 'no snap'}), N = {branch['N']}")
-        else:
-            what = f"n = {branch['n']}, {branch['kind'] or 'no snap'}, N = {branch['N']}"
-        ax.plot(bx, by, "-", color="tab:orange", lw=1.4, label=f"followed branch ({what})")
-        ax.plot(bx[:1], by[:1], "D", mfc="tab:orange", mec="k", ms=6, label="bifurcation")
-        if branch.get("V_sec_m3") is not None:  # where the followed branch left the first one
-            k = int(np.argmin(np.abs(np.asarray(branch["V_m3"]) - branch["V_sec_m3"])))
-            ax.plot(bx[k], by[k], "v", mfc="tab:red", mec="k", ms=7,
-                    label=f"secondary bifurcation (n = {branch['n_sec']})")
-        if branch.get("landing_V_m3") is not None:  # a jump past the branch's fold onto an unstable state
-            ax.plot((branch["landing_V_m3"] - V0) / L**3, branch["landing_p_Pa"] / mu, "x", color="tab:red",
-                    ms=8, mew=2, label=f"the fold's jump lands here: unstable in n = {branch['n_sec']}")
+    if normalised:
+        return ((lambda V: (np.asarray(V, float) - V0) / L**3), (lambda p: np.asarray(p, float) / mu),
+                r"$\Delta V / R_i^3$", r"$p / \mu_i$")
+    return ((lambda V: np.asarray(V, float) * 1e6), (lambda p: np.asarray(p, float) / 1e3),
+            "cavity volume V [ml]", "pressure p [kPa]")
+
+
+def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "", branch: dict | None = None,
+                  normalised: bool = False) -> Path:
+    """The pressure-volume path of one scene (pressure [kPa] against volume [ml]; ``normalised``:
+    the paper's Fig. 2A axes ``p / mu_i`` against ``dV / R_i^3``), with the released energy dE
+    shaded (the area between the path and the vertical line ``V = V*``), the volume limit point
+    (black) and the isochoric point on the lower branch (white) marked.
+
+    ``branch`` (:func:`snapjump_cli.fe.follow.branch_curve`): the followed non-axisymmetric branch.
+    When the followed snap is the answer (``metrics["followed"]``) it is the main curve: the path
+    up to the bifurcation and the branch from there, its snap shaded and labelled with the reported
+    dE; the axisymmetric path beyond the bifurcation and its snap are drawn thin and pale, as what
+    does not happen. The legend is below the axes, so it covers no curve. The format follows the
+    suffix (``.png``, ``.svg``, ``.pdf``)."""
+    plt = _pyplot()
+    fx, fy, xlabel, ylabel = _pv_axes(curve, normalised)
+    x, y = fx(curve["V_m3"]), fy(curve["p_Pa"])
+    fig, ax = plt.subplots(figsize=(6.4, 5.2), layout="constrained")
+    followed = branch is not None and bool(metrics.get("followed"))
+    main, pale = "tab:blue", "0.6"
+    snap_axi = metrics.get("snaps") and "snap_V_m3" in curve
+    if not followed:
+        label = "equilibrium path" if branch is None else "axisymmetric path"
+        ax.plot(x, y, "-", color=main, lw=1.5, label=label)
+        if snap_axi:
+            sx, sy = fx(curve["snap_V_m3"]), fy(curve["snap_p_Pa"])
+            dE = metrics.get("axisym_dE_J") if branch is not None and metrics.get("axisym_dE_J") is not None \
+                else metrics["dE_J"]
+            ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color=main, alpha=0.25,
+                    label=f"dE = {dE * 1e3:.4g} mJ ({metrics['lower_state_method']})")
+            ax.plot(sx[0], sy[0], "o", mfc="k", mec="k", ms=7, label="volume limit V*")
+            ax.plot(sx[-1], sy[-1], "o", mfc="w", mec="k", ms=7, label="isochoric point")
+        if branch is not None:  # followed but not the answer: drawn for comparison
+            bx, by = fx(branch["V_m3"]), fy(branch["p_Pa"])
+            ax.plot(bx, by, "-", color="tab:orange", lw=1.1, label=f"followed branch ({_branch_what(branch)})")
+            _branch_marks(ax, branch, fx, fy)
+    else:
+        bx, by = fx(branch["V_m3"]), fy(branch["p_Pa"])
+        V_bif = np.asarray(branch["V_m3"])[0]
+        before = np.asarray(curve["V_m3"]) <= V_bif
+        s_bif = int(np.argmin(before)) if not before.all() else len(before)  # the first point past it
+        ax.plot(x[s_bif - 1:], y[s_bif - 1:], "-", color=pale, lw=1.0,
+                label="axisymmetric path past the bifurcation (does not happen)")
+        if snap_axi and metrics.get("axisym_dE_J") is not None:
+            sx, sy = fx(curve["snap_V_m3"]), fy(curve["snap_p_Pa"])
+            ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], facecolor="none", edgecolor=pale, hatch="///", lw=0.6,
+                    label=f"axisymmetric dE = {metrics['axisym_dE_J'] * 1e3:.4g} mJ (does not happen)")
+        ax.plot(np.r_[x[:s_bif], bx[:1]], np.r_[y[:s_bif], by[:1]], "-", color=main, lw=1.8,
+                label="axisymmetric loading, to the bifurcation")
+        ax.plot(bx, by, "-", color="tab:orange", lw=1.8, label=f"followed branch ({_branch_what(branch)})")
+        _branch_marks(ax, branch, fx, fy)
         if "snap_V_m3" in branch:
-            sx = (np.asarray(branch["snap_V_m3"]) - V0) / L**3
-            sy = np.asarray(branch["snap_p_Pa"]) / mu
-            ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:orange", alpha=0.3,
-                    label=f"followed dE = {metrics['dE_J'] * 1e3:.4g} mJ")
-            ax.plot(sx[-1], sy[-1], "s", mfc="w", mec="tab:orange", ms=6, label="followed isochoric point")
-    ax.set_xlabel(r"$\Delta V / R_i^3$")
-    ax.set_ylabel(r"$p / \mu_i$")
-    ax.set_title(title)
+            sx, sy = fx(branch["snap_V_m3"]), fy(branch["snap_p_Pa"])
+            ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:orange", alpha=0.35,
+                    label=f"dE = {metrics['dE_J'] * 1e3:.4g} mJ (the followed snap, reported)")
+            ax.plot([sx[0], sx[-1]], [sy[0], sy[-1]], "--", color="tab:red", lw=1.3, label="snap at fixed volume")
+            ax.plot(sx[0], sy[0], "o", mfc="k", mec="k", ms=7, label="volume limit V*")
+            ax.plot(sx[-1], sy[-1], "o", mfc="w", mec="k", ms=7, label="lower state")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
-    fig.tight_layout()
+    fig.legend(loc="outside lower center", ncols=2, fontsize=7.5, frameon=False)
     try:
         return _save(fig, path, 120)
     finally:
         plt.close(fig)
+
+
+def _branch_marks(ax, branch: dict, fx, fy) -> None:
+    """The bifurcation, a secondary bifurcation and the landing of a fold's jump on a followed branch."""
+    bx, by = fx(branch["V_m3"]), fy(branch["p_Pa"])
+    ax.plot(bx[:1], by[:1], "D", mfc="tab:orange", mec="k", ms=6, label="bifurcation")
+    if branch.get("V_sec_m3") is not None:  # where the followed branch left the first one
+        k = int(np.argmin(np.abs(np.asarray(branch["V_m3"]) - branch["V_sec_m3"])))
+        ax.plot(bx[k], by[k], "v", mfc="tab:red", mec="k", ms=7, label=f"secondary bifurcation (n = {branch['n_sec']})")
+    if branch.get("landing_V_m3") is not None:  # a jump past the branch's fold onto an unstable state
+        ax.plot(fx(branch["landing_V_m3"]), fy(branch["landing_p_Pa"]), "x", color="tab:red", ms=8, mew=2,
+                label=f"the fold's jump lands here: unstable in n = {branch['n_sec']}")
+
+
+def _branch_what(branch: dict) -> str:
+    if branch.get("n_sec") is not None and branch.get("landing_V_m3") is not None:  # a jump off it
+        return f"n = {branch['n']} ({branch.get('parent_kind') or '?'}) to its fold, then a jump, N = {branch['N']}"
+    if branch.get("n_sec") is not None:  # the first branch, then the one leaving it
+        return (f"n = {branch['n']} ({branch.get('parent_kind') or '?'}), then n = {branch['n_sec']} "
+                f"({branch['kind'] or 'no snap'}), N = {branch['N']}")
+    return f"n = {branch['n']}, {branch['kind'] or 'no snap'}, N = {branch['N']}"
 
 
 def plot_air_curves(curve: dict, metrics: dict, path: str | Path, title: str = "") -> Path:
