@@ -19,7 +19,7 @@ import numpy as np
 
 from snapjump_cli.errors import BadInput
 
-__all__ = ["OUTPUT_SUFFIXES", "check_outputs", "write_outputs"]
+__all__ = ["OUTPUT_SUFFIXES", "check_outputs", "write_outputs", "scene_title"]
 
 log = logging.getLogger(__name__)
 
@@ -88,6 +88,20 @@ def _cell(x) -> str:
     return "" if x != x else f"{x:.12g}"
 
 
+def scene_title(scene) -> str:
+    """The figures' title of a scene: ``design D``, ``design (8.5, 60, 16.5, 90, 5.8)`` or
+    ``inner cap, theta 60 deg, eta 8.5``."""
+    from snapjump_cli.geometry.caps import CapScene
+
+    title = getattr(scene, "name", None) or ""
+    if isinstance(scene, CapScene):
+        return title or f"{scene.kind} cap, theta {scene.theta_deg:g} deg, eta {scene.eta:g}"
+    if not title:
+        return (f"design ({scene.eta_i:g}, {scene.theta_i_deg:g}, {scene.eta_o:g}, {scene.theta_o_deg:g}, "
+                f"{scene.mu_ratio:g})")
+    return f"design {title}"
+
+
 def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revolve: int = 0, *,
                   normalised: bool = False, jump_trajectory=None) -> list[Path]:
     """Write every requested output of a solved scene, all or none (module docstring).
@@ -114,14 +128,7 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
     wanted = {k: v for k, v in paths.items() if v is not None}
     if not wanted:
         return []
-    title = getattr(scene, "name", None) or ""
-    if isinstance(scene, CapScene):
-        title = title or f"{scene.kind} cap, theta {scene.theta_deg:g} deg, eta {scene.eta:g}"
-    elif not title:
-        title = (f"design ({scene.eta_i:g}, {scene.theta_i_deg:g}, {scene.eta_o:g}, {scene.theta_o_deg:g}, "
-                 f"{scene.mu_ratio:g})")
-    else:
-        title = f"design {title}"
+    title = scene_title(scene)
     vsym = "ΔV" if isinstance(scene, CapScene) else "V"
     steps = act = None
     if set(wanted) & {"--csv", "--shapes", "--animation", "--export"}:
