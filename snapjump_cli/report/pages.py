@@ -24,7 +24,7 @@ td.l,th.l{text-align:left}
 table.sortable th{cursor:pointer}
 .flag{display:inline-block;padding:.05em .5em;border-radius:.8em;font-size:.85em;margin-right:.3em;background:#eee}
 .warn{background:#fde2c8}.good{background:#d6f0d6}.bad{background:#f6d0d0}
-figure{margin:1em 0}figure img{max-width:100%;border:1px solid #eee}figcaption{color:#555;font-size:.9em}
+figure{margin:1em 0}figure img{max-width:min(100%,780px);border:1px solid #eee}figcaption{color:#555;font-size:.9em}
 code,pre{background:#f6f6f6;padding:.1em .3em;border-radius:3px;font-size:.9em}pre{padding:.6em;overflow-x:auto}
 .grid{display:grid;grid-template-columns:repeat(auto-fit,minmax(420px,1fr));gap:1em}
 footer{margin-top:2em;color:#777;font-size:.85em}
@@ -58,7 +58,7 @@ def _img(data: bytes | None, caption: str, alt: str) -> str:
 
 
 def _fmt(v: Any, scale: float = 1.0, digits: int = 4) -> str:
-    if v is None:
+    if v is None or str(v) in ("<NA>", "nan", "NaT"):
         return "–"
     if isinstance(v, bool):
         return "yes" if v else "no"

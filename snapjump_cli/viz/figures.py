@@ -47,13 +47,24 @@ def _save(fig: Any, path: str | Path, dpi: int) -> Path:
     return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt))
 
 
-def _ok(df: pd.DataFrame) -> pd.DataFrame:
+def _ok(df: pd.DataFrame, normalised: bool = False) -> pd.DataFrame:
+    """The ``ok`` rows with the plane's coordinates ``x``, ``y``: pole travel [mm] and released
+    energy [mJ], or (``normalised``) the paper's ``dy_pole / R_i`` and ``dE / (mu_i R_i^3)``."""
     d = df[df["status"] == "ok"].copy()
     for c in ("dE_J", "dy_pole_m", "R_i", "mu_i"):
         d[c] = d[c].astype("float64")
-    d["x"] = d["dy_pole_m"] / d["R_i"]
-    d["y"] = d["dE_J"] / (d["mu_i"] * d["R_i"] ** 3)
+    if normalised:
+        d["x"] = d["dy_pole_m"] / d["R_i"]
+        d["y"] = d["dE_J"] / (d["mu_i"] * d["R_i"] ** 3)
+    else:
+        d["x"] = d["dy_pole_m"] * 1e3
+        d["y"] = d["dE_J"] * 1e3
     return d[np.isfinite(d["x"]) & np.isfinite(d["y"])]
+
+
+#: The plane's axis labels: physical (default) and normalised.
+_PLANE_LABELS = {False: ("pole travel $\\Delta y_{pole}$ [mm]", "energy released $\\Delta E$ [mJ]"),
+                 True: (r"pole travel $\Delta y_{pole} / R_i$", r"energy released $\Delta E / (\mu_i R_i^3)$")}
 
 
 def _ratio_colour(r: float, i: int) -> str:
@@ -101,15 +112,20 @@ def _flags(d: pd.DataFrame) -> dict[str, np.ndarray]:
             "mesh_sensitive": col("mesh_sensitive"), "checked": np.array(checked)}
 
 
-def _axisym_xy(d: pd.DataFrame) -> np.ndarray:
-    """The axisymmetric answers ``(dy_pole / R_i, dE / (mu_i R_i^3))`` of the rows (NaN where a
-    row has none), as a 2 x n array."""
+def _axisym_xy(d: pd.DataFrame, normalised: bool | None = None) -> np.ndarray:
+    """The axisymmetric answers of the rows in the plane's coordinates (``dy_pole / R_i, dE /
+    (mu_i R_i^3)``, or mm and mJ; NaN where a row has none), as a 2 x n array; ``normalised``
+    defaults to the frame's own (``d.attrs["normalised"]``)."""
+    if normalised is None:
+        normalised = bool(d.attrs.get("normalised", False))
     if "axisym_dE_J" not in d.columns or "axisym_dy_pole_m" not in d.columns:
         return np.full((2, len(d)), np.nan)
     def f(c: str) -> np.ndarray:
         return pd.to_numeric(d[c], errors="coerce").astype("float64").to_numpy(na_value=np.nan)
 
     R, mu = f("R_i"), f("mu_i")
+    if not normalised:
+        return np.vstack([f("axisym_dy_pole_m") * 1e3, f("axisym_dE_J") * 1e3])
     return np.vstack([f("axisym_dy_pole_m") / R, f("axisym_dE_J") / (mu * R**3)])
 
 
@@ -188,13 +204,15 @@ def _legend_below(fig: Any, handles: list, ncols: int = 2) -> None:
     fig.legend(handles=handles, loc="outside lower center", ncols=ncols, fontsize=7.5, frameon=False)
 
 
-def plot_fig4a(df: pd.DataFrame, path: str | Path) -> Path:
-    """Fig. 4A: ``dE / (mu_i R_i^3)`` against ``dy_pole / R_i`` of the ``ok`` rows, coloured by
+def plot_fig4a(df: pd.DataFrame, path: str | Path, normalised: bool = False) -> Path:
+    """Fig. 4A: the released energy [mJ] against the pole travel [mm] (``normalised``: the paper's
+    ``dE / (mu_i R_i^3)`` against ``dy_pole / R_i``) of the ``ok`` rows, coloured by
     ``mu_i / mu_o``; triangles for the designs that go asymmetric before V* (the harmonic check),
     crosses for self-crossing paths, open squares for mesh-sensitive snaps and a star for the
     highest jump (when the table is ranked). Writes a PNG to ``path`` and returns it."""
     plt = _pyplot()
-    d = _ok(df)
+    d = _ok(df, normalised)
+    d.attrs["normalised"] = normalised
     fl = _flags(d)
     fig, ax = plt.subplots(figsize=(6.4, 5.4), layout="constrained")
     try:
@@ -214,8 +232,8 @@ def plot_fig4a(df: pd.DataFrame, path: str | Path) -> Path:
         handles += _mark_best(ax, _best(d), "x", "y")
         _log_y_if_wide(ax, d["y"].to_numpy())
         _empty_note(ax, d)
-        ax.set_xlabel(r"pole travel $\Delta y_{pole} / R_i$")
-        ax.set_ylabel(r"energy released $\Delta E / (\mu_i R_i^3)$")
+        ax.set_xlabel(_PLANE_LABELS[normalised][0])
+        ax.set_ylabel(_PLANE_LABELS[normalised][1])
         ax.set_title(f"Energy release vs pole travel ({len(d)} snapping designs)", fontsize=10)
         if not d.empty:
             _legend_below(fig, handles)
@@ -225,19 +243,22 @@ def plot_fig4a(df: pd.DataFrame, path: str | Path) -> Path:
     return path
 
 
-def plot_fig4c(ranked: pd.DataFrame, path: str | Path) -> Path:
-    """Fig. 4C: ``y_jump / R_i`` over the ``(dy_pole / R_i, dE / (mu_i R_i^3))`` plane of the ``ok``
+def plot_fig4c(ranked: pd.DataFrame, path: str | Path, normalised: bool = False) -> Path:
+    """Fig. 4C: the jump height [mm] over the plane of :func:`plot_fig4a` (``normalised``:
+    ``y_jump / R_i`` over the ``(dy_pole / R_i, dE / (mu_i R_i^3))`` plane) of the ``ok``
     rows (needs the columns of :func:`snapjump_cli.jump.rank.rank_results`), with the flags' markers of
     :func:`plot_fig4a` and the best design starred. Writes a PNG."""
     plt = _pyplot()
-    d = _ok(ranked)
+    d = _ok(ranked, normalised)
     d = d[np.isfinite(d["y_jump_m"].astype("float64"))]
+    d.attrs["normalised"] = normalised
     fl = _flags(d)
     fig, ax = plt.subplots(figsize=(6.6, 5.4), layout="constrained")
     try:
         handles = []
         if not d.empty:
-            z = (d["y_jump_m"].astype("float64") / d["R_i"]).to_numpy()
+            z = (d["y_jump_m"].astype("float64") / d["R_i"]).to_numpy() if normalised else \
+                (d["y_jump_m"].astype("float64") * 1e3).to_numpy()
             x, y = d["x"].to_numpy(), d["y"].to_numpy()
             norm = plt.Normalize(float(z.min()), float(z.max()))
             for shape, mask in _shapes(fl):
@@ -247,13 +268,13 @@ def plot_fig4c(ranked: pd.DataFrame, path: str | Path) -> Path:
                                norm=norm, lw=0 if shape != _FOL else 0.6, edgecolors="face" if shape != _FOL else "k",
                                zorder=4 if shape == _FOL else 2)
             fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap="viridis"), ax=ax,
-                         label=r"jump height $y_{jump} / R_i$")
+                         label=r"jump height $y_{jump} / R_i$" if normalised else r"jump height $y_{jump}$ [mm]")
             handles += _shape_handles(fl) + _mark_followed(ax, d, fl)
             handles += _mark_flags(ax, x, y, fl) + _mark_best(ax, _best(d), "x", "y")
         _log_y_if_wide(ax, d["y"].to_numpy())
         _empty_note(ax, d)
-        ax.set_xlabel(r"pole travel $\Delta y_{pole} / R_i$")
-        ax.set_ylabel(r"energy released $\Delta E / (\mu_i R_i^3)$")
+        ax.set_xlabel(_PLANE_LABELS[normalised][0])
+        ax.set_ylabel(_PLANE_LABELS[normalised][1])
         ax.set_title("Jump height of the mass-spring model", fontsize=10)
         if handles:
             _legend_below(fig, handles)
@@ -330,7 +351,7 @@ def _mark_best_label(best: pd.Series) -> str:
 PLOT_FILES: tuple[str, ...] = ("fig4a.png", "fig4c.png", "jump_vs_parameters.png")
 
 
-def make_plots(ranked: pd.DataFrame, out_dir: str | Path, batch: Any = None) -> list[Path]:
+def make_plots(ranked: pd.DataFrame, out_dir: str | Path, batch: Any = None, normalised: bool = False) -> list[Path]:
     """Write ``fig4a.png``, ``fig4c.png`` and ``jump_vs_parameters.png`` into ``out_dir``.
 
     ``batch``: a :class:`snapjump_cli.files.AtomicFiles` to add them to (written with the other
@@ -343,7 +364,10 @@ def make_plots(ranked: pd.DataFrame, out_dir: str | Path, batch: Any = None) -> 
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    plots = ((plot_fig4a, "fig4a.png"), (plot_fig4c, "fig4c.png"), (plot_jump_vs_parameters, "jump_vs_parameters.png"))
+    from functools import partial
+
+    plots = ((partial(plot_fig4a, normalised=normalised), "fig4a.png"),
+             (partial(plot_fig4c, normalised=normalised), "fig4c.png"), (plot_jump_vs_parameters, "jump_vs_parameters.png"))
     if batch is None:
         files = [fn(ranked, out_dir / name) for fn, name in plots]
     else:
