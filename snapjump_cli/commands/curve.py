@@ -220,9 +220,10 @@ IMP_KEYS: tuple[str, ...] = ("imp_delta", "imp_n", "imp_N", "imp_shape", "imp_am
                              "imp_h_imp_m", "imp_V_star_m3", "imp_p_star_Pa", "imp_lower_state_method", "imp_note")
 
 
-def _imperfect(res, scene, delta: float, n: int | None, N: int, time_limit_s: float) -> None:
+def _imperfect(res, scene, delta: float, n: int | None, N: int, time_limit_s: float):
     """Trace the imperfect actuator (:mod:`snapjump_cli.fe.imperfection`) and add its keys to
-    ``res.metrics``."""
+    ``res.metrics``; returns its :class:`~snapjump_cli.fe.imperfection.ImperfectResult` (``None`` when
+    it was not traced to its snap)."""
     from snapjump_cli.fe.imperfection import imperfection_shape, inner_thickness, trace_imperfect
     from snapjump_cli.fe.limits import TimeLimitExceeded, time_limit
 
@@ -239,7 +240,7 @@ def _imperfect(res, scene, delta: float, n: int | None, N: int, time_limit_s: fl
             r = trace_imperfect(res, shape, delta, inner_thickness(scene), N=N or None)
     except TimeLimitExceeded as exc:
         m["imp_note"] = f"not traced to its snap: {exc}"
-        return
+        return None
     im = r.metrics
     m.update(imp_N=int(r.model.hn[-1]), imp_shape=shape.source, imp_amplitude_m=im["imp_amplitude_m"],
              imp_note=im["imp_note"] or None, imp_lower_state_method=im.get("lower_state_method"))
@@ -247,6 +248,8 @@ def _imperfect(res, scene, delta: float, n: int | None, N: int, time_limit_s: fl
         m["imp_" + k] = im.get(k)
     if im.get("dE_J") is None and not m["imp_note"]:
         m["imp_note"] = "the imperfect path did not reach a snap"
+    return r if r.states.upper is not None else None
+
 
 
 def _jump_text(m: dict) -> list[str]:
@@ -461,8 +464,9 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
         res = solve_checked(scene, ms, ss, fluid=fluid)
     except SolveFailed as exc:
         raise click.ClickException(f"solve failed: {exc}") from None
+    imperfect = None
     if imperfection is not None:
-        _imperfect(res, scene, imperfection, imperfection_n, follow_N, time_limit_s)
+        imperfect = _imperfect(res, scene, imperfection, imperfection_n, follow_N, time_limit_s)
     m = to_jsonable(res.metrics)
     if fluid is not None:
         m.update(_jumps(m))
@@ -473,7 +477,8 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
     m = to_jsonable(m)
     m["inputs"] = _inputs(scene, ms, ss, params)
     m.update(_provenance())
-    write_outputs(res, scene, m, outputs, revolve, normalised=normalised, jump_trajectory=trajectory)
+    write_outputs(res, scene, m, outputs, revolve, normalised=normalised, jump_trajectory=trajectory,
+                  imperfect=imperfect)
     if fmt == "json":
         click.echo(json.dumps(m, sort_keys=False))
     else:

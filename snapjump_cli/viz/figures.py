@@ -389,7 +389,7 @@ def _pv_axes(curve: dict, normalised: bool):
 
 
 def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "", branch: dict | None = None,
-                  normalised: bool = False) -> Path:
+                  normalised: bool = False, imperfect: dict | None = None) -> Path:
     """The pressure-volume path of one scene (pressure [kPa] against volume [ml]; ``normalised``:
     the paper's Fig. 2A axes ``p / mu_i`` against ``dV / R_i^3``), with the released energy dE
     shaded (the area between the path and the vertical line ``V = V*``), the volume limit point
@@ -399,7 +399,9 @@ def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "",
     When the followed snap is the answer (``metrics["followed"]``) it is the main curve: the path
     up to the bifurcation and the branch from there, its snap shaded and labelled with the reported
     dE; the axisymmetric path beyond the bifurcation and its snap are drawn thin and pale, as what
-    does not happen. The legend is below the axes, so it covers no curve. The format follows the
+    does not happen. ``imperfect`` (:func:`snapjump_cli.viz.outputs.imperfect_curve`): the imperfect
+    actuator's path from rest (``--imperfection``), dashed, its snap shaded and labelled with
+    ``imp_dE_J``. The legend is below the axes, so it covers no curve. The format follows the
     suffix (``.png``, ``.svg``, ``.pdf``)."""
     plt = _pyplot()
     fx, fy, xlabel, ylabel = _pv_axes(curve, normalised)
@@ -445,6 +447,14 @@ def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "",
             ax.plot([sx[0], sx[-1]], [sy[0], sy[-1]], "--", color="tab:red", lw=1.3, label="snap at fixed volume")
             ax.plot(sx[0], sy[0], "o", mfc="k", mec="k", ms=7, label="volume limit V*")
             ax.plot(sx[-1], sy[-1], "o", mfc="w", mec="k", ms=7, label="lower state")
+    if imperfect is not None:
+        ix, iy = fx(imperfect["V_m3"]), fy(imperfect["p_Pa"])
+        ax.plot(ix, iy, "--", color="tab:purple", lw=1.3,
+                label=f"imperfect actuator (n = {imperfect['n']}, amplitude {imperfect['delta']:g} t_i)")
+        if "snap_V_m3" in imperfect and metrics.get("imp_dE_J") is not None:
+            sx, sy = fx(imperfect["snap_V_m3"]), fy(imperfect["snap_p_Pa"])
+            ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:purple", alpha=0.25,
+                    label=f"imperfect dE = {metrics['imp_dE_J'] * 1e3:.4g} mJ")
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)

@@ -19,7 +19,7 @@ import numpy as np
 
 from snapjump_cli.errors import BadInput
 
-__all__ = ["OUTPUT_SUFFIXES", "check_outputs", "write_outputs", "scene_title"]
+__all__ = ["OUTPUT_SUFFIXES", "check_outputs", "write_outputs", "scene_title", "imperfect_curve"]
 
 log = logging.getLogger(__name__)
 
@@ -88,6 +88,22 @@ def _cell(x) -> str:
     return "" if x != x else f"{x:.12g}"
 
 
+def imperfect_curve(r) -> dict:
+    """The imperfect actuator's path in SI units for the p-V plot: ``V_m3``, ``p_Pa`` and, with a
+    snap, ``snap_V_m3`` / ``snap_p_Pa``, ``delta``, ``n``."""
+    from snapjump_cli.fe.metrics import snap_sequence
+
+    mh, sc = r.model, r.tracer.sc
+    L3, S = mh.L**3, mh.S
+    out = {"V_m3": np.array([pt.zeta[0] * sc[0] for pt in r.path.points]) * L3,
+           "p_Pa": np.array([pt.p for pt in r.path.points]) * S, "delta": r.delta, "n": int(r.shape.n)}
+    if r.states.upper is not None and r.states.lower is not None:
+        seq = snap_sequence(r.path, r.states)
+        out["snap_V_m3"] = np.array([pt.zeta[0] * sc[0] for pt in seq]) * L3
+        out["snap_p_Pa"] = np.array([pt.p for pt in seq]) * S
+    return out
+
+
 def scene_title(scene) -> str:
     """The figures' title of a scene: ``design D``, ``design (8.5, 60, 16.5, 90, 5.8)`` or
     ``inner cap, theta 60 deg, eta 8.5``."""
@@ -103,7 +119,7 @@ def scene_title(scene) -> str:
 
 
 def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revolve: int = 0, *,
-                  normalised: bool = False, jump_trajectory=None) -> list[Path]:
+                  normalised: bool = False, jump_trajectory=None, imperfect=None) -> list[Path]:
     """Write every requested output of a solved scene, all or none (module docstring).
 
     Parameters
@@ -117,6 +133,10 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
     normalised : the p-V plot on the paper's normalised axes instead of kPa and ml
     jump_trajectory : the mass-spring trajectory for ``--jump``
         (:class:`snapjump_cli.jump.trajectory.JumpTrajectory`)
+    imperfect : the imperfect actuator traced to its snap (``--imperfection``,
+        :class:`snapjump_cli.fe.imperfection.ImperfectResult`): the p-V plot adds its path and snap;
+        without a followed branch, ``--shapes``, ``--animation``, ``--export`` and ``--csv`` show it
+        as the actuator (its path from rest, its snap, its lower state)
 
     Returns
     -------
@@ -138,13 +158,16 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
     from snapjump_cli.viz.actuator import actuator_path, branch_of, branch_rows
 
     branch, kind = branch_of(res)
+    if branch is None and imperfect is not None:  # the imperfect actuator snaps as drawn
+        branch, kind = imperfect, "imperfect"
     if set(wanted) & {"--shapes", "--animation"} or (branch is not None and "--export" in wanted):
-        act = actuator_path(res, steps)
+        act = actuator_path(res, steps, branch=branch, kind=kind or "followed")
     mesh = res.model.mesh if res.model is not None else None
     jobs: list[tuple[str, Path, Callable[[Path], object]]] = []
     air = getattr(res, "air", None)  # inflated with air (snapjump_cli.fe.air_snap): its snap, and V_d per step
     if "--csv" in wanted:
         columns = steps.columns()
+        columns["branch"] = ["axisymmetric"] * len(steps)
         if air is not None:
             columns["V_disp_m3"] = list(air.dispensed(steps.V_m3, steps.p_Pa, res.model))
         if getattr(res, "margins", None) is not None:  # every step's margins (snapjump_cli.fe.margins)
@@ -154,7 +177,6 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
             table = np.array([state_margins(res.model, u, p, n_max) for u, p in zip(steps.u, steps.p_scaled)])
             for n in range(n_max + 1):
                 columns[f"margin_n{n}"] = list(table[:, n])
-        columns["branch"] = ["axisymmetric"] * len(steps)
         if branch is not None:  # the followed branch's points after the axisymmetric path's
             rows = branch_rows(res, branch, kind)
             n0, n1 = len(steps), len(rows["p_Pa"])
@@ -177,8 +199,9 @@ def write_outputs(res, scene, metrics: dict, paths: dict[str, Path | None], revo
 
             bcurve = branch_curve(res.follow)
         if air is None:
+            icurve = imperfect_curve(imperfect) if imperfect is not None else None
             jobs.append(("--plot", wanted["--plot"], lambda t: plot_pv_curve(
-                res.curve, metrics, t, title=title, branch=bcurve, normalised=normalised)))
+                res.curve, metrics, t, title=title, branch=bcurve, normalised=normalised, imperfect=icurve)))
         else:
             jobs.append(("--plot", wanted["--plot"], lambda t: plot_air_curves(res.curve, metrics, t, title=title)))
     if "--shapes" in wanted:
