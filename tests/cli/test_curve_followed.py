@@ -147,3 +147,30 @@ def test_animation_frames_blend_the_jump():
     assert len(jump) == JUMP_FRAMES and jump == sorted(jump)
     ks = [k for k, _ in frames]
     assert ks == sorted(ks) and ks[0] == 0 and ks[-1] == 3
+
+
+def test_actuator_path_of_an_imperfect_actuator():
+    """An imperfect actuator (``--imperfection``) is drawn from rest along its own path, up to its
+    volume limit, then the jump to its lower state; its states keep their Fourier amplitudes."""
+    from snapjump_cli.viz.actuator import actuator_path, branch_rows
+
+    def pt(V, p, s, a):
+        return SimpleNamespace(u=np.full(15, float(a)), p=p, zeta=np.array([V]), s=s)
+
+    pts = [pt(0, 0, 0, 0), pt(1, 3, 1, 1), pt(2, 4, 2, 2), pt(1.5, 2, 3, 3), pt(2.5, 3, 4, 4)]
+    up, lo = pt(2.2, 4.1, 2.5, 9), pt(2.2, 1.0, float("nan"), 10)
+    mh = SimpleNamespace(hn=np.array([0, 1]), L=1.0, S=1.0, X=np.zeros((3, 2)),
+                         mesh=SimpleNamespace(node_sets={"pole_lower": np.array([0])}),
+                         total_amplitudes=lambda u: u.reshape(3, 5), energy=lambda u: float(u.sum()))
+    r = SimpleNamespace(model=mh, states=SimpleNamespace(upper=up, lower=lo, lower_method="descent"),
+                        tracer=SimpleNamespace(sc=np.array([1.0])), path=SimpleNamespace(points=pts))
+    res = SimpleNamespace(model=SimpleNamespace(mesh=SimpleNamespace(nodes=np.zeros((3, 2)))), follow=None,
+                          metrics={})
+    steps = _steps([0, 1, 2], [0, 1, 2], ["start", "p_max", "upper"])
+    act = actuator_path(res, steps, branch=r, kind="imperfect")
+    assert list(act.V_m3) == [0, 1, 2, 2.2, 2.2] and act.state == ["start", "", "", "upper", "lower"]
+    assert list(act.jump) == [False, False, False, False, True] and set(act.branch) == {"imperfect"}
+    assert act.followed and act.A[-1].shape == (3, 5) and act.A[-1][0, 0] == 10.0
+    rows = branch_rows(res, r, "imperfect")
+    assert rows["state"] == ["", "", "", "upper", "", "", "lower"]  # the upper state at its arc length
+    assert rows["on_path"][-1] == 0 and rows["V_m3"][3] == 2.2 and np.isnan(rows["arc_length"][-1])
