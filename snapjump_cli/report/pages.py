@@ -151,7 +151,8 @@ def design_page(title: str, m: dict, figures: dict[str, bytes | None], command: 
         ("lifts off", _fmt(m.get("lift_off")), ""),
         ("jump simulation complete", _fmt(m.get("jump_complete")), ""),
         ("pressure maximum p_max", _fmt(m.get("p_max_Pa"), 1e-3), "kPa"),
-        ("lower state found", _E(str(m.get("lower_state_method") or "–")), ""),
+        ("lower state found", _E(str((m.get("follow_lower_method") if m.get("followed") else None)
+                                     or m.get("lower_state_method") or "–")), ""),
         ("masses m_i / m_o", f"{_fmt(m.get('m_i_kg'), 1e3)} / {_fmt(m.get('m_o_kg'), 1e3)}", "g"),
         ("followed", _fmt(m.get("followed")) if m.get("followed") is not None else "not asked (--follow)", ""),
     ]
