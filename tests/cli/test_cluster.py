@@ -110,7 +110,9 @@ def _bash_queue(tmp_path: Path):
     from dask_jobqueue.core import Job, JobQueueCluster
 
     submit = tmp_path / "submit.sh"
-    submit.write_text('#!/bin/bash\nsetsid bash "$1" > "$1.log" 2>&1 < /dev/null &\necho "Submitted job $!"\n')
+    # a copy first, as sbatch keeps the script: dask-jobqueue deletes its file once submitted
+    submit.write_text('#!/bin/bash\njob="%s/job-$$.sh"\ncp "$1" "$job"\nsetsid bash "$job" > "$job.log" 2>&1 < /dev/null &\n'
+                      'echo "Submitted job $!"\n' % tmp_path)
     cancel = tmp_path / "cancel.sh"
     cancel.write_text('#!/bin/bash\nfor j in "$@"; do kill -TERM -- "-$j" 2>/dev/null; done\nexit 0\n')
 
