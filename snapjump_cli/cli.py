@@ -47,6 +47,8 @@ COMMANDS = {
     "sweep": "Solve a YAML grid of designs in parallel into a parquet file (resumable).",
     "rank": "Apply the jump model to sweep results and rank the designs by jump height.",
     "optimize": "Search the continuous design space for the highest jump, then confirm it (resumable).",
+    "info": "Summarise a result file: designs by status, why some were not solved, config, versions.",
+    "report": "Write a self-contained HTML page for one design or for a result file.",
 }
 
 

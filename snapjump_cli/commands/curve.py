@@ -24,6 +24,14 @@ With air (``--air-ml V0 [--gamma G] [--p0 P]``, docs/air.md) the snap metrics (`
 heights ``y_jump_m``, ``water_y_jump_m`` (the jump model of ``rank``) are added; ``fluid`` is
 ``"water"`` and the other air keys null without it.
 
+The jump (the mass-spring model of ``snapjump rank``, docs/physics.md section 6, on the reported
+snap; a followed solve's followed snap): ``y_jump_m``, ``y_jump_norm`` (/R_i), ``jump_rise_m``,
+``t_peak_s``, ``n_contacts``, ``jumped``, ``lift_off``, ``jump_complete``, ``jump_reason``, ``m_i_kg``,
+``m_o_kg``, ``k_s`` (null without a snap or solid volumes; ``y_jump_m`` 0 without a snap) and, for a
+followed solve, ``y_jump_axisym_m`` (the jump of the axisymmetric answer). Provenance:
+``inputs`` (``scene``, ``mesh``, ``solver``, ``jump``: every input that made the answer),
+``snapjump_version``, ``git_commit``, ``command``.
+
 A scene is solved exactly as a sweep solves a design (:func:`snapjump_cli.fe.solve.solve_checked`):
 a suspicious snap is re-solved on a finer mesh and the refined answer is reported, so ``curve``
 and the ranked table give one answer per design and mesh.
@@ -52,7 +60,7 @@ from snapjump_cli.commands.options import (
     scene_options,
 )
 
-__all__ = ["command", "main", "to_jsonable"]
+__all__ = ["command", "main", "to_jsonable", "jump_keys", "JUMP_KEYS"]
 
 log = logging.getLogger(__name__)
 
@@ -96,6 +104,68 @@ def _air_text(m: dict) -> list[str]:
     return lines
 
 
+#: The jump keys of ``curve`` (those ``rank`` adds to a row, but ``rank``).
+JUMP_KEYS: tuple[str, ...] = ("y_jump_m", "y_jump_norm", "jump_rise_m", "t_peak_s", "n_contacts", "jumped", "lift_off",
+                              "jump_complete", "jump_reason", "m_i_kg", "m_o_kg", "k_s")
+
+
+def jump_keys(m: dict, params, R_i: float | None) -> tuple[dict, object]:
+    """The jump of the reported snap with the model ``rank`` applies to a row (:data:`JUMP_KEYS`;
+    ``y_jump_axisym_m`` too for a followed solve) and its trajectory
+    (:class:`snapjump_cli.jump.trajectory.JumpTrajectory`, ``None`` without one)."""
+    from snapjump_cli import jump
+
+    out: dict = {k: None for k in JUMP_KEYS}
+    vi, vo = m.get("V_inner_solid_m3"), m.get("V_outer_solid_m3")
+    if not (vi and vo):
+        return out, None
+    mi, mo = jump.masses(vi, vo, params.rho)
+    out.update(m_i_kg=mi, m_o_kg=mo)
+    if m.get("followed"):
+        a = (m.get("axisym_dE_J"), m.get("axisym_dy_pole_m"), m.get("axisym_h_imp_m"))
+        out["y_jump_axisym_m"] = (jump.jump_height(*a, mi, mo, params).y_jump_m
+                                  if a[0] and a[0] > 0 and a[1] is not None and a[2] is not None else None)
+    dE, dy, h = m.get("dE_J"), m.get("dy_pole_m"), m.get("h_imp_m")
+    if not m.get("snaps") or not dE or dE <= 0 or dy is None or h is None:
+        if not m.get("snaps"):  # as rank's no_snap row
+            out.update(y_jump_m=0.0, jump_rise_m=0.0, t_peak_s=0.0, n_contacts=0, jumped=False, lift_off=False,
+                       jump_complete=True, jump_reason="no snap", k_s=0.0, y_jump_norm=0.0)
+        return out, None
+    tr = jump.jump_trajectory(dE, dy, h, mi, mo, params, L0_m=m.get("L0_m"))
+    jr = tr.result
+    out.update(y_jump_m=float(jr.y_jump_m), jump_rise_m=float(jr.y_jump_m) - float(h), t_peak_s=float(jr.t_peak_s),
+               n_contacts=int(jr.n_contacts), jumped=bool(jr.jumped), lift_off=bool(jr.lift_off),
+               jump_complete=bool(jr.complete), jump_reason=str(jr.reason or ""), k_s=float(jr.k_s),
+               y_jump_norm=float(jr.y_jump_m) / R_i if R_i else None)
+    return out, tr
+
+
+def _inputs(scene, ms, ss, params) -> dict:
+    """The inputs of the answer (plain data): the scene's parameters, the mesh and solver settings
+    and the jump model's parameters."""
+    import dataclasses
+
+    def plain(obj) -> dict:
+        d = dataclasses.asdict(obj) if dataclasses.is_dataclass(obj) else dict(vars(obj))
+        return {k: (v if isinstance(v, (str, int, float, bool, type(None))) else str(v)) for k, v in d.items()}
+
+    sc = plain(scene)
+    sc = {"kind": "design" if not hasattr(scene, "kind") else f"{scene.kind}_cap", **sc}
+    return {"scene": sc, "mesh": plain(ms), "solver": plain(ss), "jump": plain(params)}
+
+
+def _provenance() -> dict:
+    from snapjump_cli import __version__
+    from snapjump_cli.sweep.results import git_commit
+
+    git = git_commit()
+    import sys
+
+    return {"snapjump_version": __version__,
+            "git_commit": (git["commit"] + ("+dirty" if git.get("dirty") else "")) if git else None,
+            "command": "snapjump " + " ".join(sys.argv[1:]) if sys.argv and "snapjump" in sys.argv[0] else None}
+
+
 def _jumps(m: dict) -> dict:
     """``y_jump_m`` and ``water_y_jump_m`` (the jump model of ``rank``; ``None`` without a snap or
     solid volumes)."""
@@ -111,6 +181,17 @@ def _jumps(m: dict) -> dict:
         if dE and dy is not None and h is not None and dE > 0:
             out[key] = jump.jump_height(dE, dy, h, mi, mo).y_jump_m
     return out
+
+
+def _jump_params(rho: float | None, c_d: float | None, alpha: float | None):
+    """The jump model's parameters (``rank``'s defaults where not given), checked by the class."""
+    from snapjump_cli.jump import JumpParams
+
+    kw = {k: v for k, v in (("rho", rho), ("c_d", c_d), ("alpha", alpha)) if v is not None}
+    try:
+        return JumpParams(**kw)
+    except (ValueError, TypeError) as e:
+        raise BadInput(f"jump model: {e}") from None
 
 
 def _fluid(air_ml: float | None, gamma: float | None, p0: float | None, harmonics: int):
@@ -139,9 +220,10 @@ IMP_KEYS: tuple[str, ...] = ("imp_delta", "imp_n", "imp_N", "imp_shape", "imp_am
                              "imp_h_imp_m", "imp_V_star_m3", "imp_p_star_Pa", "imp_lower_state_method", "imp_note")
 
 
-def _imperfect(res, scene, delta: float, n: int | None, N: int, time_limit_s: float) -> None:
+def _imperfect(res, scene, delta: float, n: int | None, N: int, time_limit_s: float):
     """Trace the imperfect actuator (:mod:`snapjump_cli.fe.branch.imperfection`) and add its keys to
-    ``res.metrics``."""
+    ``res.metrics``; returns its :class:`~snapjump_cli.fe.branch.imperfection.ImperfectResult` (``None`` when
+    it was not traced to its snap)."""
     from snapjump_cli.fe.branch.imperfection import imperfection_shape, inner_thickness, trace_imperfect
     from snapjump_cli.fe.limits import TimeLimitExceeded, time_limit
 
@@ -158,7 +240,7 @@ def _imperfect(res, scene, delta: float, n: int | None, N: int, time_limit_s: fl
             r = trace_imperfect(res, shape, delta, inner_thickness(scene), N=N or None)
     except TimeLimitExceeded as exc:
         m["imp_note"] = f"not traced to its snap: {exc}"
-        return
+        return None
     im = r.metrics
     m.update(imp_N=int(r.model.hn[-1]), imp_shape=shape.source, imp_amplitude_m=im["imp_amplitude_m"],
              imp_note=im["imp_note"] or None, imp_lower_state_method=im.get("lower_state_method"))
@@ -166,6 +248,28 @@ def _imperfect(res, scene, delta: float, n: int | None, N: int, time_limit_s: fl
         m["imp_" + k] = im.get(k)
     if im.get("dE_J") is None and not m["imp_note"]:
         m["imp_note"] = "the imperfect path did not reach a snap"
+    return r if r.states.upper is not None else None
+
+
+
+def _jump_text(m: dict) -> list[str]:
+    """The jump's lines of the text report."""
+    if m.get("y_jump_m") is None:
+        return [f"jump             n/a ({m.get('jump_reason') or 'no snap metrics'})"]
+    if not m["snaps"]:
+        return ["jump             0 mm (no snap)"]
+    flags = [("lifts off" if m["lift_off"] else "never leaves the ground"),
+             ("jumped" if m["jumped"] else "did not jump")]
+    if not m["jump_complete"]:
+        flags.append("simulation incomplete")
+    line = (f"jump             y_jump {m['y_jump_m'] * 1e3:.5g} mm (apex at {m['t_peak_s'] * 1e3:.4g} ms, "
+            f"{m['n_contacts']} contact(s); {', '.join(flags)})")
+    out = [line]
+    if m.get("jump_reason"):
+        out.append(f"  why            {m['jump_reason']}")
+    if m.get("y_jump_axisym_m") is not None:
+        out.append(f"  axisymmetric   {m['y_jump_axisym_m'] * 1e3:.5g} mm with the axisymmetric snap (does not happen)")
+    return out
 
 
 def _text(scene, m: dict) -> str:
@@ -233,6 +337,8 @@ def _text(scene, m: dict) -> str:
                          f"dy_pole {m['imp_dy_pole_m'] * 1e3:.5g} mm")
         else:
             lines.append(f"imperfect        n = {m['imp_n']}, amplitude {m['imp_delta']:g} t_i: {m['imp_note']}")
+    if m.get("fluid") != "air" and m.get("m_i_kg") is not None:
+        lines += _jump_text(m)
     lines += [
         f"p_max            {m['p_max_Pa'] / 1e3:.5g} kPa",
         f"self-crossing    {'yes' if m['self_crossing'] else 'no'}",
@@ -250,18 +356,32 @@ def _text(scene, m: dict) -> str:
               help="Write the traced path to this CSV file, one row per step: p_Pa, V_m3, y_pole_m, strain_energy_J, "
                    "arc_length, step, state (start, p_max, upper, lower or empty), on_path.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Draw the p-V curve (paper Fig. 2A normalisation, dE shaded) to this PNG file.")
+              help="Draw the p-V curve (kPa against ml, dE shaded; a followed solve's followed snap as the main "
+                   "curve) to this .png, .svg or .pdf file.")
 @click.option("--shapes", "shapes_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Draw the undeformed state, the pressure maximum, the upper and the lower state (sections "
-                   "mirrored about the axis, one scale, coloured by the largest principal stretch) to this PNG file.")
+                   "mirrored about the axis, one scale, coloured by the largest principal stretch; a followed solve: "
+                   "the states the actuator takes, two sections each, the stretch of the 3D deformation gradient) "
+                   "to this .png, .svg or .pdf file.")
 @click.option("--animation", "animation_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Write the section moving along the traced path, beside its point on the p-V curve, to this "
-                   "GIF file.")
+              help="Write the section moving along the path the actuator takes (stable states, the snap at "
+                   "fixed volume as a jump, the lower state), beside its point on the p-V curve, to this GIF file.")
 @click.option("--export", "export_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write the traced path as a ParaView time series (FILE.pvd with the folder FILE_steps/, or "
-                   "FILE.xdmf): displacement [m], stretch, element pressure; each step's p, V and state.")
+                   "FILE.xdmf) in mm, z up, ground at z = 0 (the frame of the STEP/STL solids): displacement_mm, "
+                   "max_principal_stretch, rubber_mean_stress_Pa; each step's p, V and state. A followed solve: "
+                   "the states the actuator takes, in 3D.")
 @click.option("--revolve", type=click.IntRange(min=0), default=0, show_default=True, metavar="N",
-              help="With --export: the solid of revolution in N sectors (N >= 3) instead of the section.")
+              help="With --export: the solid of revolution in N sectors (N >= 3) instead of the section "
+                   "(a followed solve's states are always revolved: 48 sectors unless N is given).")
+@click.option("--jump", "jump_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Draw the jump of the mass-spring model (both masses' heights against time, lift-off and "
+                   "apex marked) to this .png, .svg or .pdf file.")
+@click.option("--normalised", is_flag=True,
+              help="Draw --plot on the paper's normalised axes (p/mu_i against dV/R_i^3) instead of kPa and ml.")
+@click.option("--rho", type=FiniteFloat(), default=None, help="Jump model: rubber density [kg/m^3] (rank's default).")
+@click.option("--c-d", "c_d", type=FiniteFloat(), default=None, help="Jump model: dashpot coefficient [kg/s] (rank's default).")
+@click.option("--alpha", type=FiniteFloat(), default=None, help="Jump model: ground restitution coefficient, in [0, 1] (rank's default).")
 @click.option("--overwrite", is_flag=True,
               help="Replace existing --csv / --plot / --shapes / --animation / --export files (refused by default).")
 @click.option("--time-limit", "time_limit_s", type=click.FloatRange(min=0, min_open=True, max=1e9),
@@ -307,12 +427,14 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
             shapes_path: Path | None, animation_path: Path | None, export_path: Path | None, revolve: int,
             air_ml: float | None, gamma: float | None, p0: float | None, follow: bool, follow_N: int, follow_full: bool, margins: bool,
             time_limit_s: float, max_nodes: int, imperfection: float | None, imperfection_n: int | None,
+            jump_path: Path | None, normalised: bool, rho: float | None, c_d: float | None, alpha: float | None,
             **kw) -> None:
     """Trace one scene's pressure-volume path through its limit points and report the snap.
 
     \b
     Examples:
-      snapjump curve --design D
+      snapjump curve --design D --plot d.png
+      snapjump curve --design D --jump d_jump.png --format json
       snapjump curve --cap --theta 60 --eta 30 --bc clamped --format json
       snapjump curve --design C --plot c.png --csv c.csv
       snapjump curve --design D --shapes d.png --animation d.gif --export d.pvd
@@ -336,22 +458,32 @@ def command(fmt: str, csv_path: Path | None, plot_path: Path | None, full: bool,
         raise BadInput("--imperfection is not available with --air-ml")
     from snapjump_cli.viz.outputs import check_outputs, write_outputs
 
+    params = _jump_params(rho, c_d, alpha)
     outputs = {"--csv": csv_path, "--plot": plot_path, "--shapes": shapes_path, "--animation": animation_path,
-               "--export": export_path}
+               "--export": export_path, "--jump": jump_path}
     check_outputs(outputs, revolve, overwrite)
+    ss = SolverSettings(full=full, harmonics=harmonics, follow=follow, follow_N=follow_N,
+                        follow_mode="full" if follow_full else "actuator", margins=margins,
+                        time_limit_s=time_limit_s, max_nodes=max_nodes)
     try:
-        res = solve_checked(scene, ms, SolverSettings(full=full, harmonics=harmonics, follow=follow,
-                                                      follow_N=follow_N, follow_mode="full" if follow_full else "actuator",
-                                                      margins=margins, time_limit_s=time_limit_s,
-                                                      max_nodes=max_nodes), fluid=fluid)
+        res = solve_checked(scene, ms, ss, fluid=fluid)
     except SolveFailed as exc:
         raise click.ClickException(f"solve failed: {exc}") from None
+    imperfect = None
     if imperfection is not None:
-        _imperfect(res, scene, imperfection, imperfection_n, follow_N, time_limit_s)
+        imperfect = _imperfect(res, scene, imperfection, imperfection_n, follow_N, time_limit_s)
     m = to_jsonable(res.metrics)
     if fluid is not None:
         m.update(_jumps(m))
-    write_outputs(res, scene, m, outputs, revolve)
+    jk, trajectory = jump_keys(m, params, getattr(scene, "R_i", None) or getattr(scene, "R", None))
+    m.update(jk)
+    if jump_path is not None and trajectory is None:
+        raise click.ClickException(f"--jump {jump_path}: no jump to draw ({m.get('jump_reason') or 'no solid volumes'})")
+    m = to_jsonable(m)
+    m["inputs"] = _inputs(scene, ms, ss, params)
+    m.update(_provenance())
+    write_outputs(res, scene, m, outputs, revolve, normalised=normalised, jump_trajectory=trajectory,
+                  imperfect=imperfect)
     if fmt == "json":
         click.echo(json.dumps(m, sort_keys=False))
     else:

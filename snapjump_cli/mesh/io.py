@@ -2,6 +2,13 @@
 
 Both keep the mesh's node numbering and element order; ``.msh`` has one physical group per region
 and per edge set, ``.vtu`` the cell data ``region`` and ``material``.
+
+The frame of every 3D file snapjump writes (``.vtu`` here, the ParaView series of ``curve
+--export``, the STEP, BREP and STL solids of :mod:`snapjump_cli.mesh.solids`) is one
+(:data:`FRAME`): **millimetres, the symmetry axis along z (up), the ground at z = 0** (a design's
+ring bottom, a single cap's base plane or its ring's bottom), the meridian section ``phi = 0`` in
+the plane ``y = 0`` (``x = r``). So the files overlay in ParaView. The ``.msh`` file is the
+solver's own 2D mesh, in metres ``(r, y)`` as the solver sees it.
 """
 from __future__ import annotations
 
@@ -13,10 +20,31 @@ import numpy as np
 from snapjump_cli.mesh.gmsh_session import LINE_TYPES, QUAD_TYPES, gmsh_session
 from snapjump_cli.mesh.data import REGION_NAMES, Mesh
 
-__all__ = ["MESH_SUFFIXES", "write_mesh"]
+__all__ = ["MESH_SUFFIXES", "write_mesh", "FRAME", "ground_level", "to_frame"]
 
 #: File formats :func:`write_mesh` understands.
 MESH_SUFFIXES = (".msh", ".vtu")
+#: The 3D files' frame, stated in their headers.
+FRAME = "unit: mm; axis z (up); ground z = 0"
+_MM = 1e3
+
+
+def ground_level(mesh: Mesh) -> float:
+    """The ground's height in the mesh's coordinates [m]: the lowest node of the ``ground`` node set
+    (a ring's bottom face), else of ``base`` (a single cap's base plane), else of the mesh."""
+    for name in ("ground", "base"):
+        nodes = mesh.node_sets.get(name)
+        if nodes is not None and len(nodes):
+            return float(np.asarray(mesh.nodes)[np.asarray(nodes, int), 1].min())
+    return float(np.asarray(mesh.nodes)[:, 1].min())
+
+
+def to_frame(points_rz: np.ndarray, y_ground: float, phi: np.ndarray | float = 0.0) -> np.ndarray:
+    """Section points ``(r, y)`` [m] (n, 2) -> 3D points in :data:`FRAME` (n, 3) [mm]:
+    ``(r cos phi, r sin phi, y - y_ground)``."""
+    P = np.asarray(points_rz, float)
+    c, s = np.cos(phi), np.sin(phi)
+    return np.column_stack([P[:, 0] * c, P[:, 0] * s + 0.0 * P[:, 0], P[:, 1] - y_ground]) * _MM
 
 
 def write_mesh(mesh: Mesh, path: str | os.PathLike) -> Path:
@@ -68,11 +96,12 @@ def _write_msh(mesh: Mesh, path: Path) -> None:
 
 def _write_vtu(mesh: Mesh, path: Path) -> None:
     """VTK XML (binary, compressed) with meshio: ``quad`` / ``quad9`` cells (VTK_QUAD,
-    VTK_BIQUADRATIC_QUAD; the node order is gmsh's), cell data ``region`` and ``material``."""
+    VTK_BIQUADRATIC_QUAD; the node order is gmsh's), cell data ``region`` and ``material``; the
+    section in the plane ``y = 0`` of :data:`FRAME` (mm, z up, ground at 0)."""
     import meshio  # a dependency; imported here, since most runs never write a mesh
 
     cell = {1: "quad", 2: "quad9"}[mesh.order]
-    pts = np.column_stack([mesh.nodes, np.zeros(mesh.n_nodes)])
+    pts = to_frame(mesh.nodes, ground_level(mesh))
     meshio.Mesh(pts, [(cell, np.asarray(mesh.elements, np.int64))],
                 cell_data={"region": [np.asarray(mesh.region, np.int32)],
                            "material": [np.asarray(mesh.material, np.int32)]}).write(path, file_format="vtu")

@@ -7,7 +7,11 @@ gives three separate solids, ``inner_cap``, ``ring`` and ``outer_cap``; a single
 shell cut by its base plane (two balls and a half-space) or an annulus (two cylinders).
 
 Units and axes: **millimetres**; the symmetry axis is ``z``, the ground (a design's ring bottom,
-a single cap's base plane, or its ring bottom) is ``z = 0``.
+a single cap's base plane, or its ring bottom) is ``z = 0``: the frame of every 3D file snapjump
+writes (:data:`snapjump_cli.mesh.io.FRAME`; the ``.vtu`` mesh and the ``curve --export`` series
+overlay these solids in ParaView). The STEP and STL headers name the solids with their exact volumes so that
+they add up visibly: ``inner_cap + ring = inner solid`` (the jump model's ``m_i``, what ``snapjump
+mesh`` reports as ``V inner solid``) and ``outer_cap = outer solid`` (``m_o``).
 
 * STEP: an assembly ``snapjump_<name>`` of one part per solid, named as above; the file's
   description says ``unit: mm`` and the length unit is ``SI_UNIT(.MILLI.,.METRE.)``.
@@ -31,7 +35,7 @@ import numpy as np
 
 from snapjump_cli.geometry.caps import CapScene, Design, cap_points, design_points
 
-__all__ = ["SOLID_SUFFIXES", "STL_TOLERANCE_MM", "Solid", "scene_solids", "write_solids"]
+__all__ = ["SOLID_SUFFIXES", "STL_TOLERANCE_MM", "Solid", "scene_solids", "write_solids", "solid_volumes_text"]
 
 log = logging.getLogger(__name__)
 
@@ -212,6 +216,20 @@ def _consistent_flips(tris: list[np.ndarray]) -> list[bool]:
     return [bool(f) for f in flip]
 
 
+def solid_volumes_text(solids: list[Solid]) -> str:
+    """The solids' exact volumes, named so that they add up visibly: ``volumes [cm^3]: inner_cap
+    9.87 + ring 1.35 = inner solid (the mass m_i) 11.22; outer_cap 9.17 = outer solid (m_o)``."""
+    cm3 = {s.name: s.volume() * 1e-3 for s in solids}
+    parts = []
+    inner = [n for n in ("inner_cap", "ring") if n in cm3]
+    if inner:
+        parts.append(" + ".join(f"{n} {cm3[n]:.6g}" for n in inner)
+                     + (f" = inner solid {sum(cm3[n] for n in inner):.6g}" if len(inner) > 1 else ""))
+    if "outer_cap" in cm3:
+        parts.append(f"outer_cap {cm3['outer_cap']:.6g}" + (" = outer solid" if inner else ""))
+    return "volumes [cm^3]: " + "; ".join(parts)
+
+
 def write_solids(scene: Design | CapScene, path: str | os.PathLike) -> Path:
     """Write the scene's solids (module docstring) to ``path`` (``.step``/``.stp``, ``.brep`` or
     ``.stl``), atomically. Returns the path."""
@@ -226,12 +244,13 @@ def write_solids(scene: Design | CapScene, path: str | os.PathLike) -> Path:
     names = [s.name for s in solids]
     label = getattr(scene, "name", None) or ("design" if isinstance(scene, Design) else f"{scene.kind}_cap")
     header = f"snapjump {label}; unit: mm; axis z, ground z = 0; solids: {', '.join(names)}"
+    full = f"{header}; {solid_volumes_text(solids)}"  # (OpenCASCADE's BREP reader refuses it in a comment)
 
     def write(tmp: Path) -> None:
         with gmsh_session("snapjump_solids") as gmsh:
             tags = _build(gmsh, solids)
             if suffix == ".stl":
-                tmp.write_text(_stl_text(gmsh, solids, tags, header), encoding="ascii")
+                tmp.write_text(_stl_text(gmsh, solids, tags, full), encoding="ascii")
                 return
             scratch = tmp.with_name(tmp.stem + ".raw" + (".step" if suffix in (".step", ".stp") else ".brep"))
             try:
@@ -239,7 +258,7 @@ def write_solids(scene: Design | CapScene, path: str | os.PathLike) -> Path:
                     gmsh.write(str(scratch))
                     tmp.write_text(f"# {header}\n" + scratch.read_text(), encoding="utf-8")
                 else:
-                    gmsh.option.setString("Geometry.OCCSTEPDescription", header)
+                    gmsh.option.setString("Geometry.OCCSTEPDescription", full)
                     gmsh.option.setString("Geometry.OCCSTEPModelName", f"snapjump_{label}")
                     with _quiet_stdout():
                         gmsh.write(str(scratch))

@@ -47,13 +47,24 @@ def _save(fig: Any, path: str | Path, dpi: int) -> Path:
     return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt))
 
 
-def _ok(df: pd.DataFrame) -> pd.DataFrame:
+def _ok(df: pd.DataFrame, normalised: bool = False) -> pd.DataFrame:
+    """The ``ok`` rows with the plane's coordinates ``x``, ``y``: pole travel [mm] and released
+    energy [mJ], or (``normalised``) the paper's ``dy_pole / R_i`` and ``dE / (mu_i R_i^3)``."""
     d = df[df["status"] == "ok"].copy()
     for c in ("dE_J", "dy_pole_m", "R_i", "mu_i"):
         d[c] = d[c].astype("float64")
-    d["x"] = d["dy_pole_m"] / d["R_i"]
-    d["y"] = d["dE_J"] / (d["mu_i"] * d["R_i"] ** 3)
+    if normalised:
+        d["x"] = d["dy_pole_m"] / d["R_i"]
+        d["y"] = d["dE_J"] / (d["mu_i"] * d["R_i"] ** 3)
+    else:
+        d["x"] = d["dy_pole_m"] * 1e3
+        d["y"] = d["dE_J"] * 1e3
     return d[np.isfinite(d["x"]) & np.isfinite(d["y"])]
+
+
+#: The plane's axis labels: physical (default) and normalised.
+_PLANE_LABELS = {False: ("pole travel $\\Delta y_{pole}$ [mm]", "energy released $\\Delta E$ [mJ]"),
+                 True: (r"pole travel $\Delta y_{pole} / R_i$", r"energy released $\Delta E / (\mu_i R_i^3)$")}
 
 
 def _ratio_colour(r: float, i: int) -> str:
@@ -101,15 +112,20 @@ def _flags(d: pd.DataFrame) -> dict[str, np.ndarray]:
             "mesh_sensitive": col("mesh_sensitive"), "checked": np.array(checked)}
 
 
-def _axisym_xy(d: pd.DataFrame) -> np.ndarray:
-    """The axisymmetric answers ``(dy_pole / R_i, dE / (mu_i R_i^3))`` of the rows (NaN where a
-    row has none), as a 2 x n array."""
+def _axisym_xy(d: pd.DataFrame, normalised: bool | None = None) -> np.ndarray:
+    """The axisymmetric answers of the rows in the plane's coordinates (``dy_pole / R_i, dE /
+    (mu_i R_i^3)``, or mm and mJ; NaN where a row has none), as a 2 x n array; ``normalised``
+    defaults to the frame's own (``d.attrs["normalised"]``)."""
+    if normalised is None:
+        normalised = bool(d.attrs.get("normalised", False))
     if "axisym_dE_J" not in d.columns or "axisym_dy_pole_m" not in d.columns:
         return np.full((2, len(d)), np.nan)
     def f(c: str) -> np.ndarray:
         return pd.to_numeric(d[c], errors="coerce").astype("float64").to_numpy(na_value=np.nan)
 
     R, mu = f("R_i"), f("mu_i")
+    if not normalised:
+        return np.vstack([f("axisym_dy_pole_m") * 1e3, f("axisym_dE_J") * 1e3])
     return np.vstack([f("axisym_dy_pole_m") / R, f("axisym_dE_J") / (mu * R**3)])
 
 
@@ -188,13 +204,15 @@ def _legend_below(fig: Any, handles: list, ncols: int = 2) -> None:
     fig.legend(handles=handles, loc="outside lower center", ncols=ncols, fontsize=7.5, frameon=False)
 
 
-def plot_fig4a(df: pd.DataFrame, path: str | Path) -> Path:
-    """Fig. 4A: ``dE / (mu_i R_i^3)`` against ``dy_pole / R_i`` of the ``ok`` rows, coloured by
+def plot_fig4a(df: pd.DataFrame, path: str | Path, normalised: bool = False) -> Path:
+    """Fig. 4A: the released energy [mJ] against the pole travel [mm] (``normalised``: the paper's
+    ``dE / (mu_i R_i^3)`` against ``dy_pole / R_i``) of the ``ok`` rows, coloured by
     ``mu_i / mu_o``; triangles for the designs that go asymmetric before V* (the harmonic check),
     crosses for self-crossing paths, open squares for mesh-sensitive snaps and a star for the
     highest jump (when the table is ranked). Writes a PNG to ``path`` and returns it."""
     plt = _pyplot()
-    d = _ok(df)
+    d = _ok(df, normalised)
+    d.attrs["normalised"] = normalised
     fl = _flags(d)
     fig, ax = plt.subplots(figsize=(6.4, 5.4), layout="constrained")
     try:
@@ -214,8 +232,8 @@ def plot_fig4a(df: pd.DataFrame, path: str | Path) -> Path:
         handles += _mark_best(ax, _best(d), "x", "y")
         _log_y_if_wide(ax, d["y"].to_numpy())
         _empty_note(ax, d)
-        ax.set_xlabel(r"pole travel $\Delta y_{pole} / R_i$")
-        ax.set_ylabel(r"energy released $\Delta E / (\mu_i R_i^3)$")
+        ax.set_xlabel(_PLANE_LABELS[normalised][0])
+        ax.set_ylabel(_PLANE_LABELS[normalised][1])
         ax.set_title(f"Energy release vs pole travel ({len(d)} snapping designs)", fontsize=10)
         if not d.empty:
             _legend_below(fig, handles)
@@ -225,19 +243,22 @@ def plot_fig4a(df: pd.DataFrame, path: str | Path) -> Path:
     return path
 
 
-def plot_fig4c(ranked: pd.DataFrame, path: str | Path) -> Path:
-    """Fig. 4C: ``y_jump / R_i`` over the ``(dy_pole / R_i, dE / (mu_i R_i^3))`` plane of the ``ok``
+def plot_fig4c(ranked: pd.DataFrame, path: str | Path, normalised: bool = False) -> Path:
+    """Fig. 4C: the jump height [mm] over the plane of :func:`plot_fig4a` (``normalised``:
+    ``y_jump / R_i`` over the ``(dy_pole / R_i, dE / (mu_i R_i^3))`` plane) of the ``ok``
     rows (needs the columns of :func:`snapjump_cli.jump.rank.rank_results`), with the flags' markers of
     :func:`plot_fig4a` and the best design starred. Writes a PNG."""
     plt = _pyplot()
-    d = _ok(ranked)
+    d = _ok(ranked, normalised)
     d = d[np.isfinite(d["y_jump_m"].astype("float64"))]
+    d.attrs["normalised"] = normalised
     fl = _flags(d)
     fig, ax = plt.subplots(figsize=(6.6, 5.4), layout="constrained")
     try:
         handles = []
         if not d.empty:
-            z = (d["y_jump_m"].astype("float64") / d["R_i"]).to_numpy()
+            z = (d["y_jump_m"].astype("float64") / d["R_i"]).to_numpy() if normalised else \
+                (d["y_jump_m"].astype("float64") * 1e3).to_numpy()
             x, y = d["x"].to_numpy(), d["y"].to_numpy()
             norm = plt.Normalize(float(z.min()), float(z.max()))
             for shape, mask in _shapes(fl):
@@ -247,13 +268,13 @@ def plot_fig4c(ranked: pd.DataFrame, path: str | Path) -> Path:
                                norm=norm, lw=0 if shape != _FOL else 0.6, edgecolors="face" if shape != _FOL else "k",
                                zorder=4 if shape == _FOL else 2)
             fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap="viridis"), ax=ax,
-                         label=r"jump height $y_{jump} / R_i$")
+                         label=r"jump height $y_{jump} / R_i$" if normalised else r"jump height $y_{jump}$ [mm]")
             handles += _shape_handles(fl) + _mark_followed(ax, d, fl)
             handles += _mark_flags(ax, x, y, fl) + _mark_best(ax, _best(d), "x", "y")
         _log_y_if_wide(ax, d["y"].to_numpy())
         _empty_note(ax, d)
-        ax.set_xlabel(r"pole travel $\Delta y_{pole} / R_i$")
-        ax.set_ylabel(r"energy released $\Delta E / (\mu_i R_i^3)$")
+        ax.set_xlabel(_PLANE_LABELS[normalised][0])
+        ax.set_ylabel(_PLANE_LABELS[normalised][1])
         ax.set_title("Jump height of the mass-spring model", fontsize=10)
         if handles:
             _legend_below(fig, handles)
@@ -330,7 +351,7 @@ def _mark_best_label(best: pd.Series) -> str:
 PLOT_FILES: tuple[str, ...] = ("fig4a.png", "fig4c.png", "jump_vs_parameters.png")
 
 
-def make_plots(ranked: pd.DataFrame, out_dir: str | Path, batch: Any = None) -> list[Path]:
+def make_plots(ranked: pd.DataFrame, out_dir: str | Path, batch: Any = None, normalised: bool = False) -> list[Path]:
     """Write ``fig4a.png``, ``fig4c.png`` and ``jump_vs_parameters.png`` into ``out_dir``.
 
     ``batch``: a :class:`snapjump_cli.files.AtomicFiles` to add them to (written with the other
@@ -343,7 +364,10 @@ def make_plots(ranked: pd.DataFrame, out_dir: str | Path, batch: Any = None) -> 
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    plots = ((plot_fig4a, "fig4a.png"), (plot_fig4c, "fig4c.png"), (plot_jump_vs_parameters, "jump_vs_parameters.png"))
+    from functools import partial
+
+    plots = ((partial(plot_fig4a, normalised=normalised), "fig4a.png"),
+             (partial(plot_fig4c, normalised=normalised), "fig4c.png"), (plot_jump_vs_parameters, "jump_vs_parameters.png"))
     if batch is None:
         files = [fn(ranked, out_dir / name) for fn, name in plots]
     else:
@@ -353,64 +377,114 @@ def make_plots(ranked: pd.DataFrame, out_dir: str | Path, batch: Any = None) -> 
     return files
 
 
-def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "", branch: dict | None = None) -> Path:
-    """The pressure-volume path of one scene, normalised as the paper's Fig. 2A
-    (``p / mu_i`` against ``dV / R_i^3``), with the released energy dE shaded (the area between
-    the path and the vertical line ``V = V*``), the volume limit point (black) and the isochoric
-    point on the lower branch (white) marked. ``branch`` (:func:`snapjump_cli.fe.branch.metrics.branch_curve`):
-    the followed non-axisymmetric branch, drawn from its bifurcation with its own snap shaded, as
-    in the paper's Fig. S16 (and where it left the first branch, for a secondary bifurcation)."""
-    plt = _pyplot()
+def _pv_axes(curve: dict, normalised: bool):
+    """``(fx, fy, xlabel, ylabel)``: the p-V plot's axes, physical (kPa against ml) or normalised as
+    the paper's Fig. 2A (``p / mu_i`` against ``dV / R_i^3``)."""
     L, mu, V0 = curve["L_m"], curve["mu_Pa"], curve["V0_m3"]
-    x = (np.asarray(curve["V_m3"]) - V0) / L**3
-    y = np.asarray(curve["p_Pa"]) / mu
-    fig, ax = plt.subplots(figsize=(6.4, 4.4))
-    axisym = branch is not None
-    ax.plot(x, y, "-", color="tab:blue", lw=1.4, label="axisymmetric path" if axisym else "equilibrium path")
-    if metrics.get("snaps") and "snap_V_m3" in curve:
-        sx = (np.asarray(curve["snap_V_m3"]) - V0) / L**3
-        sy = np.asarray(curve["snap_p_Pa"]) / mu
-        dE = metrics.get("axisym_dE_J") if axisym and metrics.get("axisym_dE_J") is not None else metrics["dE_J"]
-        ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:blue", alpha=0.25,
-                label=f"dE = {dE * 1e3:.4g} mJ" + ("" if axisym else f" ({metrics['lower_state_method']})"))
-        ax.plot(sx[0], sy[0], "o", mfc="k", mec="k", ms=7, label="volume limit V*")
-        ax.plot(sx[-1], sy[-1], "o", mfc="w", mec="k", ms=7, label="isochoric point")
-    if axisym:
-        bx = (np.asarray(branch["V_m3"]) - V0) / L**3
-        by = np.asarray(branch["p_Pa"]) / mu
-        if branch.get("n_sec") is not None and branch.get("landing_V_m3") is not None:  # a jump off it
-            what = (f"n = {branch['n']} ({branch.get('parent_kind') or '?'}) to its fold, then a jump, N = "
-                    f"{branch['N']}")
-        elif branch.get("n_sec") is not None:  # the first branch, then the one leaving it
-            what = (f"n = {branch['n']} ({branch.get('parent_kind') or '?'}), then n = {branch['n_sec']} "
-                    f"({branch['kind'] or 'no snap'}), N = {branch['N']}")
-        else:
-            what = f"n = {branch['n']}, {branch['kind'] or 'no snap'}, N = {branch['N']}"
-        ax.plot(bx, by, "-", color="tab:orange", lw=1.4, label=f"followed branch ({what})")
-        ax.plot(bx[:1], by[:1], "D", mfc="tab:orange", mec="k", ms=6, label="bifurcation")
-        if branch.get("V_sec_m3") is not None:  # where the followed branch left the first one
-            k = int(np.argmin(np.abs(np.asarray(branch["V_m3"]) - branch["V_sec_m3"])))
-            ax.plot(bx[k], by[k], "v", mfc="tab:red", mec="k", ms=7,
-                    label=f"secondary bifurcation (n = {branch['n_sec']})")
-        if branch.get("landing_V_m3") is not None:  # a jump past the branch's fold onto an unstable state
-            ax.plot((branch["landing_V_m3"] - V0) / L**3, branch["landing_p_Pa"] / mu, "x", color="tab:red",
-                    ms=8, mew=2, label=f"the fold's jump lands here: unstable in n = {branch['n_sec']}")
+    if normalised:
+        return ((lambda V: (np.asarray(V, float) - V0) / L**3), (lambda p: np.asarray(p, float) / mu),
+                r"$\Delta V / R_i^3$", r"$p / \mu_i$")
+    return ((lambda V: np.asarray(V, float) * 1e6), (lambda p: np.asarray(p, float) / 1e3),
+            "cavity volume V [ml]", "pressure p [kPa]")
+
+
+def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "", branch: dict | None = None,
+                  normalised: bool = False, imperfect: dict | None = None) -> Path:
+    """The pressure-volume path of one scene (pressure [kPa] against volume [ml]; ``normalised``:
+    the paper's Fig. 2A axes ``p / mu_i`` against ``dV / R_i^3``), with the released energy dE
+    shaded (the area between the path and the vertical line ``V = V*``), the volume limit point
+    (black) and the isochoric point on the lower branch (white) marked.
+
+    ``branch`` (:func:`snapjump_cli.fe.branch.metrics.branch_curve`): the followed non-axisymmetric branch.
+    When the followed snap is the answer (``metrics["followed"]``) it is the main curve: the path
+    up to the bifurcation and the branch from there, its snap shaded and labelled with the reported
+    dE; the axisymmetric path beyond the bifurcation and its snap are drawn thin and pale, as what
+    does not happen. ``imperfect`` (:func:`snapjump_cli.viz.outputs.imperfect_curve`): the imperfect
+    actuator's path from rest (``--imperfection``), dashed, its snap shaded and labelled with
+    ``imp_dE_J``. The legend is below the axes, so it covers no curve. The format follows the
+    suffix (``.png``, ``.svg``, ``.pdf``)."""
+    plt = _pyplot()
+    fx, fy, xlabel, ylabel = _pv_axes(curve, normalised)
+    x, y = fx(curve["V_m3"]), fy(curve["p_Pa"])
+    fig, ax = plt.subplots(figsize=(6.4, 5.2), layout="constrained")
+    followed = branch is not None and bool(metrics.get("followed"))
+    main, pale = "tab:blue", "0.6"
+    snap_axi = metrics.get("snaps") and "snap_V_m3" in curve
+    if not followed:
+        label = "equilibrium path" if branch is None else "axisymmetric path"
+        ax.plot(x, y, "-", color=main, lw=1.5, label=label)
+        if snap_axi:
+            sx, sy = fx(curve["snap_V_m3"]), fy(curve["snap_p_Pa"])
+            dE = metrics.get("axisym_dE_J") if branch is not None and metrics.get("axisym_dE_J") is not None \
+                else metrics["dE_J"]
+            ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color=main, alpha=0.25,
+                    label=f"dE = {dE * 1e3:.4g} mJ ({metrics['lower_state_method']})")
+            ax.plot(sx[0], sy[0], "o", mfc="k", mec="k", ms=7, label="volume limit V*")
+            ax.plot(sx[-1], sy[-1], "o", mfc="w", mec="k", ms=7, label="isochoric point")
+        if branch is not None:  # followed but not the answer: drawn for comparison
+            bx, by = fx(branch["V_m3"]), fy(branch["p_Pa"])
+            ax.plot(bx, by, "-", color="tab:orange", lw=1.1, label=f"followed branch ({_branch_what(branch)})")
+            _branch_marks(ax, branch, fx, fy)
+    else:
+        bx, by = fx(branch["V_m3"]), fy(branch["p_Pa"])
+        V_bif = np.asarray(branch["V_m3"])[0]
+        before = np.asarray(curve["V_m3"]) <= V_bif
+        s_bif = int(np.argmin(before)) if not before.all() else len(before)  # the first point past it
+        ax.plot(x[s_bif - 1:], y[s_bif - 1:], "-", color=pale, lw=1.0,
+                label="axisymmetric path past the bifurcation (does not happen)")
+        if snap_axi and metrics.get("axisym_dE_J") is not None:
+            sx, sy = fx(curve["snap_V_m3"]), fy(curve["snap_p_Pa"])
+            ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], facecolor="none", edgecolor=pale, hatch="///", lw=0.6,
+                    label=f"axisymmetric dE = {metrics['axisym_dE_J'] * 1e3:.4g} mJ (does not happen)")
+        ax.plot(np.r_[x[:s_bif], bx[:1]], np.r_[y[:s_bif], by[:1]], "-", color=main, lw=1.8,
+                label="axisymmetric loading, to the bifurcation")
+        ax.plot(bx, by, "-", color="tab:orange", lw=1.8, label=f"followed branch ({_branch_what(branch)})")
+        _branch_marks(ax, branch, fx, fy)
         if "snap_V_m3" in branch:
-            sx = (np.asarray(branch["snap_V_m3"]) - V0) / L**3
-            sy = np.asarray(branch["snap_p_Pa"]) / mu
-            ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:orange", alpha=0.3,
-                    label=f"followed dE = {metrics['dE_J'] * 1e3:.4g} mJ")
-            ax.plot(sx[-1], sy[-1], "s", mfc="w", mec="tab:orange", ms=6, label="followed isochoric point")
-    ax.set_xlabel(r"$\Delta V / R_i^3$")
-    ax.set_ylabel(r"$p / \mu_i$")
-    ax.set_title(title)
+            sx, sy = fx(branch["snap_V_m3"]), fy(branch["snap_p_Pa"])
+            ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:orange", alpha=0.35,
+                    label=f"dE = {metrics['dE_J'] * 1e3:.4g} mJ (the followed snap, reported)")
+            ax.plot([sx[0], sx[-1]], [sy[0], sy[-1]], "--", color="tab:red", lw=1.3, label="snap at fixed volume")
+            ax.plot(sx[0], sy[0], "o", mfc="k", mec="k", ms=7, label="volume limit V*")
+            ax.plot(sx[-1], sy[-1], "o", mfc="w", mec="k", ms=7, label="lower state")
+    if imperfect is not None:
+        ix, iy = fx(imperfect["V_m3"]), fy(imperfect["p_Pa"])
+        ax.plot(ix, iy, "--", color="tab:purple", lw=1.3,
+                label=f"imperfect actuator (n = {imperfect['n']}, amplitude {imperfect['delta']:g} t_i)")
+        if "snap_V_m3" in imperfect and metrics.get("imp_dE_J") is not None:
+            sx, sy = fx(imperfect["snap_V_m3"]), fy(imperfect["snap_p_Pa"])
+            ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:purple", alpha=0.25,
+                    label=f"imperfect dE = {metrics['imp_dE_J'] * 1e3:.4g} mJ")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
-    fig.tight_layout()
+    fig.legend(loc="outside lower center", ncols=2, fontsize=7.5, frameon=False)
     try:
         return _save(fig, path, 120)
     finally:
         plt.close(fig)
+
+
+def _branch_marks(ax, branch: dict, fx, fy) -> None:
+    """The bifurcation, a secondary bifurcation and the landing of a fold's jump on a followed branch."""
+    bx, by = fx(branch["V_m3"]), fy(branch["p_Pa"])
+    ax.plot(bx[:1], by[:1], "D", mfc="tab:orange", mec="k", ms=6, label="bifurcation")
+    if branch.get("V_sec_m3") is not None:  # where the followed branch left the first one
+        k = int(np.argmin(np.abs(np.asarray(branch["V_m3"]) - branch["V_sec_m3"])))
+        ax.plot(bx[k], by[k], "v", mfc="tab:red", mec="k", ms=7, label=f"secondary bifurcation (n = {branch['n_sec']})")
+    if branch.get("landing_V_m3") is not None:  # a jump past the branch's fold onto an unstable state
+        ax.plot(fx(branch["landing_V_m3"]), fy(branch["landing_p_Pa"]), "x", color="tab:red", ms=8, mew=2,
+                label=f"the fold's jump lands here: unstable in n = {branch['n_sec']}")
+
+
+def _branch_what(branch: dict) -> str:
+    if branch.get("n_sec") is not None and branch.get("landing_V_m3") is not None:  # a jump off it
+        return f"n = {branch['n']} ({branch.get('parent_kind') or '?'}) to its fold, then a jump, N = {branch['N']}"
+    if branch.get("n_sec") is not None:  # the first branch, then the one leaving it
+        return (f"n = {branch['n']} ({branch.get('parent_kind') or '?'}), then n = {branch['n_sec']} "
+                f"({branch['kind'] or 'no snap'}), N = {branch['N']}")
+    return f"n = {branch['n']}, {branch['kind'] or 'no snap'}, N = {branch['N']}"
 
 
 def plot_air_curves(curve: dict, metrics: dict, path: str | Path, title: str = "") -> Path:

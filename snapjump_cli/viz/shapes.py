@@ -15,10 +15,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from snapjump_cli.viz.fields import element_points, principal_stretch
+from snapjump_cli.viz.fields import element_points, principal_stretch, principal_stretch_3d
 
 __all__ = ["ShapeState", "SectionDrawing", "plot_shapes", "key_shape_states", "followed_shape_states", "state_caption",
-           "STRETCH_LABEL"]
+           "STRETCH_LABEL", "branch_shape_state", "actuator_shape_states"]
 
 log = logging.getLogger(__name__)
 
@@ -41,8 +41,15 @@ class ShapeState:
         axisymmetric state leaves it ``None`` and its left half is the mirror image of ``x``; a
         non-axisymmetric state gives both (e.g. ``X + U0 + U1`` and ``X + U0 - U1`` for the
         harmonic ``n = 1``, in that half-plane's own radial direction), and each half is drawn from
-        its own section. Each section's stretch is computed from it as for an axisymmetric map.
+        its own section.
     note : an optional line under the caption
+    hn, A : for a non-axisymmetric state, its harmonics and nodal amplitudes [m] (the layout of
+        :mod:`snapjump_kernels.multiharmonic`): the stretch of each half is then the largest
+        principal stretch of the full 3D deformation gradient in its section
+        (:func:`snapjump_cli.viz.fields.principal_stretch_3d`); without them, that of the
+        axisymmetric map of ``x``
+    phi_pi : the angle of the section drawn as the left half (``pi``; ``pi / n`` for a state of
+        harmonics ``n, 2n, ...``)
     """
 
     label: str
@@ -51,6 +58,14 @@ class ShapeState:
     x: np.ndarray
     x_pi: np.ndarray | None = None
     note: str = ""
+    hn: np.ndarray | None = None
+    A: np.ndarray | None = None
+    phi_pi: float = float(np.pi)
+
+    @property
+    def stretch3d(self) -> tuple | None:
+        """``(hn, A, phi_pi)`` when the stretch comes from the 3D deformation gradient."""
+        return None if self.A is None else (self.hn, self.A, self.phi_pi)
 
 
 def _pyplot() -> Any:
@@ -126,11 +141,18 @@ class SectionDrawing:
                     out.append((e, s))
         return out
 
-    def cells(self, x: np.ndarray, mirror: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    def cells(self, x: np.ndarray, mirror: bool = False, stretch3d: tuple | None = None,
+              phi: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Sub-cell polygons ``(n_cells, 4, 2)`` [mm] of the section at node positions ``x`` [m]
-        (``mirror``: drawn at ``-r``) and the stretch at their centres ``(n_cells,)``."""
+        (``mirror``: drawn at ``-r``) and the stretch at their centres ``(n_cells,)``: that of the
+        axisymmetric map of ``x``, or with ``stretch3d = (hn, A, ...)`` that of the 3D deformation
+        gradient of the Fourier amplitudes ``A`` in the section at ``phi``."""
         P = element_points(x, self.elements, self.order, self._xi_cells).reshape(-1, 4, 2)
-        lam = principal_stretch(self.X, x, self.elements, self.order, self._xi_centres).ravel()
+        if stretch3d is None:
+            lam = principal_stretch(self.X, x, self.elements, self.order, self._xi_centres).ravel()
+        else:
+            lam = principal_stretch_3d(self.X, stretch3d[1], stretch3d[0], self.elements, self.order,
+                                       self._xi_centres, phi).ravel()
         return self._to_mm(P, mirror), lam
 
     def outline(self, x: np.ndarray, mirror: bool = False) -> list[np.ndarray]:
@@ -161,12 +183,16 @@ class SectionDrawing:
         shift = np.array([0.0, self.y_ground - low])
         return x + shift, (x_pi + shift if x_pi is not None else None)
 
-    def halves(self, x: np.ndarray, x_pi: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, list]:
+    def halves(self, x: np.ndarray, x_pi: np.ndarray | None = None,
+               stretch3d: tuple | None = None) -> tuple[np.ndarray, np.ndarray, list]:
         """Both halves of a state: polygons, stretch and outlines (left half from ``x_pi`` if given),
-        as it stands on the ground (:meth:`placed`)."""
+        as it stands on the ground (:meth:`placed`). ``stretch3d = (hn, A, phi_pi)``: the stretch of
+        the 3D deformation gradient of the amplitudes ``A`` (right half ``phi = 0``, left half
+        ``phi_pi``)."""
         x, x_pi = self.placed(x, x_pi)
-        right, lam_r = self.cells(x)
-        left, lam_l = self.cells(x if x_pi is None else x_pi, mirror=True)
+        right, lam_r = self.cells(x, stretch3d=stretch3d, phi=0.0)
+        left, lam_l = self.cells(x if x_pi is None else x_pi, mirror=True, stretch3d=stretch3d,
+                                 phi=stretch3d[2] if stretch3d is not None else 0.0)
         lines = self.outline(x) + self.outline(x if x_pi is None else x_pi, mirror=True)
         return np.concatenate([left, right]), np.concatenate([lam_l, lam_r]), lines
 
@@ -239,7 +265,7 @@ def plot_shapes(mesh, states: Sequence[ShapeState], path: str | Path, *, title: 
 
     plt = _pyplot()
     draw = SectionDrawing(mesh)
-    parts = [draw.halves(s.x, s.x_pi) for s in states]
+    parts = [draw.halves(s.x, s.x_pi, s.stretch3d) for s in states]
     lam_all = np.concatenate([lam for _, lam, _ in parts])
     lam_max = float(lam_all.max())
     # the colour scale ends at the 99.5th percentile of the sub-cells: a corner's peak (where the
@@ -271,7 +297,8 @@ def plot_shapes(mesh, states: Sequence[ShapeState], path: str | Path, *, title: 
                 note = (note + "\n" if note else "") + "(below ground: no contact in the model)"
             ax.set_title(f"{s.label}\n{caption}" + (f"\n{note}" if note else ""), fontsize=9)
             if s.x_pi is not None:
-                for xpos, txt in ((-0.5 * r, r"$\varphi = \pi$"), (0.5 * r, r"$\varphi = 0$")):
+                left = r"$\varphi = \pi$" if abs(s.phi_pi - np.pi) < 1e-12 else rf"$\varphi = \pi/{np.pi / s.phi_pi:.0f}$"
+                for xpos, txt in ((-0.5 * r, left), (0.5 * r, r"$\varphi = 0$")):
                     ax.text(xpos, ylo + 0.5 * pad, txt, ha="center", va="bottom", fontsize=8)
             ax.set_xlim(-r, r)
             ax.set_ylim(ylo, yhi)
@@ -332,19 +359,49 @@ def key_shape_states(steps, X: np.ndarray) -> list[ShapeState]:
 
 def followed_shape_states(fr) -> list[ShapeState]:
     """The followed snap's upper and lower states (``fr``: :class:`snapjump_cli.fe.branch.trace.FollowResult`)
-    (SI), each with its two meridian sections ``phi = 0`` (right half) and ``phi = pi`` (left half).
-    The colour is computed from each section as if it were an axisymmetric map: away from the axis
-    it is close to the 3D stretch in the section's plane, but near the axis the ``n = 1`` part
-    (which moves the axis sideways) makes its hoop stretch meaningless."""
+    (SI), each with its two meridian sections ``phi = 0`` (right half) and ``phi = pi / n`` (left
+    half), coloured by the largest principal stretch of the 3D deformation gradient."""
     mh, st, sc = fr.model, fr.states, fr.tracer.sc
     if st.upper is None or st.lower is None:
         return []
-    L, S = mh.L, mh.S
     sec = getattr(fr, "secondary", None)
     which = f"n = {fr.bif.n}" + (f", then n = {sec.n}" if sec is not None else "")  # (a secondary branch's)
+    return [branch_shape_state(mh, pt, sc, f"{name} ({which})")
+            for name, pt in (("followed upper state (V*)", st.upper), ("followed lower state (after the snap)", st.lower))]
+
+
+def branch_shape_state(mh, pt, sc, label: str, note: str = "") -> ShapeState:
+    """A state of a multi-harmonic model (:class:`snapjump_cli.fe.branch.model.MultiHarmonicModel`)
+    as a :class:`ShapeState` with its two sections and its 3D stretch."""
+    from snapjump_cli.viz.actuator import opposite_phi, section_at
+
+    L, S = mh.L, mh.S
+    A = mh.total_amplitudes(pt.u) * L
+    X = np.asarray(mh.mesh.nodes, float)
+    phi_pi = opposite_phi(mh.hn)
+    return ShapeState(label, float(pt.p * S), float(pt.zeta[0] * sc[0] * L**3), section_at(X, mh.hn, A, 0.0),
+                      section_at(X, mh.hn, A, phi_pi), note=note, hn=np.asarray(mh.hn), A=A, phi_pi=phi_pi)
+
+
+def actuator_shape_states(act) -> list[ShapeState]:
+    """The panels of a followed (or imperfect) solve from its :class:`~snapjump_cli.viz.actuator.ActuatorPath`:
+    undeformed, the pressure maximum (when the actuator passes it), the bifurcation, the upper
+    state and the lower state, each from the states the actuator takes."""
+    titles = {"start": STATE_TITLES["start"], "p_max": STATE_TITLES["p_max"],
+              "bifurcation": "bifurcation (leaves the axisymmetric path)",
+              "upper": "upper state (volume limit V*)", "lower": "lower state (after the snap, at V*)"}
     out = []
-    for name, pt in (("followed upper state", st.upper), ("followed lower state", st.lower)):
-        out.append(ShapeState(f"{name} ({which})", float(pt.p * S), float(pt.zeta[0] * sc[0] * L**3),
-                              mh.section(pt.u, 0.0) * L, mh.section(pt.u, np.pi) * L,
-                              note="colour: each section read as an axisymmetric map"))
+    for name in ("start", "p_max", "bifurcation", "upper", "lower"):
+        k = act.index(name)
+        if k is None:
+            continue
+        label = titles[name] + (f" [{act.branch[k]}]" if act.branch[k] != "axisymmetric" and name != "bifurcation" else "")
+        if act.axisymmetric(k):
+            out.append(ShapeState(label, float(act.p_Pa[k]), float(act.V_m3[k]), act.section(k)))
+        else:
+            from snapjump_cli.viz.actuator import opposite_phi
+
+            phi_pi = opposite_phi(act.hn[k])
+            out.append(ShapeState(label, float(act.p_Pa[k]), float(act.V_m3[k]), act.section(k, 0.0),
+                                  act.section(k, phi_pi), hn=act.hn[k], A=act.A[k], phi_pi=phi_pi))
     return out

@@ -35,7 +35,8 @@ def test_json_keys_and_outputs(capsys, tmp_path):
     assert abs(m["dE_energy_J"] - m["dE_path_J"]) <= 5e-3 * m["dE_J"]
     assert m["dE_norm"] == pytest.approx(m["dE_J"] / (0.35e6 * 0.03**3), rel=1e-12)
     lines = csv_path.read_text().splitlines()
-    assert lines[0] == "p_Pa,V_m3,y_pole_m,strain_energy_J,arc_length,step,state,on_path"
+    assert lines[0] == "p_Pa,V_m3,y_pole_m,strain_energy_J,arc_length,step,state,on_path,branch"
+    assert {line.split(",")[8] for line in lines[1:]} == {"axisymmetric"}
     # the path's n_steps + 1 points and the named states solved between them (p_max, upper, lower)
     assert m["n_steps"] + 1 + 2 <= len(lines) - 1 <= m["n_steps"] + 1 + 3
     states = [line.split(",")[6] for line in lines[1:]]

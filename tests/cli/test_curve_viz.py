@@ -29,11 +29,18 @@ def _csv(path):
         return list(csv.DictReader(fh))
 
 
-def _pole_row(points: np.ndarray, y1: float) -> int:
-    """The point of the lower inner pole (point 1) in the exported reference mesh."""
-    d = np.hypot(points[:, 0], points[:, 1] - y1) + np.abs(points[:, 2])
+def _pole_z_mm(design: str = "C") -> float:
+    """The height of the lower inner pole (point 1) above the ground (point 8, the ring's bottom)
+    [mm]: where the export's frame (mm, z up, ground at z = 0) puts it."""
+    p = design_points(get_design(design))
+    return (p["1"][1] - p["8"][1]) * 1e3
+
+
+def _pole_row(points: np.ndarray, z1: float) -> int:
+    """The point of the lower inner pole (on the axis, at height ``z1`` [mm]) in the exported mesh."""
+    d = np.hypot(points[:, 0], points[:, 1]) + np.abs(points[:, 2] - z1)
     k = int(np.argmin(d))
-    assert d[k] < 1e-12
+    assert d[k] < 1e-9
     return k
 
 
@@ -63,37 +70,40 @@ def test_pvd_read_back(exported):
     sets = root.find("Collection").findall("DataSet")
     assert len(sets) == len(rows) > m["n_steps"]  # one step per CSV row: the path and its named states
     assert [int(s.get("timestep")) for s in sets] == list(range(len(rows))) == [int(r["step"]) for r in rows]
-    y1 = design_points(get_design("C"))["1"][1]
+    z1 = _pole_z_mm()
     meshes = [meshio.read(paths["pvd"].parent / s.get("file")) for s in sets]
     for k, mm in enumerate(meshes):
-        assert set(mm.point_data) == {"displacement", "stretch"}
-        assert mm.point_data["displacement"].shape == (len(mm.points), 3)
-        assert set(mm.cell_data) == {"element_pressure_Pa", "region", "material"}
+        assert set(mm.point_data) == {"displacement_mm", "max_principal_stretch"}
+        assert mm.point_data["displacement_mm"].shape == (len(mm.points), 3)
+        assert set(mm.cell_data) == {"rubber_mean_stress_Pa", "region", "material"}
         assert mm.cells[0].type == "quad9"
         assert int(mm.field_data["step"][0]) == k
         assert float(mm.field_data["p_Pa"][0]) == pytest.approx(float(rows[k]["p_Pa"]), rel=1e-10, abs=1e-9)
         assert float(mm.field_data["V_m3"][0]) == pytest.approx(float(rows[k]["V_m3"]), rel=1e-10)
-    assert np.all(meshes[0].point_data["displacement"] == 0.0)
-    assert np.allclose(meshes[0].point_data["stretch"], 1.0, atol=1e-12)
+    assert np.all(meshes[0].point_data["displacement_mm"] == 0.0)
+    assert np.allclose(meshes[0].point_data["max_principal_stretch"], 1.0, atol=1e-12)
+    # the frame of the STEP/STL solids: mm, z up, the ground (the ring's bottom) at z = 0, section in y = 0
+    assert meshes[0].points[:, 2].min() == pytest.approx(0.0, abs=1e-9) and np.all(meshes[0].points[:, 1] == 0.0)
+    assert "unit: mm; axis z (up); ground z = 0" in paths["pvd"].read_text()
     codes = [int(mm.field_data["state"][0]) for mm in meshes]
     up, lo = codes.index(3), codes.index(4)
     assert codes.count(3) == codes.count(4) == 1 and rows[up]["state"] == "upper" and rows[lo]["state"] == "lower"
     assert sets[up].get("name") == "upper" and sets[lo].get("name") == "lower"
     assert float(meshes[up].field_data["p_Pa"][0]) == pytest.approx(m["p_star_Pa"], rel=1e-12)
     assert float(meshes[up].field_data["V_m3"][0]) == pytest.approx(m["V_star_m3"], rel=1e-12)
-    pole = _pole_row(meshes[0].points, y1)
-    dy = meshes[up].point_data["displacement"][pole, 1] - meshes[lo].point_data["displacement"][pole, 1]
-    assert dy == pytest.approx(m["dy_pole_m"], rel=1e-12)
-    # the stretch and the element pressure are the state's: the upper state is stretched and stressed
-    assert meshes[up].point_data["stretch"].max() > 1.05
-    assert np.isfinite(meshes[up].cell_data["element_pressure_Pa"][0]).all()
-    assert np.abs(meshes[up].cell_data["element_pressure_Pa"][0]).max() > 1e3
+    pole = _pole_row(meshes[0].points, z1)
+    dy = meshes[up].point_data["displacement_mm"][pole, 2] - meshes[lo].point_data["displacement_mm"][pole, 2]
+    assert dy == pytest.approx(m["dy_pole_m"] * 1e3, rel=1e-12)
+    # the stretch and the mean stress are the state's: the upper state is stretched and stressed
+    assert meshes[up].point_data["max_principal_stretch"].max() > 1.05
+    assert np.isfinite(meshes[up].cell_data["rubber_mean_stress_Pa"][0]).all()
+    assert np.abs(meshes[up].cell_data["rubber_mean_stress_Pa"][0]).max() > 1e3
 
 
 def test_xdmf_read_back(exported):
     paths, m = exported
     rows = _csv(paths["csv"])
-    y1 = design_points(get_design("C"))["1"][1]
+    z1 = _pole_z_mm()
     with meshio.xdmf.TimeSeriesReader(paths["xdmf"]) as r:
         points, cells = r.read_points_cells()
         assert r.num_steps == len(rows)
@@ -101,9 +111,9 @@ def test_xdmf_read_back(exported):
     assert cells[0].type == "quad9"
     assert [t for t, _, _ in data] == [float(k) for k in range(len(rows))]
     for _, pd, cd in data:
-        assert set(pd) == {"displacement", "stretch"} and pd["displacement"].shape == (len(points), 3)
-        assert set(cd) == {"element_pressure_Pa", "region", "material"}
-    assert np.all(data[0][1]["displacement"] == 0.0)
+        assert set(pd) == {"displacement_mm", "max_principal_stretch"} and pd["displacement_mm"].shape == (len(points), 3)
+        assert set(cd) == {"rubber_mean_stress_Pa", "region", "material"}
+    assert np.all(data[0][1]["displacement_mm"] == 0.0)
     # the per-step values are Information elements of each step
     root = ET.parse(paths["xdmf"]).getroot()
     grids = root.find("Domain").find("Grid").findall("Grid")
@@ -112,9 +122,9 @@ def test_xdmf_read_back(exported):
     up, lo = states.index(3), states.index(4)
     assert rows[up]["state"] == "upper" and rows[lo]["state"] == "lower"
     assert float(info[up]["p_Pa"]) == pytest.approx(m["p_star_Pa"], rel=1e-12)
-    pole = _pole_row(np.column_stack([points, np.zeros(len(points))]) if points.shape[1] == 2 else points, y1)
-    dy = data[up][1]["displacement"][pole, 1] - data[lo][1]["displacement"][pole, 1]
-    assert dy == pytest.approx(m["dy_pole_m"], rel=1e-12)
+    pole = _pole_row(points, z1)
+    dy = data[up][1]["displacement_mm"][pole, 2] - data[lo][1]["displacement_mm"][pole, 2]
+    assert dy == pytest.approx(m["dy_pole_m"] * 1e3, rel=1e-12)
 
 
 def test_revolve_writes_the_solid_of_revolution(capsys, tmp_path):
@@ -132,14 +142,15 @@ def test_revolve_writes_the_solid_of_revolution(capsys, tmp_path):
     on_axis = np.abs(sec.points[:, 0]) < 1e-12
     assert len(solid.points) == on_axis.sum() + 8 * (~on_axis).sum()
     # the radius of every point is a section node's, and its displacement is that node's turned by phi
-    r = np.hypot(solid.points[:, 0], solid.points[:, 2])
-    phi = np.arctan2(solid.points[:, 2], solid.points[:, 0])
-    key = {(round(a, 12), round(b, 12)): i for i, (a, b) in enumerate(sec.points[:, :2])}
-    idx = np.array([key[(round(a, 12), round(b, 12))] for a, b in zip(r, solid.points[:, 1])])
-    u = sec.point_data["displacement"][idx]
-    expect = np.column_stack([u[:, 0] * np.cos(phi), u[:, 1], u[:, 0] * np.sin(phi)])
-    assert np.allclose(solid.point_data["displacement"], expect, rtol=0, atol=1e-15)
-    assert np.array_equal(solid.point_data["stretch"], sec.point_data["stretch"][idx])
+    r = np.hypot(solid.points[:, 0], solid.points[:, 1])
+    phi = np.arctan2(solid.points[:, 1], solid.points[:, 0])
+    key = {(round(a, 9), round(b, 9)): i for i, (a, b) in enumerate(sec.points[:, [0, 2]])}
+    idx = np.array([key[(round(a, 9), round(b, 9))] for a, b in zip(r, solid.points[:, 2])])
+    u = sec.point_data["displacement_mm"][idx]
+    assert np.all(u[:, 1] == 0.0)  # the section lies in the plane y = 0
+    expect = np.column_stack([u[:, 0] * np.cos(phi), u[:, 0] * np.sin(phi), u[:, 2]])
+    assert np.allclose(solid.point_data["displacement_mm"], expect, rtol=0, atol=1e-12)
+    assert np.array_equal(solid.point_data["max_principal_stretch"], sec.point_data["max_principal_stretch"][idx])
     # every cell has a positive volume with VTK's orderings (hexahedra: 5 tetrahedra; wedges: 3)
     for block in solid.cells:
         tets = {"hexahedron": [(0, 1, 3, 4), (1, 2, 3, 6), (1, 4, 5, 6), (3, 4, 6, 7), (1, 3, 4, 6)],
@@ -164,6 +175,8 @@ def test_shapes_and_animation(capsys, tmp_path):
 
 @pytest.mark.parametrize("args,needle", [
     (["--shapes", "s.jpg"], "s.jpg"),
+    (["--plot", "c.gif"], "c.gif"),
+    (["--jump", "j.gif"], "j.gif"),
     (["--animation", "a.mp4"], "a.mp4"),
     (["--export", "e.vtu"], "e.vtu"),
     (["--revolve", "8"], "--export"),

@@ -128,3 +128,31 @@ def test_solids_help_names_the_unit(capsys):
     assert main(["--help"]) == 0
     out = capsys.readouterr().out
     assert re.search(r"unit\s+mm", out) and ".step" in out and ".stl" in out
+
+
+def test_volumes_add_up_in_the_headers(capsys, tmp_path):
+    """The STEP and STL headers name each solid's volume so that inner_cap + ring = the inner solid
+    (``snapjump mesh``'s ``V inner solid``, the jump model's m_i) and outer_cap = the outer solid."""
+    m, step = _write(capsys, tmp_path, "D", ".step")
+    _, stl = _write(capsys, tmp_path, "D", ".stl")
+    head = re.sub(r"\s*\n\s*", " ", step.read_text()[:2000])
+    nums = {k: float(v) for k, v in re.findall(r"(inner_cap|ring|inner solid|outer_cap) ([0-9.]+)", head)}
+    assert nums["inner_cap"] + nums["ring"] == pytest.approx(nums["inner solid"], rel=1e-5)
+    assert nums["inner solid"] * 1e-6 == pytest.approx(m["V_inner_solid_m3"], rel=1e-5)
+    assert nums["outer_cap"] * 1e-6 == pytest.approx(m["V_outer_solid_m3"], rel=1e-5)
+    assert "= inner solid" in stl.read_text().splitlines()[0]
+
+
+def test_vtu_overlays_the_solids(capsys, tmp_path):
+    """The mesh's .vtu and the STL share one frame (mm, z up, ground at z = 0): the section's
+    extent in r and z is the solids'."""
+    meshio = pytest.importorskip("meshio")
+    _, stl = _write(capsys, tmp_path, "D", ".stl")
+    assert main([*SCENES["D"][0], "--out", str(tmp_path / "c.vtu")]) == 0
+    capsys.readouterr()
+    P = meshio.read(tmp_path / "c.vtu").points
+    T = np.concatenate(list(_stl_solids(stl).values())).reshape(-1, 3)
+    assert np.all(P[:, 1] == 0.0)
+    assert P[:, 2].min() == pytest.approx(0.0, abs=1e-9) == T[:, 2].min()
+    assert P[:, 2].max() == pytest.approx(T[:, 2].max(), abs=0.05)
+    assert P[:, 0].max() == pytest.approx(np.hypot(T[:, 0], T[:, 1]).max(), abs=0.05)

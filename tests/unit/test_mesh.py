@@ -495,7 +495,14 @@ def test_write_mesh(tmp_path, suffix, order):
     path = write_mesh(m, tmp_path / f"c{suffix}")
     assert path.exists() and [p.name for p in tmp_path.iterdir()] == [f"c{suffix}"]
     back = meshio.read(path)
-    np.testing.assert_allclose(back.points[:, :2], m.nodes, rtol=1e-15, atol=0)
+    if suffix == ".vtu":  # the frame of every 3D file: mm, z up, the ground (ring bottom) at z = 0, y = 0
+        from snapjump_cli.mesh.io import ground_level
+
+        expect = np.column_stack([m.nodes[:, 0], np.zeros(len(m.nodes)), m.nodes[:, 1] - ground_level(m)]) * 1e3
+        np.testing.assert_allclose(back.points, expect, rtol=1e-15, atol=1e-12)
+        assert back.points[:, 2].min() == 0.0
+    else:
+        np.testing.assert_allclose(back.points[:, :2], m.nodes, rtol=1e-15, atol=0)
     cell = "quad" if order == 1 else "quad9"
     conn = np.concatenate([c.data for c in back.cells if c.type == cell])
     assert conn.shape == m.elements.shape

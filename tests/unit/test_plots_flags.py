@@ -101,11 +101,16 @@ def test_the_followed_lines_run_from_the_axisymmetric_answer_to_the_followed_one
         return path
 
     monkeypatch.setattr(plots, "_save", save)
-    plots.plot_fig4a(d, tmp_path / "f.png")
-    (segs,) = seen["segs"]
     rows = d[fol & (np.arange(len(d)) != 6)]
-    assert len(segs) == len(rows)
     R, mu = 0.03, 0.35e6
+    plots.plot_fig4a(d, tmp_path / "f.png", normalised=True)  # the paper's axes
+    (segs,) = seen["segs"]
+    assert len(segs) == len(rows)
     for s, (_, r) in zip(segs, rows.iterrows()):
         np.testing.assert_allclose(s[0], [r["axisym_dy_pole_m"] / R, r["axisym_dE_J"] / (mu * R**3)], rtol=1e-12)
         np.testing.assert_allclose(s[1], [r["dy_pole_m"] / R, r["dE_J"] / (mu * R**3)], rtol=1e-12)
+    plots.plot_fig4a(d, tmp_path / "f.png")  # the default: mm and mJ
+    (segs,) = seen["segs"]
+    for s, (_, r) in zip(segs, rows.iterrows()):
+        np.testing.assert_allclose(s[0], [r["axisym_dy_pole_m"] * 1e3, r["axisym_dE_J"] * 1e3], rtol=1e-12)
+        np.testing.assert_allclose(s[1], [r["dy_pole_m"] * 1e3, r["dE_J"] * 1e3], rtol=1e-12)

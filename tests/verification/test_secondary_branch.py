@@ -215,7 +215,8 @@ def test_the_plot_draws_both_branches_and_the_secondary_point(jumped, located, t
     save = figures._save
 
     def keep_legend(fig, path, dpi):  # the legend's entries of each figure as it is saved
-        seen.append([t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()])
+        legends = [*fig.legends, *(ax.get_legend() for ax in fig.axes if ax.get_legend())]  # the figure's or an axes'
+        seen.append([t.get_text() for lg in legends for t in lg.get_texts()])
         return save(fig, path, dpi)
 
     monkeypatch.setattr(figures, "_save", keep_legend)
