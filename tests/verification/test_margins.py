@@ -94,3 +94,46 @@ def test_a_free_actuators_rotation_about_its_axis_is_not_its_n0_margin():
     others = w[cos < 0.99]
     lam = smallest_eigenvalue(op, pt.u, pt.p)
     assert lam == pytest.approx(others[0], rel=1e-6) and lam > 1e-3 * float(np.min(res.model.mu))
+
+
+def test_the_n1_margin_projects_the_rigid_modes_out_and_no_gauge_moves_it():
+    """A free actuator's n = 1 margin is the smallest eigenvalue of K_1 on the M-orthogonal
+    complement of its rigid translation and tilt (dense reference). The gauged pencil of the check
+    has the same inertia but lower eigenvalues, and they depend on where the gauge is: a
+    deformation that moves a gauge point drags a rigid motion along (docs/harmonics.md section 11)."""
+    from snapjump_cli.fe.stability.eigen import eig_near
+    from snapjump_cli.fe.stability.harmonics import pivot_columns
+    from snapjump_cli.geometry.designs import get_design
+
+    res = solve_scene(get_design("C"), MeshSettings(nt=1, aspect=4.0), SolverSettings())
+    pt = res.path.points[res.states.k_before // 2]
+    op = harmonic_operator(res.model, 1)
+    K = op.matrix(pt.u, pt.p).toarray()
+    M = op.mass().toarray()
+    R = op.rigid_dof_modes(pt.u)
+    assert R.shape[0] == 2  # a free body: translation and tilt
+    np.testing.assert_allclose(K @ R.T, 0.0, atol=1e-9 * np.abs(K).max())  # null vectors at an equilibrium
+    Z = sl.null_space((M @ R.T).T)
+    projected = sl.eigh(Z.T @ K @ Z, Z.T @ M @ Z, eigvals_only=True)
+
+    def gauged(dofs):
+        assert abs(np.linalg.det(R[:, dofs])) > 1e-6  # they do fix both modes
+        keep = np.setdiff1d(np.arange(op.ndof), dofs)
+        return sl.eigh(K[np.ix_(keep, keep)], M[np.ix_(keep, keep)], eigvals_only=True)
+
+    first = op.gauge_dofs(pt.u)
+    others = R.copy()
+    others[:, first] = 0.0
+    other = pivot_columns(others)  # the same rule on the other dofs: next to the top pole
+    a, b = gauged(first), gauged(other)
+    assert not np.allclose(a[0], b[0], rtol=0.2)  # the gauged eigenvalue depends on the gauge (2x here)
+    assert a[0] < projected[0] and b[0] < projected[0]
+    lam = smallest_eigenvalue(op, pt.u, pt.p)
+    assert lam == pytest.approx(projected[0], rel=1e-6)
+    assert smallest_eigenvalue(op, pt.u, pt.p, project=False) == pytest.approx(a[0], rel=1e-6)
+
+    mu = float(np.min(res.model.mu))
+    val, A = eig_near(op, pt.u, pt.p, -2.0 * mu, mode=True, project=True)
+    x = op.to_vector(A)
+    assert val == pytest.approx(projected[0], rel=1e-6)
+    np.testing.assert_allclose(R @ (M @ x), 0.0, atol=1e-9 * np.sqrt(x @ M @ x))  # a deformation, no rigid part

@@ -2,8 +2,9 @@
 
 * of a harmonic's pencil ``(K_n, M_n)`` (:class:`~snapjump_cli.fe.stability.harmonics.HarmonicOperator`,
   rigid modes gauged out): :func:`harmonic_inertia` (the count of unstable modes),
-  :func:`eig_near` (the eigenvalues nearest a shift, shift-invert Lanczos),
-  :func:`smallest_eigenvalue` (certified by the inertia: the margins),
+  :func:`eig_near` (the eigenvalues nearest a shift, shift-invert Lanczos; with ``project``, the
+  rigid modes of ``n = 1`` projected out instead, ``M``-orthogonally),
+  :func:`smallest_eigenvalue` (certified by the inertia: the margins, rigid modes projected out),
   :func:`lowest_eigen` (with its mode: the bifurcations of the axisymmetric path), and
   :func:`axis_rotation` (the rigid rotation about the axis that ``n = 0`` leaves out);
 * of a sparse symmetric block (the harmonics outside a followed branch, whose model is any object
@@ -26,8 +27,8 @@ from snapjump_kernels.calls import band_ldlt, envelope_extents
 
 log = logging.getLogger(__name__)
 
-__all__ = ["harmonic_inertia", "axis_rotation", "ROTATION_COS", "eig_near", "smallest_eigenvalue", "lowest_eigen",
-           "extra_eigen", "lowest_eigen_below", "negative_eigenvalues"]
+__all__ = ["harmonic_inertia", "axis_rotation", "ROTATION_COS", "ZERO_PIVOT", "eig_near", "smallest_eigenvalue",
+           "lowest_eigen", "extra_eigen", "lowest_eigen_below", "negative_eigenvalues"]
 
 
 def harmonic_inertia(model, u: np.ndarray, p: float, n: int, tol: float = ZERO_TOL,
@@ -61,14 +62,25 @@ def axis_rotation(op: HarmonicOperator, u: np.ndarray) -> np.ndarray | None:
 #: An eigenvector whose M-cosine with the rigid rotation exceeds this is that rotation.
 ROTATION_COS = 0.99
 
+#: The certificate of a projected margin counts eigenvalues below ``s = lambda - delta``; for
+#: ``|s|`` below this (times ``mu_min``) the rigid modes' zero eigenvalues of ``K_1 - s M_1`` are
+#: at round-off (a converged state leaves them at ~1e-10), and ``-ZERO_PIVOT mu_min`` is used.
+ZERO_PIVOT = 1e-7
 
-def eig_near(op: HarmonicOperator, u: np.ndarray, p: float, sigma: float, mode: bool = False):
+
+def eig_near(op: HarmonicOperator, u: np.ndarray, p: float, sigma: float, mode: bool = False,
+             project: bool = False):
     """The smallest of the two eigenvalues of ``(K_n, M_n)`` nearest ``sigma`` (rigid modes gauged
-    out, the rotation about the axis of ``n = 0`` left out: :func:`axis_rotation`; scaled units),
-    with (``mode``) its eigenvector as nodal amplitudes ``(nn, 3)``, largest entry 1; ``None``
-    outside the Gent domain."""
+    out, or with ``project`` projected out: :func:`_eig_near_projected`; the rotation about the
+    axis of ``n = 0`` left out: :func:`axis_rotation`; scaled units), with (``mode``) its
+    eigenvector as nodal amplitudes ``(nn, 3)``, largest entry 1; ``None`` outside the Gent
+    domain."""
     import scipy.sparse.linalg as spla
 
+    if project:
+        rigid = op.rigid_dof_modes(u)
+        if rigid.shape[0]:
+            return _eig_near_projected(op, u, p, sigma, rigid, mode)
     K = op.matrix(u, p)
     if K is None:
         return None
@@ -96,19 +108,60 @@ def eig_near(op: HarmonicOperator, u: np.ndarray, p: float, sigma: float, mode: 
     return float(vals[i]), A / A.ravel()[np.argmax(np.abs(A))]
 
 
+def _eig_near_projected(op: HarmonicOperator, u: np.ndarray, p: float, sigma: float, rigid: np.ndarray,
+                        mode: bool):
+    """:func:`eig_near` on the ``M``-orthogonal complement of the rigid modes ``rigid`` (``(k, ndof)``
+    dof vectors): shift-invert Lanczos whose inverse is the bordered solve
+    ``[[K - sigma M, M R], [R^T M, 0]]``, so that every Lanczos vector satisfies ``R^T M x = 0``."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    K = op.matrix(u, p)
+    if K is None:
+        return None
+    M = op.mass()
+    n, k = op.ndof, rigid.shape[0]
+    C = sp.csr_matrix(M @ rigid.T)
+    lu = spla.splu(sp.bmat([[K - sigma * M, C], [C.T, None]], format="csc"))
+    inv = spla.LinearOperator((n, n), matvec=lambda x: lu.solve(np.concatenate([np.ravel(x), np.zeros(k)]))[:n],
+                              dtype=float)
+    v0 = np.random.default_rng(0).standard_normal(n)  # fixed, as in eig_near
+    vals, vecs = spla.eigsh(K, k=2, M=M, sigma=sigma, which="LM", v0=v0, OPinv=inv)
+    i = int(np.argmin(vals))
+    if not mode:
+        return float(vals[i])
+    A = op.to_nodal(vecs[:, i])
+    return float(vals[i]), A / A.ravel()[np.argmax(np.abs(A))]
+
+
 def smallest_eigenvalue(op: HarmonicOperator, u: np.ndarray, p: float, shift: float = 2.0,
-                        rel: float = 1e-6) -> float | None:
+                        rel: float = 1e-6, project: bool = True) -> float | None:
     """The smallest eigenvalue of ``(K_n, M_n)`` at ``(u, p)`` (scaled units: ``mu_i / R_i^2``),
-    certified by the inertia; ``None`` outside the Gent domain."""
+    certified by the inertia; ``None`` outside the Gent domain.
+
+    ``project`` (default): the rigid modes of ``n = 1`` are removed by ``M``-orthogonal projection
+    (:func:`eig_near`); the certificate is then the inertia of the whole pencil, whose spectrum is
+    the projected one and the rigid modes' zeros (``K_1 R = 0`` at an equilibrium, so the
+    ``M``-orthogonal complement of ``R`` is invariant). ``project=False``: the gauged pencil of the
+    harmonic check (its eigenvalues depend on where the gauge is)."""
     mu = float(np.min(op.model.mu))
     sigma = -shift * mu
+    n_rigid = op.rigid_dof_modes(u).shape[0] if project else 0
     for _ in range(6):
         check_time()  # the design's CPU-time limit: the eigen-solves call no model evaluation that checks it
-        lam = eig_near(op, u, p, sigma)
+        lam = eig_near(op, u, p, sigma, project=project)
         if lam is None:
             return None
         delta = rel * max(abs(lam), mu)
-        below = op.inertia(u, p, tol=(delta - lam) / mu)  # eigenvalues below lam - delta
+        if n_rigid:
+            s = lam - delta
+            if abs(s) < ZERO_PIVOT * mu:  # the rigid zeros' pivots would have a round-off sign
+                s = -ZERO_PIVOT * mu
+            below = op.inertia(u, p, tol=-s / mu, gauge=False)  # eigenvalues below s
+            if s > 0.0:
+                below -= n_rigid  # the rigid modes' zero eigenvalues
+        else:
+            below = op.inertia(u, p, tol=(delta - lam) / mu)  # eigenvalues below lam - delta
         if lam - delta > 0.0 and axis_rotation(op, u) is not None:
             below -= 1  # the rigid rotation's zero eigenvalue
         if below == 0:

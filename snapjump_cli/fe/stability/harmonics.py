@@ -336,13 +336,24 @@ class HarmonicOperator:
     def gauge_dofs(self, u: np.ndarray) -> np.ndarray:
         """Dofs fixed to remove the admissible rigid modes (harmonic 1 only; empty otherwise).
 
-        The rigid modes (:func:`rigid_modes`, each scaled to a largest entry of 1) are combined
-        into those that vanish on every fixed amplitude (the null space of their values there);
-        one dof per combination is fixed, the pivot columns of the combinations
-        (:func:`pivot_columns`). Where the modes are, and what the dofs are, is set up once.
+        One dof per admissible rigid mode (:meth:`rigid_dof_modes`) is fixed: the pivot columns
+        of the modes (:func:`pivot_columns`). Where the modes are, and what the dofs are, is set up
+        once.
+        """
+        A = self.rigid_dof_modes(u)
+        if A.shape[0] == 0:
+            return np.zeros(0, np.int64)
+        return np.sort(pivot_columns(A))
+
+    def rigid_dof_modes(self, u: np.ndarray) -> np.ndarray:
+        """The admissible rigid modes at ``u`` as dof vectors ``(k, ndof)`` (``k = 0`` unless
+        ``n == 1``): the rigid modes (:func:`rigid_modes`, each scaled to a largest entry of 1)
+        combined into those that vanish on every fixed amplitude (the null space of their values
+        there). At an equilibrium they are null vectors of ``K_1``: :meth:`gauge_dofs` fixes one
+        dof for each, :func:`snapjump_cli.fe.stability.eigen.smallest_eigenvalue` projects them out.
         """
         if self.n != 1:
-            return np.zeros(0, np.int64)
+            return np.zeros((0, self.ndof))
         g = self._gauge_setup()
         x = self.model.positions(u)
         r, z = x[:, 0], x[:, 1]
@@ -363,12 +374,8 @@ class HarmonicOperator:
             null = None
         modes = np.stack([g.trans_vec, tilt[g.dof_flat]])  # (2, ndof): the modes as dof vectors
         if null is None:
-            A = modes
-        elif null.shape[1] == 0:
-            return np.zeros(0, np.int64)
-        else:
-            A = null.T @ modes
-        return np.sort(pivot_columns(A))
+            return modes
+        return null.T @ modes  # (0, ndof) when no combination is admissible
 
     def _gauge_setup(self) -> "_GaugeSetup":
         """Where the rigid modes of harmonic 1 live: the translation's entries on the fixed
@@ -414,10 +421,12 @@ class HarmonicOperator:
             c = self._shared[key] = (tol, (tol * float(np.min(self.model.mu))) * self.mass_band())
         return c[1]
 
-    def inertia(self, u: np.ndarray, p: float, tol: float = ZERO_TOL, parts: StateParts | None = None) -> int:
+    def inertia(self, u: np.ndarray, p: float, tol: float = ZERO_TOL, parts: StateParts | None = None,
+                gauge: bool = True) -> int:
         """Number of eigenvalues of the pencil ``(K_n, M_n)`` below ``-tol * mu_min`` (scaled
         units) after removing the admissible rigid modes (:meth:`gauge_dofs`); -1 outside the
-        Gent domain. ``parts``: :meth:`parts` at ``u`` when already computed.
+        Gent domain. ``parts``: :meth:`parts` at ``u`` when already computed. ``gauge=False``:
+        of the whole pencil, the rigid modes' zero eigenvalues included (the margins' certificate).
 
         One band ``LDL^T`` of ``K_n + tol mu_min M_n`` (:func:`snapjump_kernels.banded.band_ldlt`;
         Sylvester's law of inertia); should it meet a zero pivot, the eigenvalues of the dense
@@ -428,14 +437,14 @@ class HarmonicOperator:
             return -1
         if (parts.wc, parts.ws) != (self.wc, self.ws):
             raise ValueError(f"harmonic {self.n}: the parts were computed for other phi-averages")
-        ab = self._gauged(u, p, tol, parts)
+        ab = self._gauged(u, p, tol, parts, gauge)
         ok, nneg = band_ldlt(ab, self.layout.ext)  # in place
         if ok:
             return int(nneg)
         log.warning("harmonic %d: zero pivot in the band LDL^T; using dense eigenvalues", self.n)
         import scipy.linalg as sl
 
-        ab = self._gauged(u, p, tol, parts)
+        ab = self._gauged(u, p, tol, parts, gauge)
         n, kl = ab.shape[0], self.layout.kl
         Kd = np.zeros((n, n))
         for k in range(kl + 1):
@@ -444,10 +453,10 @@ class HarmonicOperator:
             Kd[i, i + k] = ab[i, k]
         return int(np.sum(sl.eigvalsh(Kd) < 0.0))
 
-    def _gauged(self, u: np.ndarray, p: float, tol: float, parts: StateParts) -> np.ndarray:
-        """The band of ``K_n + tol mu_min M_n`` with the gauge dofs' rows and columns replaced by
-        a unit pivot (times the largest diagonal entry)."""
-        return self._band(parts, p, self._shift_band(tol), self.gauge_dofs(u))
+    def _gauged(self, u: np.ndarray, p: float, tol: float, parts: StateParts, gauge: bool = True) -> np.ndarray:
+        """The band of ``K_n + tol mu_min M_n`` with (``gauge``) the gauge dofs' rows and columns
+        replaced by a unit pivot (times the largest diagonal entry)."""
+        return self._band(parts, p, self._shift_band(tol), self.gauge_dofs(u) if gauge else np.zeros(0, np.int64))
 
 
 @dataclass

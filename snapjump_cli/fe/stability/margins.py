@@ -1,8 +1,12 @@
 """How far each harmonic is from losing stability along a path: the margins (docs/harmonics.md, section 11).
 
 The harmonic check (:mod:`snapjump_cli.fe.stability.harmonics`) gives a sign per harmonic and state. The
-margin is the number behind it: the smallest eigenvalue of the pencil ``(K_n, M_n)`` (rigid modes
-gauged out), ``n = 0..n_max``, in units of ``mu_i / R_i^2``: an energy per mean-square
+margin is the number behind it: the smallest eigenvalue of the pencil ``(K_n, M_n)`` (the rigid
+modes of ``n = 1`` projected out: the eigenvalues of ``K_1`` on the ``M``-orthogonal complement of
+the translation and tilt; the check's gauge, which fixes one amplitude per rigid mode, leaves the
+inertia as it is but not the eigenvalues: a deformation that moves a gauge point drags a rigid
+motion along, whose mass lowers the quotient, ten to thirty times for the actuators),
+``n = 0..n_max``, in units of ``mu_i / R_i^2``: an energy per mean-square
 displacement of the 3D perturbation, independent of the mesh and of the bulk penalty, so another
 code can compute the same number (the generalised eigenvalue against the displacement mass
 matrix). For ``n = 0`` it is that of the axisymmetric tangent itself (no volume constraint: it turns
