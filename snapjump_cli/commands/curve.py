@@ -65,6 +65,8 @@ __all__ = ["command", "main", "to_jsonable", "jump_keys", "JUMP_KEYS"]
 log = logging.getLogger(__name__)
 
 _SOLVER_DEFAULTS = SolverSettings()
+#: The most sectors of a revolved export (--revolve): 0.5 degree; the export's size grows with it.
+REVOLVE_MAX = 720
 
 
 def to_jsonable(metrics: dict) -> dict:
@@ -371,8 +373,8 @@ def _text(scene, m: dict) -> str:
                    "FILE.xdmf) in mm, z up, ground at z = 0 (the frame of the STEP/STL solids): displacement_mm, "
                    "max_principal_stretch, rubber_mean_stress_Pa; each step's p, V and state. A followed solve: "
                    "the states the actuator takes, in 3D.")
-@click.option("--revolve", type=click.IntRange(min=0), default=0, show_default=True, metavar="N",
-              help="With --export: the solid of revolution in N sectors (N >= 3) instead of the section "
+@click.option("--revolve", type=click.IntRange(min=0, max=REVOLVE_MAX), default=0, show_default=True, metavar="N",
+              help="With --export: the solid of revolution in N sectors (3 <= N <= 720) instead of the section "
                    "(a followed solve's states are always revolved: 48 sectors unless N is given).")
 @click.option("--jump", "jump_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Draw the jump of the mass-spring model (both masses' heights against time, lift-off and "

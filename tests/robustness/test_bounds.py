@@ -57,6 +57,13 @@ def test_jobs_beyond_the_machine_are_refused(grid_file, tmp_path, capsys, jobs):
     assert code == 2 and "grid.yaml: n_jobs: expected 1 to" in err
 
 
+def test_revolve_beyond_its_bound_is_refused_before_the_solve(tmp_path, capsys):
+    out = tmp_path / "x.pvd"
+    code, _, err = run_cli(capsys, "curve", "--design", "D", "--export", str(out), "--revolve", "1000000000")
+    assert code == 2 and "--revolve" in err and "720" in err
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
 def test_an_optimize_budget_beyond_the_limit_is_refused(tmp_path, capsys):
     code, _, err = run_cli(capsys, "optimize", str(tmp_path / "none.yaml"), "--budget", "1000001")
     assert code == 2 and "1000001" in err and "100000" in err
