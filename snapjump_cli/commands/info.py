@@ -57,6 +57,8 @@ def summarise(path: Path) -> dict:
     try:
         df = res.read_results(path)
         meta = res.read_metadata(path)
+    except res.ResultsFileError as e:  # the one reader's message: file, column or value, what to do
+        raise BadInput(str(e)) from None
     except (pa.ArrowException, OSError) as e:
         raise BadInput(f"{path}: not a readable parquet file ({str(e).splitlines()[0]})") from None
     if "status" not in df.columns:

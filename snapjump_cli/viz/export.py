@@ -242,7 +242,6 @@ def export_steps(res, steps, path: str | Path, revolve: int = 0, stage=None) -> 
     """
     import meshio  # noqa: F401  (a regular dependency; imported here to keep start-up light)
 
-    from snapjump_cli.files import AtomicFiles
     from snapjump_cli.viz.states import step_fields
 
     path = Path(path)
@@ -252,15 +251,23 @@ def export_steps(res, steps, path: str | Path, revolve: int = 0, stage=None) -> 
     mesh = res.model.mesh
     geom = revolve_section(_frame_section(mesh), mesh.elements, mesh.order, revolve) if revolve else _section(mesh)
     data = [_step_data(geom, steps.U[k], step_fields(res, steps, k), mesh) for k in range(len(steps))]
+    return _write_series(path, geom, steps, data, None, stage)
+
+
+def _write_series(path: Path, geom: _Geometry, steps, data: list, scalars, stage) -> list[Path]:
+    """The ``.pvd`` (with its step folder) or ``.xdmf`` of ``steps`` staged in ``stage`` (default:
+    one of its own, committed here, or discarded if the write fails); the paths written."""
+    from snapjump_cli.files import AtomicFiles
+
     own = stage is None
     stage = stage or AtomicFiles()
     try:
-        if suffix == ".pvd":
+        if path.suffix.lower() == ".pvd":
             folder = steps_folder(path)
-            _write_pvd(stage.file(path), stage.folder(folder), folder.name, geom, steps, data)
+            _write_pvd(stage.file(path), stage.folder(folder), folder.name, geom, steps, data, scalars)
             out = [path, folder]
         else:
-            _write_xdmf(stage.file(path), geom, steps, data)
+            _write_xdmf(stage.file(path), geom, steps, data, scalars)
             out = [path]
         if own:
             stage.commit()
@@ -380,8 +387,6 @@ def export_actuator(res, act, path: str | Path, sectors: int = FOLLOWED_SECTORS,
     not carried along the branch)."""
     import meshio  # noqa: F401
 
-    from snapjump_cli.files import AtomicFiles
-
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in EXPORT_SUFFIXES:
@@ -389,20 +394,4 @@ def export_actuator(res, act, path: str | Path, sectors: int = FOLLOWED_SECTORS,
     mesh = res.model.mesh
     geom = revolve_section(_frame_section(mesh), mesh.elements, mesh.order, sectors)
     data = [_actuator_data(geom, act, k, mesh) for k in range(len(act))]
-    own = stage is None
-    stage = stage or AtomicFiles()
-    try:
-        if suffix == ".pvd":
-            folder = steps_folder(path)
-            _write_pvd(stage.file(path), stage.folder(folder), folder.name, geom, act, data, _actuator_scalars)
-            out = [path, folder]
-        else:
-            _write_xdmf(stage.file(path), geom, act, data, _actuator_scalars)
-            out = [path]
-        if own:
-            stage.commit()
-    except BaseException:
-        if own:
-            stage.discard()
-        raise
-    return out
+    return _write_series(path, geom, act, data, _actuator_scalars, stage)
