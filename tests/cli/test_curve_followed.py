@@ -22,8 +22,10 @@ def followed_b(tmp_path_factory):
     from snapjump_cli.cli import cli
 
     d = tmp_path_factory.mktemp("followed")
-    files = {"plot": d / "b.svg", "shapes": d / "s.png", "animation": d / "b.gif", "export": d / "b.pvd",
-             "csv": d / "b.csv", "jump": d / "j.png"}
+    # (the animation along the actuator's path: test_curve_viz and the made-up paths below; a GIF of
+    # B's followed path would add ~25 s to the suite)
+    files = {"plot": d / "b.svg", "shapes": d / "s.png", "export": d / "b.pvd", "csv": d / "b.csv",
+             "jump": d / "j.png"}
     args = ["curve", "--design", "B", "--harmonics", "4", "--follow", "--format", "json", "--revolve", "12"]
     for k, p in files.items():
         args += [f"--{k}", str(p)]
@@ -101,13 +103,9 @@ def test_export_is_the_actuators_path_in_3d(followed_b):
     assert meshes[0].points[:, 2].min() == pytest.approx(0.0, abs=1e-9)
 
 
-def test_shapes_animation_jump(followed_b):
-    from PIL import Image
-
+def test_shapes_and_jump(followed_b):
     _, f = followed_b
     assert f["shapes"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    with Image.open(f["animation"]) as im:
-        assert im.n_frames > 20
     assert f["jump"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
