@@ -1,6 +1,7 @@
 """Per-design CPU profile of a followed branch (issue 36: where the followed designs' time goes).
 
-    .venv/bin/python -m bench.profile.follow [SCENE ...] [--N N] [--cprofile [K]] [--json PATH]
+    .venv/bin/python -m bench.profile.follow [SCENE ...] [--N N] [--mode actuator|full] [--cprofile [K]]
+                                             [--landing] [--json PATH]
     .venv/bin/python -m bench.profile.follow --sample bench/harmonics_sample/follow_strata.yaml \\
         --rows 0 1 2 [--cprofile]
 
@@ -17,12 +18,19 @@ For each design, in this process, process CPU time (``time.process_time``; one B
 2. a short followed trace (3 steps) to compile the multi-harmonic kernels (JIT) outside the timing;
 3. the followed answer exactly as a followed sweep computes it (``followed_metrics``: the
    bifurcation located, the branch traced, for ``n_c >= 2`` the secondary check and the branch
-   that leaves it, the lower state), with its steps and assemblies and the ratio to the warm
-   axisymmetric solve and check, within the solver's ``time_limit_s`` as in a sweep;
+   that leaves it, the lower state; ``--mode``: ``solver.follow_mode``), with its steps and
+   assemblies, every branch traced (its points and how many of them come before its upper state:
+   the states the actuator passes through; how its lower state was found) and the ratio to the
+   warm axisymmetric solve and check, within the solver's ``time_limit_s`` as in a sweep;
 4. with ``--cprofile [K]``, the followed answer once more under :mod:`cProfile` (CPU clock): the
    cumulative time of the stages named in :data:`STAGES` that ran, then the ``K`` (default 15)
    functions with the most exclusive time (a numba kernel's time is counted in the Python
    function that calls it). cProfile slows the Python parts; read the shares, not the totals.
+
+5. with ``--landing``, the experiment of stopping the branch at its upper state and searching the
+   state the actuator lands on at fixed volume from there (the fixed-volume path, then the energy
+   descent: ``find_lower_state``), against the answer of step 3: CPU, how it was found, and the
+   energy of the two lower states.
 
 Prints one markdown table row per design (and the breakdowns); ``--json`` writes the numbers.
 """
@@ -31,12 +39,19 @@ from __future__ import annotations
 import argparse
 import cProfile
 import dataclasses
-import importlib
 import json
 import pstats
 import time
 from pathlib import Path
 from typing import Any
+
+from snapjump_cli.fe.axisym.lower_state import find_lower_state
+from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
+from snapjump_cli.fe.branch.followed import followed_metrics
+from snapjump_cli.fe.branch.trace import follow_branch
+from snapjump_cli.fe.limits import TimeLimitExceeded, time_limit
+from snapjump_cli.fe.solve import solve_scene
+from snapjump_cli.fe.stability.harmonics import check_harmonics
 
 #: caps of the paper's Fig. S16 and a clamped cap that goes asymmetric (``CapScene`` arguments)
 CAPS = {
@@ -45,46 +60,10 @@ CAPS = {
     "clamped-30-50": dict(theta_deg=30.0, eta=50.0, bc="clamped"),
 }
 
-#: the stages whose cumulative time ``--cprofile`` reports, by function name (whichever module
-#: holds them)
+#: the stages whose cumulative time ``--cprofile`` reports, by function name
 STAGES = ("locate_bifurcation", "follow_branch", "trace_branch", "follow_secondary", "branch_stability",
-          "locate_secondary", "jump_off_branch", "find_lower_state", "descend_at_volume", "linearize",
-          "residual", "energy", "lowest_eigen", "extra_eigen")
-
-#: where the library's names live (the first module that has the name wins): the followed branch's
-#: entry points moved with the ``fe/`` split by stage; the old paths are kept as fallbacks
-_WHERE = {
-    "solve_scene": ("snapjump_cli.fe.solve",),
-    "time_limit": ("snapjump_cli.fe.limits", "snapjump_cli.fe.continuation.limits"),
-    "TimeLimitExceeded": ("snapjump_cli.fe.limits", "snapjump_cli.fe.continuation.limits"),
-    "check_harmonics": ("snapjump_cli.fe.stability.harmonics", "snapjump_cli.fe.stability.check",
-                        "snapjump_cli.fe.harmonics"),
-    "followed_metrics": ("snapjump_cli.fe.branch.followed", "snapjump_cli.fe.branch.follow",
-                         "snapjump_cli.fe.branch.trace", "snapjump_cli.fe.branch", "snapjump_cli.fe.follow"),
-    "locate_bifurcation": ("snapjump_cli.fe.branch.bifurcation", "snapjump_cli.fe.branch", "snapjump_cli.fe.follow"),
-    "follow_branch": ("snapjump_cli.fe.branch.trace", "snapjump_cli.fe.branch.follow", "snapjump_cli.fe.branch",
-                      "snapjump_cli.fe.follow"),
-    "default_harmonics": ("snapjump_cli.fe.branch.bifurcation", "snapjump_cli.fe.branch.trace",
-                          "snapjump_cli.fe.branch.model", "snapjump_cli.fe.branch", "snapjump_cli.fe.follow"),
-}
-
-
-def api() -> dict[str, Any]:
-    """The library functions this profile calls, looked up in :data:`_WHERE`; raises
-    ``ImportError`` naming the one not found (the test suite checks that all resolve)."""
-    out = {}
-    for name, modules in _WHERE.items():
-        for mod in modules:
-            try:
-                m = importlib.import_module(mod)
-            except ImportError:
-                continue
-            if hasattr(m, name):
-                out[name] = getattr(m, name)
-                break
-        else:
-            raise ImportError(f"{name} not found in any of {', '.join(modules)}")
-    return out
+          "locate_secondary", "jump_off_branch", "find_lower_state", "snap_at_fixed_volume", "descend_at_volume",
+          "linearize", "residual", "energy", "lowest_eigen", "extra_eigen")
 
 
 def scenes(names: list[str], sample: Path | None, rows: list[int]) -> list[tuple[str, Any, Any, Any]]:
@@ -107,56 +86,72 @@ def scenes(names: list[str], sample: Path | None, rows: list[int]) -> list[tuple
     return out
 
 
-def _value(check: Any, key: str) -> Any:
-    """A value of the harmonic check's answer (a dict, or a typed result with attributes)."""
-    return check.get(key) if isinstance(check, dict) else getattr(check, key, None)
+def branches(fr) -> list[dict[str, Any]]:
+    """Every branch traced for an answer, the one whose snap it is first: its points, how many come
+    before its upper state (the states the actuator passes through), dofs, how its lower state was
+    found."""
+    out = []
+    while fr is not None:
+        st = fr.states
+        out.append({"kind": fr.kind, "points": len(fr.path.points),
+                    "before_upper": st.k_before if st is not None else None, "dofs": int(fr.model.n),
+                    "harmonics": [int(h) for h in fr.model.hn], "lower": fr.lower_method,
+                    "lower_note": fr.lower_note})
+        fr = fr.parent
+    return out
 
 
-def _followed(fns: dict[str, Any], res, chk, N: int) -> tuple[dict, Any]:
-    """``followed_metrics``' answer as ``(values, branch)``, whether it returns that pair or a
-    typed answer with ``values`` and ``branch``."""
-    ans = fns["followed_metrics"](res, chk, N=N or None)
-    if isinstance(ans, tuple):
-        return ans
-    return ans.values, ans.branch
-
-
-def profile_one(label: str, scene, mesh, solver, fns: dict[str, Any], N: int, top: int | None) -> dict[str, Any]:
-    """Profile one design (steps 1-4 of the module's docstring); returns the numbers."""
+def landing(res, n: int, N: int, fr) -> dict[str, Any]:
+    """The ``--landing`` experiment: the branch stopped at its upper state and the lower state
+    searched at fixed volume from there, against the answer's branch ``fr``."""
     t0 = time.process_time()
-    res = fns["solve_scene"](scene, mesh, solver)
-    chk = fns["check_harmonics"](res, solver.harmonics)
+    head = follow_branch(res, locate_bifurcation(res, n), default_harmonics(n, N or None), stop_at_upper=True)
+    low = find_lower_state(head.tracer, head.states, head.path.points, "upper state located")
+    out = {"cpu_s": time.process_time() - t0, "points": len(head.path.points), "solver": low.solver,
+           "message": low.message}
+    if low.state is not None and fr is not None and fr.states.lower is not None:
+        mh = fr.model
+        out["lower_energy_rel_diff"] = abs(mh.energy(low.state.u) - mh.energy(fr.states.lower.u)) / abs(
+            mh.energy(fr.states.upper.u) - mh.energy(fr.states.lower.u))
+    return out
+
+
+def profile_one(label: str, scene, mesh, solver, N: int, mode: str, top: int | None, with_landing: bool) -> dict:
+    """Profile one design (steps 1-5 of the module's docstring); returns the numbers."""
+    t0 = time.process_time()
+    res = solve_scene(scene, mesh, solver)
+    chk = check_harmonics(res, solver.harmonics)
     t_first = time.process_time() - t0
     t0 = time.process_time()
-    res = fns["solve_scene"](scene, mesh, solver)
-    chk = fns["check_harmonics"](res, solver.harmonics)
+    res = solve_scene(scene, mesh, solver)
+    chk = check_harmonics(res, solver.harmonics)
     t_axi = time.process_time() - t0
     row: dict[str, Any] = {"design": label, "cpu_axisym_check_first_s": t_first, "cpu_axisym_check_s": t_axi,
-                           "asym_first": bool(_value(chk, "asym_first")), "asym_n": _value(chk, "asym_n")}
+                           "asym_first": bool(chk.asym_first), "asym_n": chk.asym_n, "mode": mode}
     if not row["asym_first"]:
         return row
     n = int(row["asym_n"])
-    bif = fns["locate_bifurcation"](res, n)
+    bif = locate_bifurcation(res, n)
     if bif is not None:  # compile the multi-harmonic kernels (JIT) outside the timing
-        fns["follow_branch"](res, bif, fns["default_harmonics"](n, N or None), max_steps=3)
+        follow_branch(res, bif, default_harmonics(n, N or None), max_steps=3)
     t0 = time.process_time()
     try:
-        with fns["time_limit"](solver.time_limit_s):
-            out, fr = _followed(fns, res, chk, N)
-    except fns["TimeLimitExceeded"] as exc:
+        with time_limit(solver.time_limit_s):
+            ans = followed_metrics(res, chk, N=N or None, mode=mode)
+        out, fr = ans.values, ans.branch
+    except TimeLimitExceeded as exc:
         out, fr = {"follow_note": f"at the time limit: {exc}"}, None
         top = None
     row["cpu_followed_s"] = time.process_time() - t0
     row["ratio"] = row["cpu_followed_s"] / t_axi
-    path, model = getattr(fr, "path", None), getattr(fr, "model", None)
-    row["steps"] = len(path.points) - 1 if path is not None else None
-    row["assemblies"] = getattr(model, "n_assemblies", None)
-    row["harmonics"] = [int(h) for h in model.hn] if model is not None else None
-    row.update({k: out.get(k) for k in ("followed", "follow_kind", "dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa",
-                                        "follow_note")})
+    row["steps"] = len(fr.path.points) - 1 if fr is not None else None
+    row["assemblies"] = getattr(fr.model, "n_assemblies", None) if fr is not None else None
+    row["branches"] = branches(fr)
+    row.update({k: out.get(k) for k in ("followed", "follow_kind", "follow_sec_n", "dE_J", "dy_pole_m", "V_star_m3",
+                                        "p_star_Pa", "follow_note")})
     if top is not None:
         prof = cProfile.Profile(time.process_time)
-        prof.runcall(_followed, fns, res, chk, N)
+        prof.runcall(followed_metrics, res, chk, N=N or None, mode=mode)
         st = pstats.Stats(prof)
         total = max(sum(v[2] for v in st.stats.values()), 1e-12)
         cum: dict[str, float] = {}
@@ -166,6 +161,8 @@ def profile_one(label: str, scene, mesh, solver, fns: dict[str, Any], N: int, to
         excl = sorted(((v[2], f"{Path(k[0]).parent.name}/{Path(k[0]).name}:{k[2]}") for k, v in st.stats.items()),
                       reverse=True)[:top]
         row["cprofile"] = {"total_s": total, "stages_cum_s": cum, "top_exclusive_s": [[n_, t] for t, n_ in excl]}
+    if with_landing and bif is not None:
+        row["landing"] = landing(res, n, N, fr)
     return row
 
 
@@ -183,23 +180,32 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sample", type=Path, default=None, help="a sweep config whose design list to take rows from")
     ap.add_argument("--rows", type=int, nargs="+", default=[0], help="rows of --sample (0-based)")
     ap.add_argument("--N", type=int, default=0, help="highest harmonic kept (default 4 n_c, as the sweep)")
+    ap.add_argument("--mode", choices=("actuator", "full"), default="actuator", help="solver.follow_mode")
+    ap.add_argument("--landing", action="store_true",
+                    help="also stop the branch at its upper state and search the landing state at fixed volume")
     ap.add_argument("--cprofile", type=int, nargs="?", const=15, default=None, metavar="K",
                     help="also break the followed solve down under cProfile (the K functions with most exclusive time)")
     ap.add_argument("--json", type=Path, default=None, help="also write the numbers here")
     a = ap.parse_args(argv)
-    fns = api()
     rows = []
     print("| design | n_c | axisym + check CPU-s (first / warm) | followed CPU-s | ratio | steps | assemblies "
           "| kind | dE_J | note |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for label, scene, mesh, solver in scenes(a.scenes, a.sample, a.rows):
-        r = profile_one(label, scene, mesh, solver, fns, a.N, a.cprofile)
+        r = profile_one(label, scene, mesh, solver, a.N, a.mode, a.cprofile, a.landing)
         rows.append(r)
         print(f"| {label} | {_fmt(r.get('asym_n'))} | {r['cpu_axisym_check_first_s']:.3f} / "
               f"{r['cpu_axisym_check_s']:.3f} | {_fmt(r.get('cpu_followed_s'))} | {_fmt(r.get('ratio'))} "
               f"| {_fmt(r.get('steps'))} | {_fmt(r.get('assemblies'))} | {_fmt(r.get('follow_kind'))} "
               f"| {_fmt(r.get('dE_J'), 4)} | {r.get('follow_note') or ('stays axisymmetric' if not r['asym_first'] else '')} |",
               flush=True)
+    for r in rows:
+        for b in r.get("branches", []):
+            print(f"{r['design']}: branch {b['kind'] or '-'} (harmonics up to {b['harmonics'][-1]}, {b['dofs']} dofs): "
+                  f"{b['points']} points, {b['before_upper']} before its upper state; lower state: "
+                  f"{b['lower'] or '-'} {b['lower_note'] or ''}")
+        if "landing" in r:
+            print(f"{r['design']}: landing from the upper state: {r['landing']}")
     for r in rows:
         cp = r.get("cprofile")
         if not cp:
