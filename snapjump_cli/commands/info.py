@@ -16,7 +16,6 @@ JSON keys (stable): ``file``, ``n_rows``, ``status_counts``, ``reasons`` (a list
 from __future__ import annotations
 
 import json
-import re
 import sys
 from pathlib import Path
 from typing import Any, Sequence
@@ -26,26 +25,9 @@ import click
 from snapjump_cli.cli import verbosity_options
 from snapjump_cli.errors import BadInput
 
-__all__ = ["command", "main", "summarise", "group_reasons"]
+__all__ = ["command", "main", "summarise"]
 
 _ORDER = {"ok": 0, "no_snap": 1, "invalid_geometry": 2, "failed": 3}  # the order of sweep.rows.STATUSES
-_NUMBER = re.compile(r"(?<![A-Za-z_])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
-
-
-def group_reasons(statuses: Sequence[str], errors: Sequence[Any]) -> list[dict]:
-    """The reasons of the rows that are neither ``ok`` nor ``no_snap``, grouped: the numbers in
-    each message masked as ``#``, one group per (status, masked message), largest first; each with
-    its ``count`` and the first message as its ``example``."""
-    groups: dict[tuple[str, str], dict] = {}
-    for st, err in zip(statuses, errors):
-        if st in ("ok", "no_snap"):
-            continue
-        text = "" if err is None or (isinstance(err, float) and err != err) or str(err) in ("<NA>", "nan") else str(err)
-        text = text.strip().splitlines()[0] if text.strip() else "(no reason recorded)"
-        key = (str(st), _NUMBER.sub("#", text))
-        g = groups.setdefault(key, {"status": str(st), "reason": key[1], "count": 0, "example": text})
-        g["count"] += 1
-    return sorted(groups.values(), key=lambda g: (-g["count"], g["status"], g["reason"]))
 
 
 def summarise(path: Path) -> dict:
@@ -87,7 +69,7 @@ def summarise(path: Path) -> dict:
         "file": str(path),
         "n_rows": int(len(df)),
         "status_counts": dict(sorted(counts.items(), key=lambda kv: (_ORDER.get(kv[0], 9), kv[0]))),
-        "reasons": group_reasons(status, errors),
+        "reasons": res.group_failures(status, errors),
         "ranked": bool(ranked),
         "best": best,
         "followed": followed,

@@ -18,7 +18,7 @@ import sys
 from datetime import datetime, timezone
 from importlib import metadata as importlib_metadata
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, Sequence
 
 from snapjump_cli.files import write_atomic
 from snapjump_cli.sweep.rows import (  # the row contract, re-exported for readers of result files
@@ -59,6 +59,7 @@ __all__ = [
     "read_metadata",
     "provenance",
     "failure_reasons",
+    "group_failures",
 ]
 
 log = logging.getLogger(__name__)
@@ -361,27 +362,40 @@ def _reason(error: Any) -> str:
     return _VALUE_RE.sub(lambda m: f"{m.group(1)} #", text)
 
 
+def group_failures(statuses: Sequence[Any], errors: Sequence[Any],
+                   which: tuple[str, ...] = ("invalid_geometry", "failed")) -> list[dict]:
+    """The reasons of the rows whose status is one of ``which``, grouped by status and reason (the
+    values of one design shown as ``#``): one dict per group, ``status``, ``reason``, ``count`` and
+    the first message as ``example``, largest first."""
+    groups: dict[tuple[str, str], dict] = {}
+    for st, err in zip(statuses, errors):
+        if st not in which:
+            continue
+        text = " ".join(err.split()) if isinstance(err, str) else ""
+        key = (str(st), _reason(text) or "(no reason recorded)")
+        g = groups.setdefault(key, {"status": key[0], "reason": key[1], "count": 0, "example": text})
+        g["count"] += 1
+    return sorted(groups.values(), key=lambda g: (-g["count"], g["status"], g["reason"]))
+
+
 def failure_reasons(df: pd.DataFrame, statuses: tuple[str, ...] = ("invalid_geometry", "failed"),
                     top: int = 5, source: str | Path | None = None) -> list[str]:
-    """The reasons of the designs of ``statuses`` (their ``error`` column), grouped: for each status
-    with rows, a line ``<status>: <n> designs``, then up to ``top`` lines ``<count> x <reason>``
-    (values of one design shown as ``#``), most frequent first. ``[]`` if there are none."""
-    from collections import Counter
-
+    """The reasons of the designs of ``statuses`` (their ``error`` column), grouped
+    (:func:`group_failures`): for each status with rows, a line ``<status>: <n> designs``, then up
+    to ``top`` lines ``<count> x <reason>``, most frequent first. ``[]`` if there are none."""
     if "status" not in df.columns:
         return []
+    errors = df["error"] if "error" in df.columns else [""] * len(df)
+    groups = group_failures(df["status"], errors, statuses)
     lines = []
-    errors = df["error"] if "error" in df.columns else None
     for st in statuses:
-        mask = (df["status"] == st).fillna(False).to_numpy(dtype=bool)
-        n = int(mask.sum())
-        if not n:
+        gs = [g for g in groups if g["status"] == st]
+        if not gs:
             continue
-        groups = Counter(_reason(e) for e in (errors[mask] if errors is not None else [""] * n))
+        n = sum(g["count"] for g in gs)
         lines.append(f"{st}: {n} design{'s' if n != 1 else ''}, why:")
-        for reason, k in groups.most_common(top):
-            lines.append(f"  {k} x {reason or '(no reason recorded)'}")
-        if len(groups) > top:
+        lines += [f"  {g['count']} x {g['reason']}" for g in gs[:top]]
+        if len(gs) > top:
             where = f" (column 'error' of {source})" if source is not None else " (column 'error')"
-            lines.append(f"  ... and {len(groups) - top} other reasons{where}")
+            lines.append(f"  ... and {len(gs) - top} other reasons{where}")
     return lines

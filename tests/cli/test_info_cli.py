@@ -16,7 +16,8 @@ if str(SWEEP_TESTS) not in sys.path:
 from snapjump_fake_solvers import fast_solve  # noqa: E402
 
 from snapjump_cli.cli import main as cli_main  # noqa: E402
-from snapjump_cli.commands.info import group_reasons, main  # noqa: E402
+from snapjump_cli.commands.info import main  # noqa: E402
+from snapjump_cli.sweep.results import group_failures as group_reasons  # noqa: E402
 
 #: theta_o 78 < theta_i 80 is invalid: 4 designs with one reason, numbers differing.
 GRID = {"eta_i": [6, 7], "theta_i": [80], "eta_o": [5, 10], "theta_o": [78, 82, 86], "mu_ratio": [1]}
