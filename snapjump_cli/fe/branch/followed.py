@@ -24,8 +24,8 @@ from snapjump_cli.schema import FOLLOWED, keys
 if TYPE_CHECKING:
     from snapjump_cli.fe.stability.harmonics import HarmonicCheck
 
-__all__ = ["FOLLOW_MODES", "first_secondary", "secondary_note", "FOLLOW_KEYS", "REPLACED_KEYS", "FollowedAnswer", "axisym_answer", "followed_metrics",
-           "leave_at_secondary", "apply_followed"]
+__all__ = ["FOLLOW_MODES", "first_secondary", "record_secondary", "FOLLOW_KEYS", "REPLACED_KEYS",
+           "FollowedAnswer", "axisym_answer", "followed_metrics", "leave_at_secondary", "apply_followed"]
 
 #: How a branch is followed (:func:`followed_metrics`): ``"actuator"`` (the default: only the
 #: states the actuator passes through before a secondary bifurcation are traced) or ``"full"``
@@ -164,11 +164,12 @@ def first_secondary(result, bif, hn: list[int], n_phi: int | None = None) -> tup
     fs, chk, sec = follow_secondary(result, head)
     if sec is None or fs is None or fs.kind == "jump":
         return None, ""
-    return fs, secondary_note(fs, chk, sec, bif.n)
+    return fs, record_secondary(fs, chk, sec, bif.n)
 
 
-def secondary_note(fs: FollowResult, chk, sec, n: int) -> str:
-    """The note of a followed answer that left its branch at a secondary bifurcation ``sec``."""
+def record_secondary(fs: FollowResult, chk, sec, n: int) -> str:
+    """Record on ``fs`` (its ``follow_sec_*`` metrics) that the followed answer left its branch of
+    harmonic ``n`` at the secondary bifurcation ``sec``, and return the answer's note."""
     fs.metrics.update(follow_sec_n=sec.n, follow_sec_V_m3=sec.V_m3, follow_sec_p_Pa=sec.p_Pa)
     if fs.kind == "jump":
         return (f"the branch of harmonic {n} folds at V = {fs.metrics.get('V_star_m3') or math.nan:.4g} m^3 and "
@@ -193,7 +194,7 @@ def leave_at_secondary(result, fr: FollowResult) -> tuple[FollowResult, str]:
         return fr, (f"the branch of harmonic {n} is unstable outside its harmonics at V = {V1:.4g} m^3 "
                     f"(harmonics up to {chk.N}) and no secondary bifurcation was located before it (the actuator "
                     "may reach that state by a jump past a fold of the branch): not traced further")
-    return fs, secondary_note(fs, chk, sec, n)
+    return fs, record_secondary(fs, chk, sec, n)
 
 
 def apply_followed(result, check: HarmonicCheck, N: int = 0, mode: str = "actuator") -> None:
