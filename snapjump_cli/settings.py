@@ -8,10 +8,11 @@ __all__ = ["MeshSettings", "SolverSettings", "SettingsError", "NT_MAX", "ASPECT_
 #: Bounds of the mesh density, the same for the YAML configs and the command-line options.
 NT_MAX = 64
 ASPECT_MAX = 100.0
-#: The solver settings that bound a design's resources (CPU time, mesh size, how much of a followed
-#: branch is traced) without changing its answer: left out of design keys, of a row's
-#: ``solver_settings`` and of the comparison of runs.
-LIMIT_SETTINGS: tuple[str, ...] = ("time_limit_s", "max_nodes", "follow_mode")
+#: The solver settings that bound a design's resources (CPU time, mesh size) without changing its
+#: answer: left out of design keys, of a row's ``solver_settings`` and of the comparison of runs.
+#: (``follow_mode`` is not one: where two stable states coexist at the snap's volume the actuator
+#: mode and the reference may land on different ones; docs/harmonics.md section 10.8.)
+LIMIT_SETTINGS: tuple[str, ...] = ("time_limit_s", "max_nodes")
 
 
 def without_limits(solver: object) -> object:
@@ -106,9 +107,10 @@ class SolverSettings:
         (needs ``harmonics >= 1``; the axisymmetric answer is kept in the ``axisym_*`` keys)
     follow_N : highest harmonic of the followed branch's Fourier series (0 = the default,
         ``4 n_c`` for the critical harmonic ``n_c``)
-    follow_mode : ``"actuator"`` (the default) traces only what the actuator passes through where
-        that gives the same answer (:func:`snapjump_cli.fe.branch.followed.followed_metrics`);
-        ``"full"`` is the reference: every branch traced to its snap before it is checked
+    follow_mode : ``"actuator"`` (the default) traces only what the actuator passes through and
+        lands a subcritical ``n = 1`` snap on the axisymmetric path's inverted state where that
+        state is stable (:func:`snapjump_cli.fe.branch.followed.followed_metrics`); ``"full"`` is
+        the reference: every branch traced to its snap and its lower state searched
     margins : report the smallest eigenvalue of every harmonic's tangent ``n = 0..harmonics`` along
         the loading path (:mod:`snapjump_cli.fe.stability.margins`; needs ``harmonics >= 1``; about one
         shift-invert eigenvalue solve per harmonic and path state: several times the solve)

@@ -97,8 +97,10 @@ def design_key(point: DesignPoint | Design | Mapping[str, Any], mesh: MeshSettin
 
 
 #: Solver settings added after KEY_VERSION v2 with the value that leaves the computation as it was:
-#: left out of the key at that value, so rows computed before the setting existed are still found.
-_NEUTRAL_SETTINGS = {"harmonics": 0, "follow": False, "follow_N": 0, "margins": False}
+#: left out of the key at that value, so rows computed before the setting existed are still found
+#: (``follow_mode`` was a limit setting, out of the key, before its actuator mode could land elsewhere
+#: than the reference: rows of the default mode are still found).
+_NEUTRAL_SETTINGS = {"harmonics": 0, "follow": False, "follow_N": 0, "margins": False, "follow_mode": "actuator"}
 
 
 def _key_settings(solver: SolverSettings) -> dict[str, Any]:

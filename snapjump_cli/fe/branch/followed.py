@@ -96,7 +96,13 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
     check (:func:`first_secondary`): when it loses stability to the other harmonics before it, as
     most such branches do, its fold, the branch beyond it and its lower state are never needed;
     otherwise it is traced on as in ``"full"`` (the reference), which traces the whole branch
-    to its snap before the check. Both give the same answer.
+    to its snap before the check. Both give the same answer. For a branch of ``n_c = 1`` (every
+    harmonic ``0..N`` kept), ``"actuator"`` also lands a subcritical snap on the axisymmetric
+    path's inverted state at the bifurcation's volume without tracing the branch, where that state
+    is stable with every harmonic (and, for a branch that loops back to the axisymmetric path,
+    takes it before searching at fixed volume): ``landing="axisymmetric first"`` of
+    :func:`snapjump_cli.fe.branch.trace.trace_branch`; ``"full"`` traces and searches (the
+    reference the samples check it against: docs/harmonics.md, "Where the actuator lands").
     """
     if mode not in FOLLOW_MODES:
         raise ValueError(f"follow mode must be one of {FOLLOW_MODES}, got {mode!r}")
@@ -111,11 +117,13 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
         out["follow_note"] = f"bifurcation of harmonic {n} not located"
         return FollowedAnswer(out)
     hn = default_harmonics(n, N)
+    # (a branch of n_c >= 2 keeps only multiples of n_c: a state stable there may not be stable)
+    landing = "axisymmetric first" if mode == "actuator" and len(hn) > 1 and int(hn[1]) == 1 else "search"
     fr, note_sec = None, ""
     if secondary and mode == "actuator" and len(hn) > 1 and int(hn[1]) > 1:
         fr, note_sec = first_secondary(result, bif, hn, n_phi)
     if fr is None:
-        fr = follow_branch(result, bif, hn, n_phi=n_phi)
+        fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing)
         if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:
             fr, note_sec = leave_at_secondary(result, fr)
     fm = fr.metrics

@@ -32,7 +32,7 @@ from typing import Callable
 
 import numpy as np
 
-from snapjump_cli.fe.axisym.lower_state import constrained_instability, find_lower_state
+from snapjump_cli.fe.axisym.lower_state import LowerState, constrained_instability, find_lower_state
 from snapjump_cli.fe.axisym.snap import SnapStates, SnapTracker
 from snapjump_cli.fe.branch.bifurcation import Bifurcation, default_harmonics, harmonic1_gauge
 from snapjump_cli.fe.branch.metrics import multiharmonic_snap_metrics
@@ -43,7 +43,8 @@ log = logging.getLogger(__name__)
 
 __all__ = ["FoldJump", "FollowResult", "BranchTracker", "MICRO_FOLD_DE", "REJOIN_FRAC", "FOLLOW_STEP_GROW",
            "MAX_RESTARTS", "ThroughFolds", "trace_through_micro_folds", "tracker_bounds", "micro_energy",
-           "follow_branch", "trace_branch", "axisym_state_at", "branch_metrics"]
+           "follow_branch", "trace_branch", "axisym_state_at", "axisym_landing", "branch_metrics", "REJOINED",
+           "LANDINGS"]
 
 
 @dataclass
@@ -137,7 +138,7 @@ class BranchTracker(SnapTracker):
         pts = path.points
         rejoined = self._rejoined(pts[-1])
         if rejoined and self.states.upper is not None and self.states.lower is None:
-            return "the branch passed back through the axisymmetric path"
+            return REJOINED
         if len(pts) == 2 and not self.kind:
             a, b = pts
             if b.zeta[0] < a.zeta[0]:
@@ -165,8 +166,21 @@ class BranchTracker(SnapTracker):
         return reason
 
 
+#: The stop reason of a branch that passed back through the axisymmetric path (:class:`BranchTracker`).
+REJOINED = "the branch passed back through the axisymmetric path"
+
+
 #: The stop reason of a branch traced only up to its upper state (``BranchTracker.stop_at_upper``).
 UPPER_LOCATED = "upper state located; the branch beyond it not traced"
+
+
+#: The note of a lower state found by :func:`axisym_landing`.
+AXISYM_LANDING = "the axisymmetric path's state at that volume beyond its snap, stable with every harmonic kept"
+
+
+#: How a branch's lower state is found where the branch passed back through the axisymmetric path
+#: (:func:`trace_branch`'s ``landing``): the reference search, or the axisymmetric path's state first.
+LANDINGS = ("search", "axisymmetric first")
 
 
 #: A fold of a followed branch whose snap releases less than this fraction of the axisymmetric
@@ -287,7 +301,8 @@ def micro_energy(result, micro: float) -> float:
 
 def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: int | None = None,
                   micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
-                  step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False) -> FollowResult:
+                  step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False,
+                  landing: str = "search") -> FollowResult:
     """Trace the branch of ``bif`` with the harmonics ``hn`` (default :func:`default_harmonics`)
     from the bifurcation through its volume limit to the lower state at that volume (with
     ``stop_at_upper``: only up to its first volume limit, :class:`BranchTracker`).
@@ -301,6 +316,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
         energy is traced through (``micro_folds``), not reported as the snap
     max_steps : bound on the branch's continuation steps (default: the axisymmetric trace's)
     step_grow : the continuation's step growth (:data:`FOLLOW_STEP_GROW`)
+    landing : how the lower state is found where the branch passed back through the axisymmetric
+        path (:func:`trace_branch`)
 
     Returns
     -------
@@ -314,14 +331,15 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     U_c = mh.embed(bif.u)
     Phi = mh.embed(np.zeros(base.n), {bif.n: bif.mode})
     fr = trace_branch(result, bif, mh, U_c, bif.p, Phi, [int(n) for n in mh.hn[1:]], micro=micro,
-                      max_steps=max_steps, step_grow=step_grow, stop_at_upper=stop_at_upper)
+                      max_steps=max_steps, step_grow=step_grow, stop_at_upper=stop_at_upper, landing=landing)
     fr.metrics["follow_wall_s"] = time.perf_counter() - t0
     return fr
 
 
 def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarray, p_c: float, Phi: np.ndarray,
                  asym_harmonics: list[int], micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
-                 step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False) -> FollowResult:
+                 step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False,
+                 landing: str = "search") -> FollowResult:
     """Trace the branch of the model ``mh`` that leaves the equilibrium ``(U_c, p_c)`` along
     ``Phi`` (a bifurcation point and its critical mode, as free vectors of ``mh``) through its volume
     limit to the lower state at that volume (:func:`follow_branch` for a branch of the axisymmetric
@@ -332,7 +350,19 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     ``bif``: the bifurcation from the axisymmetric path that the answer is reported under; the
     other parameters as in :func:`follow_branch`. With ``stop_at_upper`` the result has no lower
     state (no snap metrics): the branch up to its first volume limit.
+
+    ``landing``: ``"search"`` (the reference) traces the branch to its snap and, where the branch
+    passed back through the axisymmetric path (:data:`REJOINED`) without a lower state, searches
+    that state at fixed volume from the upper state and the branch's post-snap points (the
+    fixed-volume path, then the energy descent,
+    :func:`snapjump_cli.fe.axisym.lower_state.find_lower_state`). ``"axisymmetric first"`` takes
+    the axisymmetric path's state at the upper state's volume beyond its snap when one is stable
+    with every harmonic of ``mh`` (:func:`axisym_landing`): for a subcritical branch before
+    tracing it (its first step tells), and for a branch that passed back through the axisymmetric
+    path before the search; it traces and searches as the reference where there is none.
     """
+    if landing not in LANDINGS:
+        raise ValueError(f"landing must be one of {LANDINGS}, got {landing!r}")
     tr0 = result.tracer
     cfg = replace(tr0.cfg, fused=False, mixed_tangent=False, step_grow=float(step_grow))
     if max_steps is not None:
@@ -353,17 +383,22 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         "asym_amplitude": lambda u: max(float(np.abs(mh.harmonic_part(u, int(n))).max()) for n in asym_harmonics),
     }
 
-    def run(first: PathPoint, kind: str) -> tuple[Path, BranchTracker, str]:
+    def run(first: PathPoint, kind: str, stop: bool = stop_at_upper, steps: int | None = None
+            ) -> tuple[Path, BranchTracker, str]:
         tk = BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post, kind=kind, micro_dE=micro_dE,
-                           stop_at_upper=stop_at_upper, **amplitudes)
+                           stop_at_upper=stop, **amplitudes)
         try:
-            return trace(mh, cfg, tk, tracer=tr, start=first), tk, ""
+            return trace(mh, cfg if steps is None else replace(cfg, max_steps=steps), tk, tracer=tr, start=first), tk, ""
         except ContinuationFailed as exc:
             return getattr(exc, "path", None) or Path(points=[first]), tk, str(exc)
 
     def lower_state(tk: BranchTracker, pth: Path, why: str):
-        low = find_lower_state(tr, tk.states, pth.points, why)
         up = tk.states.upper
+        if landing == "axisymmetric first" and why == REJOINED and up is not None and tk.states.lower is None:
+            alt = axisym_landing(result, mh, tr, up)
+            if alt is not None:
+                return LowerState(alt, "descent", "axisymmetric path", reason=why, message=AXISYM_LANDING)
+        low = find_lower_state(tr, tk.states, pth.points, why)
         if up is not None and (low.state is None or (low.method == "descent"
                                                       and mh.energy(up.u) - mh.energy(low.state.u) <= 0.0)):
             # the search found nothing below the fold: the axisymmetric path's state at that volume,
@@ -383,6 +418,21 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         fr.metrics = branch_metrics(fr, sc)
         mh.release_buffers()
         return fr
+    if landing == "axisymmetric first":
+        # a subcritical branch (its first step lowers the volume): its upper state is the
+        # bifurcation itself, and where the axisymmetric path's inverted state at that volume is
+        # stable with every harmonic kept, the actuator lands there (axisym_landing)
+        path, tracker, failure = run(start, "", stop=True, steps=1)
+        st = tracker.states
+        if tracker.kind == "subcritical" and st.upper is not None:
+            alt = axisym_landing(result, mh, tr, st.upper)
+            if alt is not None and mh.energy(st.upper.u) - mh.energy(alt.u) >= micro_dE:
+                st.lower, st.lower_method = alt, "descent"
+                fr = FollowResult(bif, mh, path, st, tr, "subcritical", "subcritical", lower_method="descent",
+                                  lower_note=AXISYM_LANDING)
+                fr.metrics = branch_metrics(fr, sc)
+                mh.release_buffers()
+                return fr
     tb = trace_through_micro_folds(
         lambda first: run(first, "supercritical" if first is not start else ""), start, lower_state, mh.energy,
         lambda state: start_point(tr, state.u, state.p), micro_dE)
@@ -422,6 +472,44 @@ def axisym_state_at(result, mh: MultiHarmonicModel, tr: Tracer, V: float) -> Pat
             except ContinuationFailed:
                 return None
     return None
+
+
+def axisym_landing(result, mh: MultiHarmonicModel, tr: Tracer, upper: PathPoint) -> PathPoint | None:
+    """The state at the volume of ``upper`` (a branch's upper state, traced by ``tr`` in ``mh``) on
+    the axisymmetric path beyond its snap, as a state of ``mh``: of the path's crossings of that
+    volume after its volume limit, each polished at fixed volume in ``mh``, the lowest in energy
+    that is stable under volume control with every harmonic of ``mh`` and lies below ``upper``'s
+    energy; ``None`` if there is none.
+
+    Where a subcritical branch loops back to the axisymmetric path, it holds no stable state at its
+    bifurcation's volume, and the actuator's isochoric snap from that volume ends on the
+    axisymmetric path's inverted state there (the energy descent of the reference search finds the
+    same state: docs/harmonics.md, "Where the actuator lands")."""
+    st0 = result.states
+    if st0 is None or st0.k_before is None:
+        return None
+    V = float(upper.zeta[0])
+    E_up = mh.energy(upper.u)
+    pts = result.path.points
+    locate = SnapTracker(result.tracer, p_stop=math.inf, V_stop=math.inf)
+    best, E_best = None, E_up
+    for k in range(st0.k_before + 1, len(pts)):
+        a, b = pts[k - 1], pts[k]
+        if (a.zeta[0] - V) * (b.zeta[0] - V) > 0.0 or a.zeta[0] == b.zeta[0]:
+            continue
+        q = locate.locate_volume(a, b, V, pts[k - 2] if k > 1 else None)
+        if q is None:
+            continue
+        res = tr.correct(mh.embed(q.u), q.p, None, None, 0.0, target=(0, V))
+        if res is None:
+            continue
+        lin, it = res
+        E = mh.energy(lin.u)
+        if E >= E_best or constrained_instability(tr, lin) != 0:
+            continue
+        t, v, qq, z = tr.tangent(lin, (upper.tangent, tr.alpha * upper.du_ds))
+        best, E_best = PathPoint(lin.u, lin.p, z, t, v, qq, float("nan"), it), E
+    return best
 
 
 def branch_metrics(fr: FollowResult, sc: np.ndarray) -> dict:

@@ -1,0 +1,110 @@
+"""Where a subcritical branch's actuator lands on the axisymmetric path (snapjump_cli.fe.branch.trace.axisym_landing).
+
+A design of the mu_i/mu_o = 5.8 class on a coarse mesh (Q9, nt 1, aspect 6; the stratified sample's row 13,
+bench/harmonics_sample/follow_strata.csv): its n = 1 branch is subcritical and loops back to the
+axisymmetric path without a stable state at the bifurcation's volume. The reference (``mode="full"``)
+traces the whole branch and then searches the lower state at fixed volume (fixed-volume path,
+energy descent); the actuator mode takes the axisymmetric path's inverted state at that volume
+after one step of the branch. Checked here:
+
+* the same state, the same answer (dE, pole travel, V*, p*) as the reference;
+* the state is an equilibrium of the multi-harmonic model at the bifurcation's volume, stable
+  under volume control with every harmonic, and axisymmetric;
+* dE two ways: the energy difference equals the work ``-integral p dV`` along the axisymmetric
+  path from the bifurcation to that state (through the fold and the snap);
+* a design whose actuator lands on an asymmetric state (design B) is not given this state.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from snapjump_cli.fe.axisym.lower_state import constrained_instability
+from snapjump_cli.fe.axisym.metrics import path_p_dV
+from snapjump_cli.fe.axisym.snap import SnapTracker
+from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
+from snapjump_cli.fe.branch.followed import followed_metrics
+from snapjump_cli.fe.branch.trace import AXISYM_LANDING, axisym_landing, follow_branch
+from snapjump_cli.fe.solve import solve_scene
+from snapjump_cli.fe.stability.harmonics import check_harmonics
+from snapjump_cli.geometry.caps import Design
+from snapjump_cli.settings import MeshSettings, SolverSettings
+
+
+@pytest.fixture(scope="module")
+def design():
+    res = solve_scene(Design(6.2, 75.0, 5.0, 82.0, 5.8), MeshSettings(order=2, nt=1, aspect=6.0),
+                      SolverSettings(harmonics=4))
+    chk = check_harmonics(res, 4)
+    assert chk.asym_first and chk.asym_n == 1
+    return res, chk
+
+
+@pytest.fixture(scope="module")
+def answers(design):
+    res, chk = design
+    return followed_metrics(res, chk, mode="actuator"), followed_metrics(res, chk, mode="full")
+
+
+def test_the_actuator_mode_lands_where_the_reference_search_does(answers):
+    act, ref = answers
+    assert act.values["followed"] and ref.values["followed"]
+    assert act.branch.lower_note == AXISYM_LANDING and len(act.branch.path.points) == 2  # one step traced
+    assert "descent" in ref.values["follow_note"] and len(ref.branch.path.points) > 50
+    mh = ref.branch.model
+    lo_a, lo_r = act.branch.states.lower, ref.branch.states.lower
+    assert np.linalg.norm(lo_a.u - lo_r.u) <= 1e-6 * np.linalg.norm(lo_r.u)
+    for k in ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa"):
+        assert act.values[k] == pytest.approx(ref.values[k], rel=1e-9), k
+    assert mh.energy(act.branch.states.upper.u) == pytest.approx(mh.energy(ref.branch.states.upper.u), rel=1e-12)
+
+
+def test_the_landing_is_a_stable_axisymmetric_equilibrium_at_the_bifurcations_volume(design, answers):
+    res, _ = design
+    fr = answers[0].branch
+    mh, tr, up, lo = fr.model, fr.tracer, fr.states.upper, fr.states.lower
+    assert lo.zeta[0] == pytest.approx(up.zeta[0], rel=1e-9)
+    lin = mh.linearize(lo.u, lo.p)
+    z, dz_du, _ = tr.zeta(lo.u, lo.p, lin)
+    assert np.linalg.norm(lin.R) <= 1e-6 * tr.residual_scale(lin, dz_du, lo.p)
+    assert constrained_instability(tr, lin) == 0
+    for n in mh.hn[1:]:
+        assert np.abs(mh.harmonic_part(lo.u, int(n))).max() < 1e-12
+    assert mh.energy(lo.u) < mh.energy(up.u)
+
+
+def test_dE_two_ways_along_the_axisymmetric_path(design, answers):
+    """The state lies on the axisymmetric path beyond its snap: the energy released equals the
+    work of the pressure along that path from the bifurcation (a different computation: the
+    path's Hermite p-V quadrature, not the energy functional)."""
+    res, _ = design
+    fr = answers[0].branch
+    mh, up, lo = fr.model, fr.states.upper, fr.states.lower
+    V = float(up.zeta[0])
+    pts, kb = res.path.points, res.states.k_before
+    locate = SnapTracker(res.tracer, p_stop=math.inf, V_stop=math.inf)
+    crossings = [k for k in range(1, len(pts)) if (pts[k - 1].zeta[0] - V) * (pts[k].zeta[0] - V) <= 0.0]
+    k0 = max(k for k in crossings if k <= kb)  # the bifurcation, before the fold
+    E_lo = mh.energy(lo.u)
+    k1 = next(k for k in crossings if k > kb and abs(res.model.energy(
+        locate.locate_volume(pts[k - 1], pts[k], V, pts[k - 2]).u) - E_lo) < 1e-9 * abs(E_lo))
+    a = locate.locate_volume(pts[k0 - 1], pts[k0], V, pts[k0 - 2])
+    b = locate.locate_volume(pts[k1 - 1], pts[k1], V, pts[k1 - 2])
+    sc = res.tracer.sc
+    work = path_p_dV([a] + pts[k0:k1] + [b], sc[0], sc[1])
+    dE = mh.energy(up.u) - E_lo
+    assert -work == pytest.approx(dE, rel=1e-4)
+
+
+def test_an_asymmetric_landing_is_not_replaced():
+    """Design B lands on an asymmetric state of its branch: no axisymmetric state at the
+    bifurcation's volume beyond the snap is stable with every harmonic and below it."""
+    from snapjump_cli.geometry.designs import get_design
+
+    res = solve_scene(get_design("B"), MeshSettings(), SolverSettings(harmonics=4))
+    bif = locate_bifurcation(res, 1)
+    head = follow_branch(res, bif, default_harmonics(1), max_steps=1, stop_at_upper=True)
+    assert head.kind == "subcritical"
+    assert axisym_landing(res, head.model, head.tracer, head.states.upper) is None
