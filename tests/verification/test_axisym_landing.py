@@ -12,7 +12,9 @@ after one step of the branch. Checked here:
   under volume control with every harmonic, and axisymmetric;
 * dE two ways: the energy difference equals the work ``-integral p dV`` along the axisymmetric
   path from the bifurcation to that state (through the fold and the snap);
-* a design whose actuator lands on an asymmetric state (design B) is not given this state.
+* a design whose actuator lands on an asymmetric state (design B) is not given this state;
+* the actuator mode's search without the fixed-volume path (which fails here, as on every
+  multi-harmonic search of the samples) runs the reference's descent and lands on its state.
 """
 from __future__ import annotations
 
@@ -21,12 +23,14 @@ import math
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.axisym.lower_state import constrained_instability
+from dataclasses import replace
+
+from snapjump_cli.fe.axisym.lower_state import constrained_instability, find_lower_state
 from snapjump_cli.fe.axisym.metrics import path_p_dV
 from snapjump_cli.fe.axisym.snap import SnapTracker
 from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
 from snapjump_cli.fe.branch.followed import followed_metrics
-from snapjump_cli.fe.branch.trace import AXISYM_LANDING, axisym_landing, follow_branch
+from snapjump_cli.fe.branch.trace import AXISYM_LANDING, REJOINED, axisym_landing, follow_branch
 from snapjump_cli.fe.solve import solve_scene
 from snapjump_cli.fe.stability.harmonics import check_harmonics
 from snapjump_cli.geometry.caps import Design
@@ -108,3 +112,12 @@ def test_an_asymmetric_landing_is_not_replaced():
     head = follow_branch(res, bif, default_harmonics(1), max_steps=1, stop_at_upper=True)
     assert head.kind == "subcritical"
     assert axisym_landing(res, head.model, head.tracer, head.states.upper) is None
+
+
+def test_the_search_without_the_fixed_volume_path_is_the_references_descent(answers):
+    ref = answers[1].branch
+    assert ref.path.stop_reason == REJOINED
+    before = replace(ref.states, lower=None, lower_method="")
+    low = find_lower_state(ref.tracer, before, ref.path.points, REJOINED, volume_path=False)
+    assert low.solver == "energy-descent" and low.message in ref.lower_note
+    assert np.array_equal(low.state.u, ref.states.lower.u) and low.state.p == ref.states.lower.p

@@ -98,7 +98,7 @@ class LowerState:
 
 
 def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint], why: str = "",
-                     control: Tracer | None = None) -> LowerState:
+                     control: Tracer | None = None, volume_path: bool = True) -> LowerState:
     """The lower state of a snap: on the path if the tracker found a stable one, else at fixed volume.
 
     Parameters
@@ -111,6 +111,8 @@ def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint]
     control : another control than the cavity volume (a gas in series,
         :class:`snapjump_cli.fe.axisym.air_snap.GasControlled`): a tracer whose problem's first measure is
         the controlled volume; the lower state is then found at that volume
+    volume_path : try the fixed-volume path before the energy descent (``False``: the descent
+        alone, for models where that path does not reach the state)
 
     Returns
     -------
@@ -128,10 +130,11 @@ def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint]
             return LowerState(states.lower, states.lower_method)
         note = f"the path returned to V* on an unstable branch ({n_unstable} unstable modes)"
     reason = note or why
-    low, msg = snap_at_fixed_volume(tracer, states.upper, control=control)
+    low, msg = snap_at_fixed_volume(tracer, states.upper, control=control) if volume_path else (None, "")
     solver = "volume-path"
     if low is None:
-        log.debug("%s; falling back on the energy descent", msg)
+        if msg:
+            log.debug("%s; falling back on the energy descent", msg)
         solver = "energy-descent"
         # from the upper state along its unstable mode first; post-snap path points as fallbacks
         for start in [None] + descent_starts(points, states.upper, states.k_before, control=control):

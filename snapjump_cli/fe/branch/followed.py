@@ -119,13 +119,14 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
     hn = default_harmonics(n, N)
     # (a branch of n_c >= 2 keeps only multiples of n_c: a state stable there may not be stable)
     landing = "axisymmetric first" if mode == "actuator" and len(hn) > 1 and int(hn[1]) == 1 else "search"
+    vp = mode == "full"  # the actuator mode searches by the energy descent alone (section 10.8)
     fr, note_sec = None, ""
     if secondary and mode == "actuator" and len(hn) > 1 and int(hn[1]) > 1:
-        fr, note_sec = first_secondary(result, bif, hn, n_phi)
+        fr, note_sec = first_secondary(result, bif, hn, n_phi, volume_path=vp)
     if fr is None:
-        fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing)
+        fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp)
         if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:
-            fr, note_sec = leave_at_secondary(result, fr)
+            fr, note_sec = leave_at_secondary(result, fr, volume_path=vp)
     fm = fr.metrics
     out.update({k: v for k, v in fm.items() if k in FOLLOW_KEYS})
     if note_sec:
@@ -160,7 +161,8 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
     return FollowedAnswer(out, fr)
 
 
-def first_secondary(result, bif, hn: list[int], n_phi: int | None = None) -> tuple[FollowResult | None, str]:
+def first_secondary(result, bif, hn: list[int], n_phi: int | None = None,
+                    volume_path: bool = True) -> tuple[FollowResult | None, str]:
     """The branch leaving a secondary bifurcation that the branch of ``bif`` (harmonics ``hn``, a
     multiple of ``n_c >= 2``) meets before its first volume limit, traced up to that limit only;
     ``(None, "")`` when there is none there (the branch must then be traced to its snap:
@@ -169,7 +171,7 @@ def first_secondary(result, bif, hn: list[int], n_phi: int | None = None) -> tup
     head = follow_branch(result, bif, hn, n_phi=n_phi, stop_at_upper=True)
     if head.states.upper is None:
         return None, ""
-    fs, chk, sec = follow_secondary(result, head)
+    fs, chk, sec = follow_secondary(result, head, volume_path=volume_path)
     if sec is None or fs is None or fs.kind == "jump":
         return None, ""
     return fs, record_secondary(fs, chk, sec, bif.n)
@@ -187,12 +189,12 @@ def record_secondary(fs: FollowResult, chk, sec, n: int) -> str:
             f"before its own snap: the branch that leaves it there is traced with harmonics 0-{chk.N}")
 
 
-def leave_at_secondary(result, fr: FollowResult) -> tuple[FollowResult, str]:
+def leave_at_secondary(result, fr: FollowResult, volume_path: bool = True) -> tuple[FollowResult, str]:
     """The branch the actuator takes when the followed branch ``fr`` loses stability outside its
     harmonics before its snap (:func:`snapjump_cli.fe.branch.secondary.follow_secondary`), with a note;
     ``fr`` itself (and no note) when it does not. A secondary branch that cannot be traced to a
     snap is returned all the same: the design then keeps its axisymmetric answer."""
-    fs, chk, sec = follow_secondary(result, fr)
+    fs, chk, sec = follow_secondary(result, fr, volume_path=volume_path)
     if chk.first is None:
         return fr, ""
     n = fr.bif.n

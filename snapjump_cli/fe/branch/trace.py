@@ -302,7 +302,7 @@ def micro_energy(result, micro: float) -> float:
 def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: int | None = None,
                   micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
                   step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False,
-                  landing: str = "search") -> FollowResult:
+                  landing: str = "search", volume_path: bool = True) -> FollowResult:
     """Trace the branch of ``bif`` with the harmonics ``hn`` (default :func:`default_harmonics`)
     from the bifurcation through its volume limit to the lower state at that volume (with
     ``stop_at_upper``: only up to its first volume limit, :class:`BranchTracker`).
@@ -316,8 +316,7 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
         energy is traced through (``micro_folds``), not reported as the snap
     max_steps : bound on the branch's continuation steps (default: the axisymmetric trace's)
     step_grow : the continuation's step growth (:data:`FOLLOW_STEP_GROW`)
-    landing : how the lower state is found where the branch passed back through the axisymmetric
-        path (:func:`trace_branch`)
+    landing, volume_path : how the lower state is found (:func:`trace_branch`)
 
     Returns
     -------
@@ -331,7 +330,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     U_c = mh.embed(bif.u)
     Phi = mh.embed(np.zeros(base.n), {bif.n: bif.mode})
     fr = trace_branch(result, bif, mh, U_c, bif.p, Phi, [int(n) for n in mh.hn[1:]], micro=micro,
-                      max_steps=max_steps, step_grow=step_grow, stop_at_upper=stop_at_upper, landing=landing)
+                      max_steps=max_steps, step_grow=step_grow, stop_at_upper=stop_at_upper, landing=landing,
+                      volume_path=volume_path)
     fr.metrics["follow_wall_s"] = time.perf_counter() - t0
     return fr
 
@@ -339,7 +339,7 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
 def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarray, p_c: float, Phi: np.ndarray,
                  asym_harmonics: list[int], micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
                  step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False,
-                 landing: str = "search") -> FollowResult:
+                 landing: str = "search", volume_path: bool = True) -> FollowResult:
     """Trace the branch of the model ``mh`` that leaves the equilibrium ``(U_c, p_c)`` along
     ``Phi`` (a bifurcation point and its critical mode, as free vectors of ``mh``) through its volume
     limit to the lower state at that volume (:func:`follow_branch` for a branch of the axisymmetric
@@ -360,6 +360,9 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     with every harmonic of ``mh`` (:func:`axisym_landing`): for a subcritical branch before
     tracing it (its first step tells), and for a branch that passed back through the axisymmetric
     path before the search; it traces and searches as the reference where there is none.
+    ``volume_path``: the search at fixed volume tries the fixed-volume path before the energy
+    descent (``False``: the descent alone; in the multi-harmonic model that path has not reached a
+    lower state on the stratified samples, docs/harmonics.md section 10.8).
     """
     if landing not in LANDINGS:
         raise ValueError(f"landing must be one of {LANDINGS}, got {landing!r}")
@@ -398,7 +401,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
             alt = axisym_landing(result, mh, tr, up)
             if alt is not None:
                 return LowerState(alt, "descent", "axisymmetric path", reason=why, message=AXISYM_LANDING)
-        low = find_lower_state(tr, tk.states, pth.points, why)
+        low = find_lower_state(tr, tk.states, pth.points, why, volume_path=volume_path)
         if up is not None and (low.state is None or (low.method == "descent"
                                                       and mh.energy(up.u) - mh.energy(low.state.u) <= 0.0)):
             # the search found nothing below the fold: the axisymmetric path's state at that volume,
