@@ -10,7 +10,7 @@ import pytest
 import bench.profile
 
 #: every module of bench/profile/, plus the bench tools that no make target runs
-TOOLS = ["bench.grid_compare", "bench.followed_fig4"] + [
+TOOLS = ["bench.grid_compare", "bench.followed_fig4", "bench.arbiter"] + [
     f"bench.profile.{m.name}" for m in pkgutil.iter_modules(bench.profile.__path__)]
 
 

@@ -121,3 +121,43 @@ def test_the_search_without_the_fixed_volume_path_is_the_references_descent(answ
     low = find_lower_state(ref.tracer, before, ref.path.points, REJOINED, volume_path=False)
     assert low.solver == "energy-descent" and low.message in ref.lower_note
     assert np.array_equal(low.state.u, ref.states.lower.u) and low.state.p == ref.states.lower.p
+
+
+def test_the_lumped_mass_is_positive_and_halved_for_n_ge_1(answers):
+    from snapjump_cli.fe.branch.dynamics import lumped_mass
+    from snapjump_cli.fe.branch.model import component_index
+
+    mh = answers[0].branch.model
+    m = lumped_mass(mh)
+    assert m.shape == (mh.n,) and (m > 0).all()
+    # the body's mass: every node once per component of harmonic 0 (unit density)
+    M = mh.base
+    assert m[mh.dofmap[:, 0][mh.dofmap[:, 0] >= 0]].sum() <= M.Wq.sum() * (1 + 1e-12)
+    b0, b2 = mh.dofmap[:, component_index(0, 1)], mh.dofmap[:, component_index(2, 1)]
+    both = (b0 >= 0) & (b2 >= 0)
+    assert np.allclose(m[b2[both]], 0.5 * m[b0[both]], rtol=1e-14)
+
+
+def test_the_damped_snap_comes_to_rest_on_the_landing_state(design, answers):
+    """The arbiter (snapjump_cli.fe.branch.dynamics): the damped motion at fixed volume from the
+    axisymmetric state just past the bifurcation, kicked along the critical mode, comes to rest on
+    the actuator's landing state (moved by the 1e-3 volume offset), stable under volume control."""
+    from snapjump_cli.fe.branch.dynamics import damped_snap, lowest_frequency
+    from snapjump_cli.fe.continuation import PathPoint
+
+    res, _ = design
+    fr = answers[0].branch
+    mh, tr, up, lo = fr.model, fr.tracer, fr.states.upper, fr.states.lower
+    V1 = float(up.zeta[0]) * (1.0 + 1e-3)
+    pts = res.path.points[: res.states.k_before + 1]
+    k = next(k for k in range(1, len(pts)) if pts[k - 1].zeta[0] < V1 <= pts[k].zeta[0])
+    q = SnapTracker(res.tracer, p_stop=math.inf, V_stop=math.inf).locate_volume(pts[k - 1], pts[k], V1, pts[k - 2])
+    U = mh.embed(q.u)
+    t, v, qq, z = tr.tangent(mh.linearize(U, q.p), (up.tangent, tr.alpha * up.du_ds))
+    start = PathPoint(U, q.p, z, t, v, qq, float("nan"), 0)
+    omega = lowest_frequency(tr, lo.u, lo.p)
+    ds = damped_snap(tr, start, fr.path.points[0].du_ds, omega, zeta=1.0, steps_per_period=10, rest=1e-6)
+    assert ds.state is not None, ds.message
+    assert ds.state.zeta[0] == pytest.approx(V1, rel=1e-9)
+    assert np.linalg.norm(ds.state.u - lo.u) < 3e-3 * np.linalg.norm(lo.u)
+    assert mh.energy(ds.state.u) < mh.energy(start.u)
