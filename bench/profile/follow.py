@@ -133,7 +133,7 @@ def profile_one(label: str, scene, mesh, solver, N: int, mode: str, top: int | N
     n = int(row["asym_n"])
     bif = locate_bifurcation(res, n)
     if bif is not None:  # compile the multi-harmonic kernels (JIT) outside the timing
-        follow_branch(res, bif, default_harmonics(n, N or None), max_steps=3)
+        follow_branch(res, bif, default_harmonics(n, N or None), max_steps=3, stop_at_upper=True)
     t0 = time.process_time()
     try:
         with time_limit(solver.time_limit_s):

@@ -89,9 +89,10 @@ REF_CPU_S_PER_DESIGN = 0.196
 REF_CHECK_FACTOR = 1.32
 #: With ``solver.follow``: per critical harmonic, the share of the paper grid's valid designs whose
 #: branch is followed (2310 and 611 of 4079, ``make run``) and the mean seconds of one followed
-#: design of that class on the stratified samples (58 s and 628 s; ``bench/harmonics_sample/``,
-#: docs/results.md), each at most the solver's ``time_limit_s``.
-REF_FOLLOW = {1: (2310 / 4079, 58.0), 2: (611 / 4079, 628.0)}
+#: design of that class on the stratified samples in the default ``follow_mode`` (14.3 s for
+#: ``n = 1``; for ``n = 2`` the samples' 628 s times one design's actuator/full CPU ratio, 0.61;
+#: ``bench/harmonics_sample/``, docs/performance.md), each at most the solver's ``time_limit_s``.
+REF_FOLLOW = {1: (2310 / 4079, 14.3), 2: (611 / 4079, 380.0)}
 #: Seconds of a sweep that do not depend on the number of designs: the imports and the kernels
 #: loaded in the parent, the workers started, each worker's first solve (``configs/smoke.yaml``:
 #: 2 designs of ~0.07 CPU-s each on 2 workers, 3.8 CPU-s for the whole command).
