@@ -442,6 +442,9 @@ def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "",
         _branch_marks(ax, branch, fx, fy)
         if "snap_V_m3" in branch:
             sx, sy = fx(branch["snap_V_m3"]), fy(branch["snap_p_Pa"])
+            if branch.get("axisym_landing"):  # the area under the axisymmetric path to the landing state
+                ax_, ay_ = _axisym_snap_area(curve, branch)
+                sx, sy = fx(ax_), fy(ay_)
             ax.fill(np.r_[sx, sx[:1]], np.r_[sy, sy[:1]], color="tab:orange", alpha=0.35,
                     label=f"dE = {metrics['dE_J'] * 1e3:.4g} mJ (the followed snap, reported)")
             ax.plot([sx[0], sx[-1]], [sy[0], sy[-1]], "--", color="tab:red", lw=1.3, label="snap at fixed volume")
@@ -464,6 +467,22 @@ def plot_pv_curve(curve: dict, metrics: dict, path: str | Path, title: str = "",
         return _save(fig, path, 120)
     finally:
         plt.close(fig)
+
+
+def _axisym_snap_area(curve: dict, branch: dict) -> tuple[np.ndarray, np.ndarray]:
+    """The boundary of a followed snap that lands on the axisymmetric path's state (SI): the
+    bifurcation, the axisymmetric path from there through its fold to its crossing of the
+    bifurcation's volume nearest the lower state's pressure, the lower state."""
+    V, P = np.asarray(curve["V_m3"]), np.asarray(curve["p_Pa"])
+    V_b, p_up, p_lo = branch["snap_V_m3"][0], branch["snap_p_Pa"][0], branch["snap_p_Pa"][-1]
+    cross = np.nonzero((V[:-1] - V_b) * (V[1:] - V_b) <= 0.0)[0]
+    if len(cross) < 2:
+        return np.array([V_b, V_b]), np.array([p_up, p_lo])
+    w = (V_b - V[cross]) / np.where(V[cross + 1] != V[cross], V[cross + 1] - V[cross], 1.0)
+    p_x = P[cross] + w * (P[cross + 1] - P[cross])
+    i1 = cross[1:][int(np.argmin(np.abs(p_x[1:] - p_lo)))]
+    i0 = cross[0]
+    return np.r_[V_b, V[i0 + 1:i1 + 1], V_b], np.r_[p_up, P[i0 + 1:i1 + 1], p_lo]
 
 
 def _branch_marks(ax, branch: dict, fx, fy) -> None:

@@ -161,3 +161,19 @@ def test_the_damped_snap_comes_to_rest_on_the_landing_state(design, answers):
     assert ds.state.zeta[0] == pytest.approx(V1, rel=1e-9)
     assert np.linalg.norm(ds.state.u - lo.u) < 3e-3 * np.linalg.norm(lo.u)
     assert mh.energy(ds.state.u) < mh.energy(start.u)
+
+
+def test_the_plot_shades_the_area_under_the_axisymmetric_path(design, answers):
+    """`curve --plot` shades the followed snap's dE: for a landing on the axisymmetric state, the
+    region between that path (from the bifurcation through its fold to the landing) and the
+    vertical snap; its signed area (shoelace) is the reported dE, to the curve's resolution."""
+    from snapjump_cli.fe.branch.metrics import branch_curve
+    from snapjump_cli.viz.figures import _axisym_snap_area
+
+    res, _ = design
+    act = answers[0]
+    bc = branch_curve(act.branch)
+    assert bc["axisym_landing"]
+    V, p = _axisym_snap_area(res.curve, bc)
+    area = 0.5 * float(np.sum(V * np.roll(p, -1) - np.roll(V, -1) * p))
+    assert abs(area) == pytest.approx(act.values["dE_J"], rel=0.05)

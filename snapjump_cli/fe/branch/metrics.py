@@ -25,12 +25,17 @@ if TYPE_CHECKING:
 __all__ = ["branch_curve", "pole_height", "ground_height", "multiharmonic_snap_metrics"]
 
 
+#: The note of a lower state found on the axisymmetric path (:func:`snapjump_cli.fe.branch.trace.axisym_landing`).
+AXISYM_LANDING = "the axisymmetric path's state at that volume beyond its snap, stable with every harmonic kept"
+
+
 def branch_curve(fr: FollowResult) -> dict:
     """The followed branch in SI units for plots: ``V_m3``, ``p_Pa`` per traced point (from the
     bifurcation; for a branch that left another at a secondary bifurcation, that branch up to it
     first, and ``n_sec``, ``V_sec_m3``; for a jump off a branch, that branch up to the fold, and
     ``n_sec``, ``landing_V_m3``, ``landing_p_Pa``: the state it lands on) and, for a snap, ``snap_V_m3`` / ``snap_p_Pa`` (upper
-    state, the branch after it, lower state) and ``kind`` (that of the branch whose snap it is: the
+    state, the branch after it, lower state; ``axisym_landing`` when the lower state is the
+    axisymmetric path's, whose snap area lies under that path) and ``kind`` (that of the branch whose snap it is: the
     secondary branch's after a secondary bifurcation, where ``parent_kind`` is how the first branch
     left the axisymmetric path)."""
     mh, sc = fr.model, fr.tracer.sc
@@ -59,6 +64,8 @@ def branch_curve(fr: FollowResult) -> dict:
         seq = snap_sequence(fr.path, st)
         out["snap_V_m3"] = np.array([pt.zeta[0] * sc[0] for pt in seq]) * L3
         out["snap_p_Pa"] = np.array([pt.p for pt in seq]) * S
+        # landed on the axisymmetric path's state (section 10.8): dE is the area under that path
+        out["axisym_landing"] = fr.lower_note == AXISYM_LANDING
     return out
 
 

@@ -35,7 +35,7 @@ import numpy as np
 from snapjump_cli.fe.axisym.lower_state import LowerState, constrained_instability, find_lower_state
 from snapjump_cli.fe.axisym.snap import SnapStates, SnapTracker
 from snapjump_cli.fe.branch.bifurcation import Bifurcation, default_harmonics, harmonic1_gauge
-from snapjump_cli.fe.branch.metrics import multiharmonic_snap_metrics
+from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, multiharmonic_snap_metrics
 from snapjump_cli.fe.branch.model import MultiHarmonicModel
 from snapjump_cli.fe.continuation import ContinuationFailed, Path, PathPoint, Tracer, start_point, trace
 
@@ -172,10 +172,6 @@ REJOINED = "the branch passed back through the axisymmetric path"
 
 #: The stop reason of a branch traced only up to its upper state (``BranchTracker.stop_at_upper``).
 UPPER_LOCATED = "upper state located; the branch beyond it not traced"
-
-
-#: The note of a lower state found by :func:`axisym_landing`.
-AXISYM_LANDING = "the axisymmetric path's state at that volume beyond its snap, stable with every harmonic kept"
 
 
 #: How a branch's lower state is found where the branch passed back through the axisymmetric path
