@@ -406,9 +406,9 @@ def _text(scene, m: dict) -> str:
 @click.option("--follow-N", "follow_N", type=click.IntRange(0, 16), default=0, show_default=True, metavar="N",
               help="Highest harmonic of the followed branch (0: 4 n_c for the critical harmonic n_c).")
 @click.option("--follow-full", "follow_full", is_flag=True,
-              help="With --follow: the reference mode, every branch traced to its snap before it is checked "
-                   "against other harmonics (slower; the default traces only what the actuator passes through "
-                   "where that gives the same answer).")
+              help="With --follow: the reference mode, every branch traced to its snap and its lower state "
+                   "searched (slower; the default traces only what the actuator passes through and lands a "
+                   "subcritical n = 1 snap on the axisymmetric path's inverted state where that is stable).")
 @click.option("--imperfection", "imperfection", type=click.FloatRange(min=0.0, max=1.0), default=None,
               metavar="DELTA",
               help="Also trace the actuator with an initial geometric imperfection: the lowest mode of harmonic "
