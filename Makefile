@@ -11,8 +11,10 @@ STAMP  := $(VENV)/.installed
 # kernels/_aot_build.json records what they were built for; they are rebuilt otherwise. If the
 # build fails the kernels run JIT-compiled, with the same answers (not retried until the sources
 # or the CPU change; delete kernels/_aot_build.json to retry).
+# the ahead-of-time build on one core, the followed branch's JIT kernels compiled on the other
 install: $(STAMP)
-	@$(BIN)/python -m snapjump_cli.fe.precompile --if-stale
+	@$(BIN)/python -m snapjump_cli.fe.precompile --warm-followed & warm=$$!; \
+	$(BIN)/python -m snapjump_cli.fe.precompile --if-stale; status=$$?; wait $$warm; exit $$status
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)

@@ -16,7 +16,7 @@ from typing import Any
 
 from snapjump_kernels import aot
 
-__all__ = ["collect_signatures", "main"]
+__all__ = ["collect_signatures", "warm_followed", "main"]
 
 
 def collect_signatures() -> dict[str, dict[str, Any]]:
@@ -47,6 +47,23 @@ def collect_signatures() -> dict[str, dict[str, Any]]:
     return found
 
 
+def warm_followed() -> None:
+    """Compile the JIT kernels of a followed branch (:data:`snapjump_kernels.calls.JIT_KERNELS`)
+    into numba's cache by a short branch of a small cap: ``make install`` runs it on the second core
+    beside the ahead-of-time build, so that the first followed solve does not pay the compilation."""
+    from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
+    from snapjump_cli.fe.branch.trace import follow_branch
+    from snapjump_cli.fe.solve import solve_scene
+    from snapjump_cli.fe.stability.harmonics import check_harmonics
+    from snapjump_cli.geometry.caps import CapScene
+    from snapjump_cli.settings import MeshSettings, SolverSettings
+
+    res = solve_scene(CapScene(theta_deg=30.0, eta=50.0, bc="clamped"), MeshSettings(nt=1, aspect=2.0), SolverSettings())
+    chk = check_harmonics(res, 4)
+    bif = locate_bifurcation(res, int(chk.asym_n))
+    follow_branch(res, bif, default_harmonics(int(chk.asym_n)), max_steps=2, stop_at_upper=True)
+
+
 def main(argv: list[str] | None = None, cpuinfo: str | Path = aot.CPUINFO) -> int:
     """``python -m snapjump_cli.fe.precompile [--if-stale]``: build the extension (with
     ``--if-stale`` only when its stamp does not match these kernel sources on this CPU). Exit 0
@@ -57,7 +74,18 @@ def main(argv: list[str] | None = None, cpuinfo: str | Path = aot.CPUINFO) -> in
 
     ap = argparse.ArgumentParser(prog="python -m snapjump_cli.fe.precompile", description=main.__doc__.split("\n\n")[0])
     ap.add_argument("--if-stale", action="store_true", help="build only when the stamp does not match")
+    ap.add_argument("--warm-followed", action="store_true",
+                    help="instead, compile the followed branch's JIT kernels into numba's cache (warm_followed)")
     args = ap.parse_args(argv)
+    if args.warm_followed:
+        t0 = time.perf_counter()
+        try:
+            warm_followed()
+        except Exception as exc:  # noqa: BLE001 - a cold cache only costs the first followed solve time
+            sys.stderr.write(f"snapjump_cli.fe.precompile: followed kernels not warmed ({type(exc).__name__}: {exc})\n")
+            return 0
+        sys.stderr.write(f"snapjump_cli.fe.precompile: followed kernels compiled in {time.perf_counter() - t0:.0f} s\n")
+        return 0
     why = aot.stale_reason(aot.read_stamp(), cpuinfo)
     if args.if_stale and not why:
         return 0

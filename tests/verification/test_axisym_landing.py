@@ -1,6 +1,6 @@
 """Where a subcritical branch's actuator lands on the axisymmetric path (snapjump_cli.fe.branch.trace.axisym_landing).
 
-A design of the mu_i/mu_o = 5.8 class on a coarse mesh (Q9, nt 1, aspect 6; the stratified sample's row 13,
+A design of the mu_i/mu_o = 5.8 class on a coarse mesh (Q9, nt 1, aspect 8; the stratified sample's row 12,
 bench/harmonics_sample/follow_strata.csv): its n = 1 branch is subcritical and loops back to the
 axisymmetric path without a stable state at the bifurcation's volume. The reference (``mode="full"``)
 traces the whole branch and then searches the lower state at fixed volume (fixed-volume path,
@@ -39,7 +39,7 @@ from snapjump_cli.settings import MeshSettings, SolverSettings
 
 @pytest.fixture(scope="module")
 def design():
-    res = solve_scene(Design(6.2, 75.0, 5.0, 82.0, 5.8), MeshSettings(order=2, nt=1, aspect=6.0),
+    res = solve_scene(Design(8.0, 72.5, 10.0, 76.0, 5.8), MeshSettings(order=2, nt=1, aspect=8.0),
                       SolverSettings(harmonics=4))
     chk = check_harmonics(res, 4)
     assert chk.asym_first and chk.asym_n == 1
@@ -114,13 +114,28 @@ def test_an_asymmetric_landing_is_not_replaced():
     assert axisym_landing(res, head.model, head.tracer, head.states.upper) is None
 
 
-def test_the_search_without_the_fixed_volume_path_is_the_references_descent(answers):
+def test_the_search_without_the_fixed_volume_path_is_the_references_descent(answers, monkeypatch):
+    """``volume_path=False`` goes straight to the descent the reference falls back on (the same
+    call: so the same state wherever the fixed-volume path fails, as it does here)."""
+    import snapjump_cli.fe.axisym.lower_state as ls
+
     ref = answers[1].branch
-    assert ref.path.stop_reason == REJOINED
+    assert ref.path.stop_reason == REJOINED and "descent" in ref.lower_note  # the path failed, then the descent
+    calls = []
+
+    def no_path(*a, **k):
+        raise AssertionError("the fixed-volume path was tried")
+
+    def descent(tracer, upper, start=None, control=None):
+        calls.append((tracer, upper, start))
+        return ref.states.lower, "descent (recorded)"
+
+    monkeypatch.setattr(ls, "snap_at_fixed_volume", no_path)
+    monkeypatch.setattr(ls, "descend_at_volume", descent)
     before = replace(ref.states, lower=None, lower_method="")
     low = find_lower_state(ref.tracer, before, ref.path.points, REJOINED, volume_path=False)
-    assert low.solver == "energy-descent" and low.message in ref.lower_note
-    assert np.array_equal(low.state.u, ref.states.lower.u) and low.state.p == ref.states.lower.p
+    assert low.solver == "energy-descent" and low.state is ref.states.lower
+    assert calls == [(ref.tracer, ref.states.upper, None)]  # the reference's first descent: from the upper state
 
 
 def test_the_lumped_mass_is_positive_and_halved_for_n_ge_1(answers):
@@ -138,16 +153,20 @@ def test_the_lumped_mass_is_positive_and_halved_for_n_ge_1(answers):
     assert np.allclose(m[b2[both]], 0.5 * m[b0[both]], rtol=1e-14)
 
 
-def test_the_damped_snap_comes_to_rest_on_the_landing_state(design, answers):
-    """The arbiter (snapjump_cli.fe.branch.dynamics): the damped motion at fixed volume from the
-    axisymmetric state just past the bifurcation, kicked along the critical mode, comes to rest on
-    the actuator's landing state (moved by the 1e-3 volume offset), stable under volume control."""
+def test_the_damped_snap_comes_to_rest_on_the_landing_state(design):
+    """The arbiter (snapjump_cli.fe.branch.dynamics), on the model with harmonics 0-2 (cheaper):
+    the damped motion at fixed volume from the axisymmetric state just past the bifurcation,
+    kicked along the critical mode, comes to rest on the state ``axisym_landing`` gives in that
+    model (moved by the 1e-3 volume offset), stable under volume control, below the start."""
     from snapjump_cli.fe.branch.dynamics import damped_snap, lowest_frequency
     from snapjump_cli.fe.continuation import PathPoint
 
     res, _ = design
-    fr = answers[0].branch
-    mh, tr, up, lo = fr.model, fr.tracer, fr.states.upper, fr.states.lower
+    bif = locate_bifurcation(res, 1)
+    head = follow_branch(res, bif, [0, 1, 2], max_steps=1, stop_at_upper=True)
+    mh, tr, up = head.model, head.tracer, head.path.points[0]  # the bifurcation state
+    lo = axisym_landing(res, mh, tr, up)
+    assert lo is not None
     V1 = float(up.zeta[0]) * (1.0 + 1e-3)
     pts = res.path.points[: res.states.k_before + 1]
     k = next(k for k in range(1, len(pts)) if pts[k - 1].zeta[0] < V1 <= pts[k].zeta[0])
@@ -156,7 +175,7 @@ def test_the_damped_snap_comes_to_rest_on_the_landing_state(design, answers):
     t, v, qq, z = tr.tangent(mh.linearize(U, q.p), (up.tangent, tr.alpha * up.du_ds))
     start = PathPoint(U, q.p, z, t, v, qq, float("nan"), 0)
     omega = lowest_frequency(tr, lo.u, lo.p)
-    ds = damped_snap(tr, start, fr.path.points[0].du_ds, omega, zeta=1.0, steps_per_period=10, rest=1e-6)
+    ds = damped_snap(tr, start, head.path.points[0].du_ds, omega, zeta=1.0, steps_per_period=10, rest=1e-6)
     assert ds.state is not None, ds.message
     assert ds.state.zeta[0] == pytest.approx(V1, rel=1e-9)
     assert np.linalg.norm(ds.state.u - lo.u) < 3e-3 * np.linalg.norm(lo.u)
