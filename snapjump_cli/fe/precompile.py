@@ -49,19 +49,27 @@ def collect_signatures() -> dict[str, dict[str, Any]]:
 
 def warm_followed() -> None:
     """Compile the JIT kernels of a followed branch (:data:`snapjump_kernels.calls.JIT_KERNELS`)
-    into numba's cache by a short branch of a small cap: ``make install`` runs it on the second core
-    beside the ahead-of-time build, so that the first followed solve does not pay the compilation."""
-    from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
-    from snapjump_cli.fe.branch.trace import follow_branch
-    from snapjump_cli.fe.solve import solve_scene
-    from snapjump_cli.fe.stability.harmonics import check_harmonics
+    into numba's cache: the multi-harmonic model of a small cap linearised and factorised at rest,
+    without a solve (so without compiling the axisymmetric kernels, which the ahead-of-time build
+    compiles). ``make install`` runs it on the second core beside that build, so that the first
+    followed solve does not pay the compilation."""
+    import numpy as np
+
+    from snapjump_cli.fe.branch.model import MultiHarmonicModel
+    from snapjump_cli.fe.solve import build_model
     from snapjump_cli.geometry.caps import CapScene
+    from snapjump_cli.mesh.build import mesh_scene
     from snapjump_cli.settings import MeshSettings, SolverSettings
 
-    res = solve_scene(CapScene(theta_deg=30.0, eta=50.0, bc="clamped"), MeshSettings(nt=1, aspect=2.0), SolverSettings())
-    chk = check_harmonics(res, 4)
-    bif = locate_bifurcation(res, int(chk.asym_n))
-    follow_branch(res, bif, default_harmonics(int(chk.asym_n)), max_steps=2, stop_at_upper=True)
+    scene = CapScene(theta_deg=30.0, eta=50.0, bc="clamped")
+    model = build_model(scene, mesh_scene(scene, MeshSettings(nt=1, aspect=2.0)), SolverSettings())
+    mh = MultiHarmonicModel(model, [0, 2, 4])
+    u = np.zeros(mh.n)
+    mh.energy(u)
+    mh.residual(u, 0.0)
+    lin = mh.linearize(u, 0.0)
+    lin.factor(lin.g, 0.0)
+    lin.factor(lin.g, 0.0, shift=lin.diag_abs())
 
 
 def main(argv: list[str] | None = None, cpuinfo: str | Path = aot.CPUINFO) -> int:
