@@ -22,9 +22,9 @@ import time
 import numpy as np
 
 from snapjump_cli.fe.branch.dynamics import damped_snap, lowest_frequency
-from snapjump_cli.fe.axisym.snap import SnapTracker
 from snapjump_cli.fe.continuation import PathPoint
 from snapjump_cli.fe.branch.followed import followed_metrics
+from snapjump_cli.fe.branch.trace import axisym_crossings
 from snapjump_cli.fe.solve import solve_scene
 from snapjump_cli.fe.stability.harmonics import check_harmonics
 from snapjump_cli.geometry.caps import Design
@@ -75,10 +75,7 @@ def main(argv: list[str] | None = None) -> int:
         # the bifurcation is degenerate (the energy falls along its mode only at fourth order): the
         # motion starts from the axisymmetric state just past it, where the mode is unstable
         V1 = float(up.zeta[0]) * (1.0 + a.past)
-        pts = res.path.points[: res.states.k_before + 1]
-        k = next(k for k in range(1, len(pts)) if pts[k - 1].zeta[0] < V1 <= pts[k].zeta[0])
-        q = SnapTracker(res.tracer, p_stop=math.inf, V_stop=math.inf).locate_volume(pts[k - 1], pts[k], V1,
-                                                                                     pts[k - 2] if k > 1 else None)
+        q = next(q for _, q in axisym_crossings(res, V1))
         U = mh.embed(q.u)
         lin = mh.linearize(U, q.p)
         t_, v_, q_, z_ = tr.tangent(lin, (up.tangent, tr.alpha * up.du_ds))

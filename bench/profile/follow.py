@@ -1,7 +1,7 @@
 """Per-design CPU profile of a followed branch (issue 36: where the followed designs' time goes).
 
     .venv/bin/python -m bench.profile.follow [SCENE ...] [--N N] [--mode actuator|full] [--cprofile [K]]
-                                             [--landing] [--json PATH]
+                                             [--landing] [--compare] [--json PATH]
     .venv/bin/python -m bench.profile.follow --sample bench/harmonics_sample/follow_strata.yaml \\
         --rows 0 1 2 [--cprofile]
 
@@ -31,6 +31,11 @@ For each design, in this process, process CPU time (``time.process_time``; one B
    state the actuator lands on at fixed volume from there (the fixed-volume path, then the energy
    descent: ``find_lower_state``), against the answer of step 3: CPU, how it was found, and the
    energy of the two lower states.
+
+6. with ``--compare``, the other follow mode on the same solve: its CPU, how many answer values
+   differ from this mode's (timings excluded) and the distance between the two lower states
+   (relative to the norm of this mode's): where the modes land on the same state, and how much
+   the actuator mode saves against the reference.
 
 Prints one markdown table row per design (and the breakdowns); ``--json`` writes the numbers.
 """
@@ -116,7 +121,28 @@ def landing(res, n: int, N: int, fr) -> dict[str, Any]:
     return out
 
 
-def profile_one(label: str, scene, mesh, solver, N: int, mode: str, top: int | None, with_landing: bool) -> dict:
+def compare_modes(res, chk, N: int, mode: str, out: dict, fr) -> dict[str, Any]:
+    """The ``--compare`` figures: the other follow mode's answer on the same solve against this
+    mode's ``out`` (its values) and ``fr`` (its branch)."""
+    import numpy as np
+
+    other = "full" if mode == "actuator" else "actuator"
+    t0 = time.process_time()
+    ans = followed_metrics(res, chk, N=N or None, mode=other)
+    cpu = time.process_time() - t0
+    keys = [k for k in set(out) | set(ans.values) if k not in ("follow_wall_s", "follow_note")]
+    same = [k for k in keys if out.get(k) == ans.values.get(k) or (
+        isinstance(out.get(k), float) and isinstance(ans.values.get(k), float)
+        and np.isnan(out[k]) and np.isnan(ans.values[k]))]
+    row = {"mode": other, "cpu_s": cpu, "values": len(keys), "differ": sorted(set(keys) - set(same))}
+    lo, lo2 = (fr.states.lower if fr is not None else None), (ans.branch.states.lower if ans.branch is not None else None)
+    if lo is not None and lo2 is not None and lo.u.shape == lo2.u.shape:
+        row["landing_distance"] = float(np.linalg.norm(lo2.u - lo.u) / np.linalg.norm(lo.u))
+    return row
+
+
+def profile_one(label: str, scene, mesh, solver, N: int, mode: str, top: int | None, with_landing: bool,
+                compare: bool = False) -> dict:
     """Profile one design (steps 1-5 of the module's docstring); returns the numbers."""
     t0 = time.process_time()
     res = solve_scene(scene, mesh, solver)
@@ -163,6 +189,8 @@ def profile_one(label: str, scene, mesh, solver, N: int, mode: str, top: int | N
         row["cprofile"] = {"total_s": total, "stages_cum_s": cum, "top_exclusive_s": [[n_, t] for t, n_ in excl]}
     if with_landing and bif is not None:
         row["landing"] = landing(res, n, N, fr)
+    if compare and fr is not None:
+        row["compare"] = compare_modes(res, chk, N, mode, out, fr)
     return row
 
 
@@ -181,6 +209,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rows", type=int, nargs="+", default=[0], help="rows of --sample (0-based)")
     ap.add_argument("--N", type=int, default=0, help="highest harmonic kept (default 4 n_c, as the sweep)")
     ap.add_argument("--mode", choices=("actuator", "full"), default="actuator", help="solver.follow_mode")
+    ap.add_argument("--compare", action="store_true",
+                    help="also solve with the other follow mode: its CPU, the answer values that differ, the lower states' distance")
     ap.add_argument("--landing", action="store_true",
                     help="also stop the branch at its upper state and search the landing state at fixed volume")
     ap.add_argument("--cprofile", type=int, nargs="?", const=15, default=None, metavar="K",
@@ -192,7 +222,7 @@ def main(argv: list[str] | None = None) -> int:
           "| kind | dE_J | note |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for label, scene, mesh, solver in scenes(a.scenes, a.sample, a.rows):
-        r = profile_one(label, scene, mesh, solver, a.N, a.mode, a.cprofile, a.landing)
+        r = profile_one(label, scene, mesh, solver, a.N, a.mode, a.cprofile, a.landing, a.compare)
         rows.append(r)
         print(f"| {label} | {_fmt(r.get('asym_n'))} | {r['cpu_axisym_check_first_s']:.3f} / "
               f"{r['cpu_axisym_check_s']:.3f} | {_fmt(r.get('cpu_followed_s'))} | {_fmt(r.get('ratio'))} "
@@ -206,6 +236,11 @@ def main(argv: list[str] | None = None) -> int:
                   f"{b['lower'] or '-'} {b['lower_note'] or ''}")
         if "landing" in r:
             print(f"{r['design']}: landing from the upper state: {r['landing']}")
+        if "compare" in r:
+            c = r["compare"]
+            print(f"{r['design']}: --mode {c['mode']} {c['cpu_s']:.3g} CPU-s ({c['cpu_s'] / r['cpu_followed_s']:.2f}x this "
+                  f"mode's); {len(c['differ'])} of {c['values']} answer values differ {c['differ'] or ''}; "
+                  f"lower states' distance {c.get('landing_distance', float('nan')):.2g}")
     for r in rows:
         cp = r.get("cprofile")
         if not cp:

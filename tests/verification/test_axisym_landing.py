@@ -18,7 +18,6 @@ after one step of the branch. Checked here:
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
@@ -27,10 +26,9 @@ from dataclasses import replace
 
 from snapjump_cli.fe.axisym.lower_state import constrained_instability, find_lower_state
 from snapjump_cli.fe.axisym.metrics import path_p_dV
-from snapjump_cli.fe.axisym.snap import SnapTracker
 from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
 from snapjump_cli.fe.branch.followed import followed_metrics
-from snapjump_cli.fe.branch.trace import AXISYM_LANDING, REJOINED, axisym_landing, follow_branch
+from snapjump_cli.fe.branch.trace import AXISYM_LANDING, REJOINED, axisym_crossings, axisym_landing, follow_branch
 from snapjump_cli.fe.solve import solve_scene
 from snapjump_cli.fe.stability.harmonics import check_harmonics
 from snapjump_cli.geometry.caps import Design
@@ -87,15 +85,11 @@ def test_dE_two_ways_along_the_axisymmetric_path(design, answers):
     fr = answers[0].branch
     mh, up, lo = fr.model, fr.states.upper, fr.states.lower
     V = float(up.zeta[0])
-    pts, kb = res.path.points, res.states.k_before
-    locate = SnapTracker(res.tracer, p_stop=math.inf, V_stop=math.inf)
-    crossings = [k for k in range(1, len(pts)) if (pts[k - 1].zeta[0] - V) * (pts[k].zeta[0] - V) <= 0.0]
-    k0 = max(k for k in crossings if k <= kb)  # the bifurcation, before the fold
+    pts = res.path.points
     E_lo = mh.energy(lo.u)
-    k1 = next(k for k in crossings if k > kb and abs(res.model.energy(
-        locate.locate_volume(pts[k - 1], pts[k], V, pts[k - 2]).u) - E_lo) < 1e-9 * abs(E_lo))
-    a = locate.locate_volume(pts[k0 - 1], pts[k0], V, pts[k0 - 2])
-    b = locate.locate_volume(pts[k1 - 1], pts[k1], V, pts[k1 - 2])
+    k0, a = next(axisym_crossings(res, V))  # the bifurcation, before the fold
+    k1, b = next((k, q) for k, q in axisym_crossings(res, V, beyond_snap=True)
+                 if q is not None and abs(res.model.energy(q.u) - E_lo) < 1e-9 * abs(E_lo))
     sc = res.tracer.sc
     work = path_p_dV([a] + pts[k0:k1] + [b], sc[0], sc[1])
     dE = mh.energy(up.u) - E_lo
@@ -168,9 +162,7 @@ def test_the_damped_snap_comes_to_rest_on_the_landing_state(design):
     lo = axisym_landing(res, mh, tr, up)
     assert lo is not None
     V1 = float(up.zeta[0]) * (1.0 + 1e-3)
-    pts = res.path.points[: res.states.k_before + 1]
-    k = next(k for k in range(1, len(pts)) if pts[k - 1].zeta[0] < V1 <= pts[k].zeta[0])
-    q = SnapTracker(res.tracer, p_stop=math.inf, V_stop=math.inf).locate_volume(pts[k - 1], pts[k], V1, pts[k - 2])
+    q = next(q for _, q in axisym_crossings(res, V1))
     U = mh.embed(q.u)
     t, v, qq, z = tr.tangent(mh.linearize(U, q.p), (up.tangent, tr.alpha * up.du_ds))
     start = PathPoint(U, q.p, z, t, v, qq, float("nan"), 0)

@@ -143,7 +143,8 @@ def damped_snap(tracer: Tracer, upper: PathPoint, direction: np.ndarray, omega: 
             dt = min(dt0, 1.5 * dt)
         kin = 0.5 * float(v @ (m * v))
         K_max = max(K_max, kin)
-        log.debug("step %d: t=%.5g dt=%.3g its=%d kinetic=%.3e E=%.10g", k, t, dt, its, kin, pb.energy(u))
+        if log.isEnabledFor(logging.DEBUG):  # (the energy is one more element pass)
+            log.debug("step %d: t=%.5g dt=%.3g its=%d kinetic=%.3e E=%.10g", k, t, dt, its, kin, pb.energy(u))
         if K_max > 0.0 and kin < rest * K_max and t > 2.0 * math.pi / omega:
             got = tracer.correct(u, p, None, None, 0.0, target=(0, V_star))
             if got is None:

@@ -28,7 +28,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field, replace
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -43,7 +43,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["FoldJump", "FollowResult", "BranchTracker", "MICRO_FOLD_DE", "REJOIN_FRAC", "FOLLOW_STEP_GROW",
            "MAX_RESTARTS", "ThroughFolds", "trace_through_micro_folds", "tracker_bounds", "micro_energy",
-           "follow_branch", "trace_branch", "axisym_state_at", "axisym_landing", "branch_metrics", "REJOINED",
+           "follow_branch", "trace_branch", "axisym_crossings", "axisym_state_at", "axisym_landing", "branch_metrics", "REJOINED",
            "LANDINGS"]
 
 
@@ -448,28 +448,39 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     return fr
 
 
+def axisym_crossings(result, V: float, beyond_snap: bool = False) -> Iterator[tuple[int, PathPoint | None]]:
+    """The axisymmetric path's states at scaled volume ``V``, each located on its path step of
+    ``result`` (``None`` where that fails) with the step's end index: before the path's volume
+    limit, the one crossing (the volume rises there); with ``beyond_snap``, every crossing after it."""
+    st0 = result.states
+    pts = result.path.points
+    k_before = st0.k_before if st0 is not None and st0.k_before is not None else len(pts) - 1
+    locate = SnapTracker(result.tracer, p_stop=math.inf, V_stop=math.inf)
+    for k in range(k_before + 1, len(pts)) if beyond_snap else range(1, k_before + 1):
+        a, b = pts[k - 1], pts[k]
+        if beyond_snap:
+            if (a.zeta[0] - V) * (b.zeta[0] - V) > 0.0 or a.zeta[0] == b.zeta[0]:
+                continue
+        elif not a.zeta[0] < V <= b.zeta[0]:
+            continue
+        yield k, locate.locate_volume(a, b, V, pts[k - 2] if k > 1 else None)
+
+
 def axisym_state_at(result, mh: MultiHarmonicModel, tr: Tracer, V: float) -> PathPoint | None:
     """The axisymmetric path's state at scaled volume ``V`` (before its volume limit) as a state of
     the multi-harmonic model ``mh`` (traced by ``tr``), if it is stable there under volume control
     within ``mh``'s harmonics; else ``None``."""
-    st0 = result.states
-    pts = result.path.points[: (st0.k_before if st0 is not None and st0.k_before is not None else
-                                len(result.path.points) - 1) + 1]
-    locate = SnapTracker(result.tracer, p_stop=math.inf, V_stop=math.inf)
-    for k in range(1, len(pts)):
-        a, b = pts[k - 1], pts[k]
-        if a.zeta[0] < V <= b.zeta[0]:
-            q = locate.locate_volume(a, b, V, pts[k - 2] if k > 1 else None)
-            if q is None:
-                return None
-            U = mh.embed(q.u)
-            lin = mh.linearize(U, q.p)
-            if lin is None or constrained_instability(tr, lin) != 0:
-                return None
-            try:
-                return start_point(tr, U, q.p)
-            except ContinuationFailed:
-                return None
+    for _, q in axisym_crossings(result, V):
+        if q is None:
+            return None
+        U = mh.embed(q.u)
+        lin = mh.linearize(U, q.p)
+        if lin is None or constrained_instability(tr, lin) != 0:
+            return None
+        try:
+            return start_point(tr, U, q.p)
+        except ContinuationFailed:
+            return None
     return None
 
 
@@ -488,15 +499,8 @@ def axisym_landing(result, mh: MultiHarmonicModel, tr: Tracer, upper: PathPoint)
     if st0 is None or st0.k_before is None:
         return None
     V = float(upper.zeta[0])
-    E_up = mh.energy(upper.u)
-    pts = result.path.points
-    locate = SnapTracker(result.tracer, p_stop=math.inf, V_stop=math.inf)
-    best, E_best = None, E_up
-    for k in range(st0.k_before + 1, len(pts)):
-        a, b = pts[k - 1], pts[k]
-        if (a.zeta[0] - V) * (b.zeta[0] - V) > 0.0 or a.zeta[0] == b.zeta[0]:
-            continue
-        q = locate.locate_volume(a, b, V, pts[k - 2] if k > 1 else None)
+    best, E_best = None, mh.energy(upper.u)
+    for _, q in axisym_crossings(result, V, beyond_snap=True):
         if q is None:
             continue
         res = tr.correct(mh.embed(q.u), q.p, None, None, 0.0, target=(0, V))
