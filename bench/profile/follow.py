@@ -134,7 +134,10 @@ def compare_modes(res, chk, N: int, mode: str, out: dict, fr) -> dict[str, Any]:
     same = [k for k in keys if out.get(k) == ans.values.get(k) or (
         isinstance(out.get(k), float) and isinstance(ans.values.get(k), float)
         and np.isnan(out[k]) and np.isnan(ans.values[k]))]
-    row = {"mode": other, "cpu_s": cpu, "values": len(keys), "differ": sorted(set(keys) - set(same))}
+    differ = sorted(set(keys) - set(same))
+    rel = [abs(out[k] - ans.values[k]) / max(abs(out[k]), abs(ans.values[k]), 1e-300) for k in differ
+           if isinstance(out.get(k), float) and isinstance(ans.values.get(k), float)]
+    row = {"mode": other, "cpu_s": cpu, "values": len(keys), "differ": differ, "largest_rel_diff": max(rel, default=0.0)}
     lo, lo2 = (fr.states.lower if fr is not None else None), (ans.branch.states.lower if ans.branch is not None else None)
     if lo is not None and lo2 is not None and lo.u.shape == lo2.u.shape:
         row["landing_distance"] = float(np.linalg.norm(lo2.u - lo.u) / np.linalg.norm(lo.u))
@@ -239,7 +242,8 @@ def main(argv: list[str] | None = None) -> int:
         if "compare" in r:
             c = r["compare"]
             print(f"{r['design']}: --mode {c['mode']} {c['cpu_s']:.3g} CPU-s ({c['cpu_s'] / r['cpu_followed_s']:.2f}x this "
-                  f"mode's); {len(c['differ'])} of {c['values']} answer values differ {c['differ'] or ''}; "
+                  f"mode's); {len(c['differ'])} of {c['values']} answer values differ {c['differ'] or ''} "
+                  f"(largest relative difference {c['largest_rel_diff']:.2g}); "
                   f"lower states' distance {c.get('landing_distance', float('nan')):.2g}")
     for r in rows:
         cp = r.get("cprofile")
