@@ -111,7 +111,7 @@ def descend_at_volume(
             E_new = lin.E
             z, dz_du, dz_dp = ctl.zeta(u, p, lin)
             h = float(z[0] - V_star)
-            base = None
+            base, n_unstable = None, None
         else:
             # a trial step: energy and volume decide; the stiffness is assembled only if it is taken
             lin, E_trial, h_trial, outside = _trial_step(tracer, u, p, accepted, V_star, control)
@@ -123,28 +123,37 @@ def descend_at_volume(
             else:
                 E_new, h = E_trial, h_trial
                 sigma_rel *= DESCENT_SHIFT_SHRINK
-                base = None
+                base, n_unstable = None, None
             z, dz_du, dz_dp = ctl.zeta(u, p, lin)
         c = float(dz_dp[0])  # the control's compliance (0 at fixed volume)
-        if base is None:
-            base = lin.factor(dz_du[0], c)  # unshifted: the inertia, and Newton's step once sigma -> 0
-            n_unstable = constrained_negatives(base, lin.g, c * float(ctl.sc[0]))
+        c_model = c * float(ctl.sc[0])
+        # the unshifted factorisation and its instability are formed only where they decide
+        # something (the convergence test, Newton's step once sigma -> 0): a shifted step that is
+        # positive definite on the constraint needs neither
         accepted = (u, p, lin, E_new, h, base, n_unstable)
         ref = tracer.residual_scale(lin, dz_du, p)
         rn = float(np.linalg.norm(lin.R)) / ref
-        log.debug("descent %d: E=%.12g rn=%.2e h=%.2e sigma_rel=%.1e unstable=%d", it, E_new, rn, h, sigma_rel, n_unstable)
+        log.debug("descent %d: E=%.12g rn=%.2e h=%.2e sigma_rel=%.1e unstable=%s", it, E_new, rn, h, sigma_rel,
+                  "?" if n_unstable is None else n_unstable)
         E_hist.append(E_new)
         # Newton at round-off: a snap at p ~ 0 has a tiny residual scale (the pressure load), and
         # the residual can stall above tol while energy, volume and state no longer change
         stalled = (len(E_hist) > n_stall and sigma_rel < DESCENT_SHIFT_NEWTON and rn < 1e-3
                    and abs(E_hist[-1] - E_hist[-1 - n_stall]) <= 1e-13 * max(abs(E_new), 1e-300))
-        if n_unstable == 0 and abs(h) < tol and (rn < tol or (rn < 100 * tol and step_small) or stalled):
-            t, v, q, zz = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
-            how = f"at round-off, residual {rn:.1e}, " if rn >= tol else ""
-            return PathPoint(lin.u, lin.p, zz, t, v, q, float("nan"), it), f"descent converged {how}in {it} iterations"
+        if abs(h) < tol and (rn < tol or (rn < 100 * tol and step_small) or stalled):
+            if base is None:
+                base, n_unstable = _unshifted(lin, dz_du, c, c_model)
+                accepted = (u, p, lin, E_new, h, base, n_unstable)
+            if n_unstable == 0:
+                t, v, q, zz = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
+                how = f"at round-off, residual {rn:.1e}, " if rn >= tol else ""
+                return PathPoint(lin.u, lin.p, zz, t, v, q, float("nan"), it), f"descent converged {how}in {it} iterations"
         # the smallest shift (from the current sigma_rel up) that makes the shifted system
         # positive definite on the constraint: the step then goes downhill in every mode
-        solver, sigma_rel = _descent_solver(lin, dz_du, base, n_unstable, sigma_rel, c, c * float(ctl.sc[0]))
+        if sigma_rel <= DESCENT_SHIFT_NEWTON and base is None:
+            base, n_unstable = _unshifted(lin, dz_du, c, c_model)
+            accepted = (u, p, lin, E_new, h, base, n_unstable)
+        solver, sigma_rel = _descent_solver(lin, dz_du, base, n_unstable, sigma_rel, c, c_model)
         if solver is None:
             return None, f"descent: no positive definite shift at iteration {it}"
         # restore the volume gradually when starting far from V* (a homotopy in the constraint)
@@ -154,6 +163,13 @@ def descend_at_volume(
         p = p + x[-1]
         step_small = float(np.linalg.norm(dz_du @ x[:-1] + dz_dp * x[-1])) < 1e-12
     return None, f"descent did not converge in {max_iter} iterations"
+
+
+def _unshifted(lin, dz_du: np.ndarray, c: float, c_model: float) -> tuple:
+    """The unshifted bordered factorisation of :func:`descend_at_volume` at ``lin`` and the number of
+    its unstable modes on the constraint."""
+    base = lin.factor(dz_du[0], c)
+    return base, constrained_negatives(base, lin.g, c_model)
 
 
 def _trial_step(tracer: Tracer, u: np.ndarray, p: float, accepted: tuple, V_star: float, control=None) -> tuple:
@@ -189,13 +205,15 @@ def _trial_step(tracer: Tracer, u: np.ndarray, p: float, accepted: tuple, V_star
     return lin, E_new, h, not ok and not feasible
 
 
-def _descent_solver(lin, dz_du: np.ndarray, base, n_unstable: int, sigma_rel: float, c: float = 0.0,
+def _descent_solver(lin, dz_du: np.ndarray, base, n_unstable: int | None, sigma_rel: float, c: float = 0.0,
                     c_model: float = 0.0) -> tuple:
     """The smallest shift, from ``sigma_rel`` up (by factors of 8), that makes the shifted system
     of :func:`descend_at_volume` positive definite on the constraint: ``(solver, sigma_rel)``, or
     ``(None, sigma_rel)`` if none up to ``1e6`` does. Without unstable modes and with
-    ``sigma_rel <= 1e-10`` the unshifted factorisation ``base`` is used (Newton's step). ``c``: the
-    bordered row's compliance (``c_model`` in the model's units; 0 at fixed volume)."""
+    ``sigma_rel <= 1e-10`` the unshifted factorisation ``base`` is used (Newton's step; the caller
+    factorises it there). ``n_unstable`` ``None``: not known (``base`` not factorised; ``sigma_rel >
+    1e-10``): each shifted system's own inertia decides. ``c``: the bordered row's compliance
+    (``c_model`` in the model's units; 0 at fixed volume)."""
     solver = None
     while sigma_rel <= DESCENT_SHIFT_MAX:
         if n_unstable != 0 or sigma_rel > DESCENT_SHIFT_NEWTON:

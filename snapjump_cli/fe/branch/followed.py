@@ -120,13 +120,15 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
     # (a branch of n_c >= 2 keeps only multiples of n_c: a state stable there may not be stable)
     landing = "axisymmetric first" if mode == "actuator" and len(hn) > 1 and int(hn[1]) == 1 else "search"
     vp = mode == "full"  # the actuator mode searches by the energy descent alone (section 10.8)
+    # a subcritical secondary branch: the actuator mode descends from its bifurcation before tracing it
+    sec_kw = {"volume_path": vp, "landing": "descent first" if mode == "actuator" else "search"}
     fr, note_sec = None, ""
     if secondary and mode == "actuator" and len(hn) > 1 and int(hn[1]) > 1:
-        fr, note_sec = first_secondary(result, bif, hn, n_phi, volume_path=vp)
+        fr, note_sec = first_secondary(result, bif, hn, n_phi, **sec_kw)
     if fr is None:
         fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp)
         if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:
-            fr, note_sec = leave_at_secondary(result, fr, volume_path=vp)
+            fr, note_sec = leave_at_secondary(result, fr, **sec_kw)
     fm = fr.metrics
     out.update({k: v for k, v in fm.items() if k in FOLLOW_KEYS})
     if note_sec:
@@ -162,16 +164,18 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
 
 
 def first_secondary(result, bif, hn: list[int], n_phi: int | None = None,
-                    volume_path: bool = True) -> tuple[FollowResult | None, str]:
+                    **kw) -> tuple[FollowResult | None, str]:
     """The branch leaving a secondary bifurcation that the branch of ``bif`` (harmonics ``hn``, a
     multiple of ``n_c >= 2``) meets before its first volume limit, traced up to that limit only;
     ``(None, "")`` when there is none there (the branch must then be traced to its snap:
     :func:`leave_at_secondary`). The states checked, the point located and the branch leaving it
-    are those of the full trace, which passes through the same states first."""
+    are those of the full trace, which passes through the same states first. ``kw``: how the
+    branch leaving the secondary bifurcation finds its lower state (``volume_path``, ``landing``
+    of :func:`snapjump_cli.fe.branch.trace.trace_branch`)."""
     head = follow_branch(result, bif, hn, n_phi=n_phi, stop_at_upper=True)
     if head.states.upper is None:
         return None, ""
-    fs, chk, sec = follow_secondary(result, head, volume_path=volume_path)
+    fs, chk, sec = follow_secondary(result, head, **kw)
     if sec is None or fs is None or fs.kind == "jump":
         return None, ""
     return fs, record_secondary(fs, chk, sec, bif.n)
@@ -189,12 +193,13 @@ def record_secondary(fs: FollowResult, chk, sec, n: int) -> str:
             f"before its own snap: the branch that leaves it there is traced with harmonics 0-{chk.N}")
 
 
-def leave_at_secondary(result, fr: FollowResult, volume_path: bool = True) -> tuple[FollowResult, str]:
+def leave_at_secondary(result, fr: FollowResult, **kw) -> tuple[FollowResult, str]:
     """The branch the actuator takes when the followed branch ``fr`` loses stability outside its
     harmonics before its snap (:func:`snapjump_cli.fe.branch.secondary.follow_secondary`), with a note;
     ``fr`` itself (and no note) when it does not. A secondary branch that cannot be traced to a
-    snap is returned all the same: the design then keeps its axisymmetric answer."""
-    fs, chk, sec = follow_secondary(result, fr, volume_path=volume_path)
+    snap is returned all the same: the design then keeps its axisymmetric answer. ``kw`` as for
+    :func:`first_secondary`."""
+    fs, chk, sec = follow_secondary(result, fr, **kw)
     if chk.first is None:
         return fr, ""
     n = fr.bif.n

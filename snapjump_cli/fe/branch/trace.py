@@ -32,7 +32,7 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from snapjump_cli.fe.axisym.lower_state import LowerState, constrained_instability, find_lower_state
+from snapjump_cli.fe.axisym.lower_state import LowerState, constrained_instability, descend_at_volume, find_lower_state
 from snapjump_cli.fe.axisym.snap import SnapStates, SnapTracker
 from snapjump_cli.fe.branch.bifurcation import Bifurcation, default_harmonics, harmonic1_gauge
 from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, multiharmonic_snap_metrics
@@ -174,9 +174,10 @@ REJOINED = "the branch passed back through the axisymmetric path"
 UPPER_LOCATED = "upper state located; the branch beyond it not traced"
 
 
-#: How a branch's lower state is found where the branch passed back through the axisymmetric path
-#: (:func:`trace_branch`'s ``landing``): the reference search, or the axisymmetric path's state first.
-LANDINGS = ("search", "axisymmetric first")
+#: How a branch's lower state is found (:func:`trace_branch`'s ``landing``): the reference search
+#: after the whole branch is traced, the axisymmetric path's state first, or (for a subcritical
+#: branch) the energy descent from the bifurcation first.
+LANDINGS = ("search", "axisymmetric first", "descent first")
 
 
 #: A fold of a followed branch whose snap releases less than this fraction of the axisymmetric
@@ -358,7 +359,12 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     path before the search; it traces and searches as the reference where there is none.
     ``volume_path``: the search at fixed volume tries the fixed-volume path before the energy
     descent (``False``: the descent alone; in the multi-harmonic model that path has not reached a
-    lower state on the stratified samples, docs/harmonics.md section 10.8).
+    lower state on the stratified samples, docs/harmonics.md section 10.8). ``"descent first"``: for
+    a subcritical branch (its first step tells), the energy descent at the bifurcation's volume from
+    the bifurcation along the branch's mode, before tracing the branch (the start the reference
+    search tries first: where it comes to rest there, below the bifurcation by at least the
+    micro-fold energy, the branch beyond its first step is not needed); it traces and searches as
+    the reference where it does not.
     """
     if landing not in LANDINGS:
         raise ValueError(f"landing must be one of {LANDINGS}, got {landing!r}")
@@ -417,18 +423,22 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         fr.metrics = branch_metrics(fr, sc)
         mh.release_buffers()
         return fr
-    if landing == "axisymmetric first":
+    if landing in ("axisymmetric first", "descent first"):
         # a subcritical branch (its first step lowers the volume): its upper state is the
         # bifurcation itself, and where the axisymmetric path's inverted state at that volume is
-        # stable with every harmonic kept, the actuator lands there (axisym_landing)
+        # stable with every harmonic kept, the actuator lands there (axisym_landing); or where the
+        # descent from it at that volume comes to rest below it
         path, tracker, failure = run(start, "", stop=True, steps=1)
         st = tracker.states
         if tracker.kind == "subcritical" and st.upper is not None:
-            alt = axisym_landing(result, mh, tr, st.upper)
+            if landing == "axisymmetric first":
+                alt, note = axisym_landing(result, mh, tr, st.upper), AXISYM_LANDING
+            else:
+                alt, note = descend_at_volume(tr, st.upper)
             if alt is not None and mh.energy(st.upper.u) - mh.energy(alt.u) >= micro_dE:
                 st.lower, st.lower_method = alt, "descent"
                 fr = FollowResult(bif, mh, path, st, tr, "subcritical", "subcritical", lower_method="descent",
-                                  lower_note=AXISYM_LANDING)
+                                  lower_note=note)
                 fr.metrics = branch_metrics(fr, sc)
                 mh.release_buffers()
                 return fr
