@@ -59,6 +59,13 @@ def located():
 
 
 @pytest.fixture(scope="module")
+def head(located):
+    """The S16 branch traced only up to its first volume limit (the actuator mode's trace, unchecked)."""
+    res, fr, fs, sec = located
+    return follow_branch(res, fr.bif, list(fr.model.hn), stop_at_upper=True)
+
+
+@pytest.fixture(scope="module")
 def jumped():
     """The clamped cap: the followed answer."""
     res, chk = _solved(30.0, 80.0, "clamped")
@@ -115,14 +122,13 @@ def test_a_bracket_started_inside_the_step_finds_the_same_point(located):
                                 start=late) is None
 
 
-def test_the_actuator_mode_traces_the_branch_only_to_its_first_fold_and_finds_the_same_point(located):
+def test_the_actuator_mode_traces_the_branch_only_to_its_first_fold_and_finds_the_same_point(located, head):
     """follow_mode "actuator" (the default): the branch of n_c >= 2 is traced only up to its first
     volume limit before the check (the states the actuator passes through), and the point and the
     branch leaving it are those of the full trace, which passes through the same states first."""
     from snapjump_cli.fe.branch.trace import UPPER_LOCATED
 
     res, fr, fs, sec = located
-    head = follow_branch(res, fr.bif, list(fr.model.hn), stop_at_upper=True)
     st = head.states
     assert head.path.stop_reason == UPPER_LOCATED and st.upper is not None and st.lower is None
     assert head.metrics.get("dE_J") is None  # no snap: its lower state was never sought
@@ -135,6 +141,32 @@ def test_the_actuator_mode_traces_the_branch_only_to_its_first_fold_and_finds_th
     assert hsec is not None and (hsec.n, hsec.index) == (sec.n, sec.index)
     assert hsec.V_m3 == sec.V_m3 and hsec.p_Pa == sec.p_Pa
     assert all(np.array_equal(a.u, b.u) for a, b in zip(hs.path.points, fs.path.points))
+
+
+def test_checked_while_traced_the_branch_stops_at_the_first_unstable_state_and_finds_the_same_point(located, head):
+    """The actuator mode checks the branch while it is traced (``watch``, every 5th state passed
+    through, as the check after the trace picks them): the trace stops at the first state checked
+    unstable outside the branch, before its fold, and the check, the point and the branch leaving it
+    are those of the trace to the fold (the same states, their counts reused, not made twice)."""
+    from snapjump_cli.fe.branch.secondary import StabilityWatch, branch_stability, stability_watch
+    from snapjump_cli.fe.branch.trace import UNSTABLE_OUTSIDE
+
+    res, fr, fs, sec = located
+    watched = follow_branch(res, fr.bif, list(fr.model.hn), stop_at_upper=True, watch=stability_watch(u_axi=fr.bif.u))
+    w = watched.watch
+    assert isinstance(w, StabilityWatch) and watched.path.stop_reason == UNSTABLE_OUTSIDE
+    assert watched.states.upper is None
+    n = len(watched.path.points)
+    assert sec.index < n - 1 < head.states.k_before
+    for a, b in zip(watched.path.points, head.path.points):  # the same states, bit for bit
+        assert np.array_equal(a.u, b.u) and a.p == b.p
+    chk_h = branch_stability(head, stride=5, stop_at_first=True)
+    chk_w = branch_stability(watched, stride=5, stop_at_first=True, full=w.full, counts=w.counts)
+    assert chk_w.index == chk_h.index and chk_w.full == chk_h.full and chk_w.own == chk_h.own
+    assert sorted(w.counts) == chk_w.index and chk_w.index[-1] == n - 1
+    ws, _, wsec = follow_secondary(res, watched, max_steps=8)
+    assert wsec is not None and (wsec.n, wsec.index, wsec.V_m3, wsec.p_Pa) == (sec.n, sec.index, sec.V_m3, sec.p_Pa)
+    assert all(np.array_equal(a.u, b.u) for a, b in zip(ws.path.points, fs.path.points))
 
 
 def test_the_secondary_branch_leaves_along_the_other_harmonics(located):

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
-from snapjump_cli.fe.branch.secondary import follow_secondary
-from snapjump_cli.fe.branch.trace import MICRO_FOLD_DE, FollowResult, follow_branch
+from snapjump_cli.fe.branch.secondary import follow_secondary, stability_watch
+from snapjump_cli.fe.branch.trace import MICRO_FOLD_DE, UNSTABLE_OUTSIDE, FollowResult, follow_branch
 from snapjump_cli.fe.limits import TimeLimitExceeded
 from snapjump_cli.schema import FOLLOWED, keys
 
@@ -172,8 +172,9 @@ def first_secondary(result, bif, hn: list[int], n_phi: int | None = None,
     are those of the full trace, which passes through the same states first. ``kw``: how the
     branch leaving the secondary bifurcation finds its lower state (``volume_path``, ``landing``
     of :func:`snapjump_cli.fe.branch.trace.trace_branch`)."""
-    head = follow_branch(result, bif, hn, n_phi=n_phi, stop_at_upper=True)
-    if head.states.upper is None:
+    # checked while traced: the trace stops at the first checked state unstable outside the branch
+    head = follow_branch(result, bif, hn, n_phi=n_phi, stop_at_upper=True, watch=stability_watch(u_axi=bif.u))
+    if head.states.upper is None and head.path.stop_reason != UNSTABLE_OUTSIDE:
         return None, ""
     fs, chk, sec = follow_secondary(result, head, **kw)
     if sec is None or fs is None or fs.kind == "jump":

@@ -37,7 +37,7 @@ log = logging.getLogger(__name__)
 __all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
            "locate_secondary", "follow_secondary", "visited_points",
            "first_extra", "jump_off_branch", "reached_along", "jump_before", "landing_jump", "mode_counts",
-           "more_outside", "extra_harmonics", "JUMP_KICK"]
+           "more_outside", "extra_harmonics", "JUMP_KICK", "StabilityWatch", "stability_watch"]
 
 
 def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray | None = None) -> MultiHarmonicModel:
@@ -172,8 +172,50 @@ def landing_jump(fr, j: int):
     return None if any(f.k < i < j for i in visited_points(fr, j)) else f
 
 
+@dataclass
+class StabilityWatch:
+    """The check of :func:`branch_stability` made while a branch is traced up to its upper state
+    (``BranchTracker.watch``): every ``stride``-th state the actuator passes through (a new high of
+    the volume: :func:`visited_points` of a trace without recorded folds) is counted in the branch's
+    model and in ``full``; it says stop at the first with more unstable modes in ``full``. The
+    counts (``counts``, by path index) are those :func:`branch_stability` then reads, so the states
+    checked, and the secondary bifurcation located, are those of the trace to the upper state."""
+
+    mh: MultiHarmonicModel
+    full: MultiHarmonicModel
+    stride: int = 5
+    counts: dict = field(default_factory=dict)
+    _top: float = -math.inf
+    _n_visited: int = 0
+
+    def __call__(self, path: Path) -> bool:
+        pts = path.points
+        i = len(pts) - 1
+        if i < 1:
+            return False
+        if self._n_visited == 0 and not self.counts:
+            self._top = float(pts[0].zeta[0])
+        V = float(pts[i].zeta[0])
+        if V < self._top:
+            return False
+        self._top = V
+        self._n_visited += 1
+        if (self._n_visited - 1) % self.stride:
+            return False
+        self.counts[i] = mode_counts(self.mh, self.full, pts[i])
+        return more_outside(*self.counts[i])
+
+
+def stability_watch(N: int | None = None, stride: int = 5, u_axi: np.ndarray | None = None):
+    """A ``watch`` for :func:`snapjump_cli.fe.branch.trace.follow_branch` (made from the branch's
+    model): :class:`StabilityWatch` against :func:`full_model` ``(mh, N, u_axi)``, as
+    :func:`follow_secondary` with the same ``N`` and ``stride`` checks the branch."""
+    return lambda mh: StabilityWatch(mh, full_model(mh, N, u_axi), int(stride))
+
+
 def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None = None,
-                     stop_at_first: bool = False, full: MultiHarmonicModel | None = None) -> SecondaryCheck:
+                     stop_at_first: bool = False, full: MultiHarmonicModel | None = None,
+                     counts: dict | None = None) -> SecondaryCheck:
     """Count the unstable modes of a followed branch's states outside the branch's subspace.
 
     Parameters
@@ -186,6 +228,8 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
         else its last point; the upper state itself, located inside the step after it, is not)
     stop_at_first : stop at the first state with an extra unstable mode
     full : the model with every harmonic (default: :func:`full_model` of the branch, ``N``)
+    counts : unstable-mode counts already made, ``{path index: (own, full)}`` (a
+        :class:`StabilityWatch`'s)
 
     Returns
     -------
@@ -206,7 +250,7 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
     try:
         for i in idx:
             pt = pts[i]
-            own, nf = mode_counts(mh, full, pt)
+            own, nf = counts[i] if counts and i in counts else mode_counts(mh, full, pt)
             out.index.append(i)
             out.V_m3.append(float(mh.volume(pt.u) * L3))
             out.p_Pa.append(float(pt.p * S))
@@ -327,8 +371,10 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
         (:func:`visited_points`), there is no secondary bifurcation to locate: the jump itself
         goes on outside the branch (:func:`jump_off_branch`).
     """
-    full = full_model(fr.model, N, fr.bif.u)
-    chk = branch_stability(fr, stride=stride, stop_at_first=True, full=full)
+    watch = getattr(fr, "watch", None)
+    reuse = isinstance(watch, StabilityWatch) and watch.stride == stride and watch.mh is fr.model
+    full = watch.full if reuse else full_model(fr.model, N, fr.bif.u)
+    chk = branch_stability(fr, stride=stride, stop_at_first=True, full=full, counts=watch.counts if reuse else None)
     if chk.first is None:
         return None, chk, None
     j1 = first_extra(fr, chk, full)

@@ -43,7 +43,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["FoldJump", "FollowResult", "BranchTracker", "MICRO_FOLD_DE", "REJOIN_FRAC", "FOLLOW_STEP_GROW",
            "MAX_RESTARTS", "ThroughFolds", "trace_through_micro_folds", "tracker_bounds", "micro_energy",
-           "follow_branch", "trace_branch", "axisym_crossings", "axisym_state_at", "axisym_landing", "branch_metrics", "REJOINED",
+           "follow_branch", "trace_branch", "axisym_crossings", "UNSTABLE_OUTSIDE", "axisym_state_at", "axisym_landing", "branch_metrics", "REJOINED",
            "LANDINGS"]
 
 
@@ -83,6 +83,8 @@ class FollowResult:
     secondary: object = None
     #: the folds traced through on the way to the snap (:class:`FoldJump`, in path order)
     folds: list = field(default_factory=list)
+    #: the ``watch`` of a trace up to the upper state (what it computed is reused by the check)
+    watch: object = None
 
 
 @dataclass
@@ -107,7 +109,10 @@ class BranchTracker(SnapTracker):
 
     With ``stop_at_upper`` the trace stops at the branch's first volume limit (its upper state)
     without searching its lower state: the states the actuator passes through before it, which
-    is all a check of the branch against other harmonics needs (:mod:`snapjump_cli.fe.branch.followed`)."""
+    is all a check of the branch against other harmonics needs (:mod:`snapjump_cli.fe.branch.followed`).
+    With ``watch`` (path -> bool, called after every accepted step before the upper state) such a
+    trace also stops where ``watch`` says a state is unstable outside the branch's harmonics
+    (:data:`UNSTABLE_OUTSIDE`): the actuator leaves the branch there."""
 
     kind: str = ""
     first_kind: str = ""
@@ -118,6 +123,7 @@ class BranchTracker(SnapTracker):
     fold_states: list = field(default_factory=list)
     mode_amplitude: Callable[[np.ndarray], float] | None = None
     asym_amplitude: Callable[[np.ndarray], float] | None = None
+    watch: Callable[[Path], bool] | None = None
     _asym_max: float = 0.0
     _mode_sign: float = 0.0
     _asym_prev: float = math.inf
@@ -152,6 +158,8 @@ class BranchTracker(SnapTracker):
         st = self.states
         if reason is None and self.stop_at_upper and st.upper is not None and st.lower is None:
             return UPPER_LOCATED
+        if reason is None and self.stop_at_upper and st.upper is None and self.watch is not None and self.watch(path):
+            return UNSTABLE_OUTSIDE
         if reason == "snap characterised" and self.micro_dE > 0:
             pb = self.tracer.pb
             dE = pb.energy(st.upper.u) - pb.energy(st.lower.u)
@@ -172,6 +180,11 @@ REJOINED = "the branch passed back through the axisymmetric path"
 
 #: The stop reason of a branch traced only up to its upper state (``BranchTracker.stop_at_upper``).
 UPPER_LOCATED = "upper state located; the branch beyond it not traced"
+
+
+#: The stop reason of a branch traced up to its upper state whose ``watch`` found a state unstable
+#: outside the branch's harmonics before it (:class:`BranchTracker`).
+UNSTABLE_OUTSIDE = "a state unstable outside the branch's harmonics; the branch beyond it not traced"
 
 
 #: How a branch's lower state is found (:func:`trace_branch`'s ``landing``): the reference search
@@ -299,7 +312,8 @@ def micro_energy(result, micro: float) -> float:
 def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: int | None = None,
                   micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
                   step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False,
-                  landing: str = "search", volume_path: bool = True) -> FollowResult:
+                  landing: str = "search", volume_path: bool = True,
+                  watch: Callable[[MultiHarmonicModel], Callable[[Path], bool]] | None = None) -> FollowResult:
     """Trace the branch of ``bif`` with the harmonics ``hn`` (default :func:`default_harmonics`)
     from the bifurcation through its volume limit to the lower state at that volume (with
     ``stop_at_upper``: only up to its first volume limit, :class:`BranchTracker`).
@@ -314,6 +328,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     max_steps : bound on the branch's continuation steps (default: the axisymmetric trace's)
     step_grow : the continuation's step growth (:data:`FOLLOW_STEP_GROW`)
     landing, volume_path : how the lower state is found (:func:`trace_branch`)
+    watch : with ``stop_at_upper``, made from the branch's model: stops the trace at a state it
+        finds unstable outside the branch's harmonics (:class:`BranchTracker`)
 
     Returns
     -------
@@ -328,7 +344,7 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     Phi = mh.embed(np.zeros(base.n), {bif.n: bif.mode})
     fr = trace_branch(result, bif, mh, U_c, bif.p, Phi, [int(n) for n in mh.hn[1:]], micro=micro,
                       max_steps=max_steps, step_grow=step_grow, stop_at_upper=stop_at_upper, landing=landing,
-                      volume_path=volume_path)
+                      volume_path=volume_path, watch=watch)
     fr.metrics["follow_wall_s"] = time.perf_counter() - t0
     return fr
 
@@ -336,7 +352,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
 def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarray, p_c: float, Phi: np.ndarray,
                  asym_harmonics: list[int], micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
                  step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False,
-                 landing: str = "search", volume_path: bool = True) -> FollowResult:
+                 landing: str = "search", volume_path: bool = True,
+                 watch: Callable[[MultiHarmonicModel], Callable[[Path], bool]] | None = None) -> FollowResult:
     """Trace the branch of the model ``mh`` that leaves the equilibrium ``(U_c, p_c)`` along
     ``Phi`` (a bifurcation point and its critical mode, as free vectors of ``mh``) through its volume
     limit to the lower state at that volume (:func:`follow_branch` for a branch of the axisymmetric
@@ -388,10 +405,10 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         "asym_amplitude": lambda u: max(float(np.abs(mh.harmonic_part(u, int(n))).max()) for n in asym_harmonics),
     }
 
-    def run(first: PathPoint, kind: str, stop: bool = stop_at_upper, steps: int | None = None
+    def run(first: PathPoint, kind: str, stop: bool = stop_at_upper, steps: int | None = None, watch=None
             ) -> tuple[Path, BranchTracker, str]:
         tk = BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post, kind=kind, micro_dE=micro_dE,
-                           stop_at_upper=stop, **amplitudes)
+                           stop_at_upper=stop, watch=watch, **amplitudes)
         try:
             return trace(mh, cfg if steps is None else replace(cfg, max_steps=steps), tk, tracer=tr, start=first), tk, ""
         except ContinuationFailed as exc:
@@ -416,10 +433,11 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         return low
 
     if stop_at_upper:
-        path, tracker, failure = run(start, "")
+        w = watch(mh) if watch is not None else None
+        path, tracker, failure = run(start, "", watch=w)
         st = tracker.states
         fr = FollowResult(bif, mh, path, st, tr, tracker.kind if st.upper is not None else "", tracker.first_kind,
-                          failure=failure)
+                          failure=failure, watch=w)
         fr.metrics = branch_metrics(fr, sc)
         mh.release_buffers()
         return fr
