@@ -47,7 +47,7 @@ from snapjump_kernels.calls import (
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MultiHarmonicModel", "component_index"]
+__all__ = ["MultiHarmonicModel", "component_index", "transfer"]
 
 
 def _refs_of_a_pooled_array() -> int:
@@ -58,6 +58,23 @@ def _refs_of_a_pooled_array() -> int:
 
 #: ``sys.getrefcount(pool[i])`` of an array that only the list ``pool`` holds
 _FREE_REFS = _refs_of_a_pooled_array()
+
+
+def transfer(src: "MultiHarmonicModel", dst: "MultiHarmonicModel", u: np.ndarray, strict: bool = True) -> np.ndarray:
+    """A state of ``src`` as a free vector of ``dst`` on the same mesh: the nodal amplitudes of the
+    harmonics both keep, zero in those only ``dst`` keeps; with ``strict`` every harmonic of ``src``
+    must be kept by ``dst`` (else the ones ``dst`` does not keep are dropped: a restriction)."""
+    A = src.amplitudes(u)
+    B = np.zeros((A.shape[0], dst.nc))
+    for k, n in enumerate(src.hn):
+        kd = int(np.searchsorted(dst.hn, n))
+        if kd >= len(dst.hn) or dst.hn[kd] != n:
+            if strict:
+                raise ValueError(f"harmonic {int(n)} of the branch is not kept by the full model")
+            continue
+        w = 2 if n == 0 else 3
+        B[:, component_index(kd, 0):component_index(kd, 0) + w] = A[:, component_index(k, 0):component_index(k, 0) + w]
+    return dst.free_vector(B)
 
 
 def component_index(k: int, comp: int) -> int:
@@ -100,6 +117,7 @@ class MultiHarmonicModel:
             raise ValueError(f"harmonics must start with 0 and increase, got {list(hn)}")
         self.base = model
         self.hn = hn
+        self.gauge = [(int(a), int(c)) for a, c in gauge]
         self.L, self.S = model.L, model.S
         self.mesh = model.mesh
         self.X = model.X

@@ -27,7 +27,7 @@ import numpy as np
 from snapjump_cli.fe.axisym.descent import constrained_negatives, descend_at_volume
 from snapjump_cli.fe.axisym.snap import SnapStates, root_on_step
 from snapjump_cli.fe.branch.bifurcation import harmonic1_gauge
-from snapjump_cli.fe.branch.model import MultiHarmonicModel, component_index
+from snapjump_cli.fe.branch.model import MultiHarmonicModel, component_index, transfer
 from snapjump_cli.fe.branch.trace import FollowResult, branch_metrics, trace_branch
 from snapjump_cli.fe.continuation import Path, PathPoint, Tracer
 from snapjump_cli.fe.stability.eigen import extra_eigen
@@ -62,15 +62,7 @@ def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray |
 def lift(mh: MultiHarmonicModel, full: MultiHarmonicModel, u: np.ndarray) -> np.ndarray:
     """A state of ``mh`` as a free vector of ``full`` (whose harmonics contain ``mh``'s): the same
     nodal amplitudes, zero in the harmonics ``mh`` does not keep."""
-    A = mh.amplitudes(u)
-    B = np.zeros((A.shape[0], full.nc))
-    for k, n in enumerate(mh.hn):
-        kf = int(np.searchsorted(full.hn, n))
-        if kf >= len(full.hn) or full.hn[kf] != n:
-            raise ValueError(f"harmonic {int(n)} of the branch is not kept by the full model")
-        w = 2 if n == 0 else 3
-        B[:, component_index(kf, 0):component_index(kf, 0) + w] = A[:, component_index(k, 0):component_index(k, 0) + w]
-    return full.free_vector(B)
+    return transfer(mh, full, u)
 
 
 def unstable_modes(model: MultiHarmonicModel, u: np.ndarray, p: float) -> int:

@@ -32,9 +32,10 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from snapjump_cli.fe.axisym.lower_state import LowerState, constrained_instability, descend_at_volume, find_lower_state
+from snapjump_cli.fe.axisym.lower_state import LowerState, constrained_instability, find_lower_state
 from snapjump_cli.fe.axisym.snap import SnapStates, SnapTracker
 from snapjump_cli.fe.branch.bifurcation import Bifurcation, default_harmonics, harmonic1_gauge
+from snapjump_cli.fe.branch.coarse import descend_coarse_to_fine
 from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, multiharmonic_snap_metrics
 from snapjump_cli.fe.branch.model import MultiHarmonicModel
 from snapjump_cli.fe.continuation import ContinuationFailed, Path, PathPoint, Tracer, start_point, trace
@@ -452,7 +453,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
             if landing == "axisymmetric first":
                 alt, note = axisym_landing(result, mh, tr, st.upper), AXISYM_LANDING
             else:
-                alt, note = descend_at_volume(tr, st.upper)
+                alt, note = descend_coarse_to_fine(tr, st.upper)
             if alt is not None and mh.energy(st.upper.u) - mh.energy(alt.u) >= micro_dE:
                 st.lower, st.lower_method = alt, "descent"
                 fr = FollowResult(bif, mh, path, st, tr, "subcritical", "subcritical", lower_method="descent",

@@ -1,0 +1,80 @@
+"""The energy descent at fixed volume started in coarser models (docs/harmonics.md, section 10.9).
+
+In the multi-harmonic model with every harmonic ``0..N`` the energy descent from a snap's upper
+state (:func:`snapjump_cli.fe.axisym.descent.descend_at_volume`) spends hundreds of iterations
+walking a long valley of the energy to the lower state. The same valley exists with fewer
+harmonics, where an iteration is several times cheaper (the dofs and the band both grow with the
+harmonics). :func:`descend_coarse_to_fine` walks it there first: the upper state and its mode,
+restricted to the harmonics ``0..4``, descend in that model; the state it comes to rest on, lifted,
+starts the descent in the model itself, which then only settles the higher harmonics. The state returned is a stable equilibrium of the model itself
+at the upper state's volume (the last descent is that model's own); a coarse descent that fails
+falls back on the descent in the model alone.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from snapjump_cli.fe.axisym.descent import descend_at_volume
+from snapjump_cli.fe.branch.model import MultiHarmonicModel, transfer
+from snapjump_cli.fe.continuation import PathPoint, Tracer
+
+log = logging.getLogger(__name__)
+
+__all__ = ["COARSE_HARMONICS", "coarse_models", "descend_coarse_to_fine"]
+
+#: The highest harmonics of the coarser models a descent starts in (each below the model's own):
+#: ``0..4`` for the models of a secondary branch (``0..8``). A start with ``0..2`` does not pay: in
+#: the ``0..4`` model the descent from the ``0..2`` model's state took 318 iterations against 330
+#: from the upper state (``follow_strata`` row 0), and ``0..8`` from ``0..2`` took 166 against 78
+#: from ``0..4`` (``follow_strata_n2`` row 16).
+COARSE_HARMONICS = (4,)
+
+
+def coarse_models(mh: MultiHarmonicModel) -> list[MultiHarmonicModel]:
+    """The coarser models of ``mh`` (harmonics ``0..m`` for each ``m`` of :data:`COARSE_HARMONICS`
+    below its highest harmonic; the same mesh, body and gauge): none unless ``mh`` keeps every
+    harmonic ``0..N`` with ``N >= 3`` and has no imperfection."""
+    hn = [int(n) for n in mh.hn]
+    N = hn[-1]
+    if hn != list(range(N + 1)) or N < 3 or np.any(mh.A_imp):
+        return []
+    return [MultiHarmonicModel(mh.base, list(range(m + 1)), free_body=mh.free_body, gauge=mh.gauge)
+            for m in COARSE_HARMONICS if m < N]
+
+
+def _restricted(mh: MultiHarmonicModel, small: MultiHarmonicModel, pt: PathPoint) -> PathPoint:
+    """``pt`` (a state of ``mh``) with its state and tangent restricted to ``small``'s harmonics; its
+    measures (the volume the descent holds) are ``mh``'s."""
+    return PathPoint(transfer(mh, small, pt.u, strict=False), pt.p, pt.zeta, pt.tangent,
+                     transfer(mh, small, pt.du_ds, strict=False), pt.dp_ds, 0.0)
+
+
+def descend_coarse_to_fine(tracer: Tracer, upper: PathPoint) -> tuple[PathPoint | None, str]:
+    """The stable state reached from ``upper`` at its volume by energy descent in the model of
+    ``tracer`` (a :class:`MultiHarmonicModel`), started in its :func:`coarse_models` (see the
+    module). Returns ``(state or None, message)`` as :func:`descend_at_volume` does."""
+    mh = tracer.pb
+    models = coarse_models(mh) if isinstance(mh, MultiHarmonicModel) else []
+    prev, prev_model, iters = None, None, []
+    for small in models:
+        up = _restricted(mh, small, upper)
+        start = None
+        if prev is not None:
+            start = PathPoint(transfer(prev_model, small, prev.u), prev.p, up.zeta, up.tangent, up.du_ds, 0.0, 0.0)
+        low, msg = descend_at_volume(Tracer(small, tracer.cfg), up, start=start)
+        small.release_buffers()
+        if low is None:
+            log.debug("descent with harmonics 0-%d: %s; the model's own descent instead", int(small.hn[-1]), msg)
+            return descend_at_volume(tracer, upper)
+        prev, prev_model = low, small
+        iters.append(f"0-{int(small.hn[-1])}: {low.newton}")
+    if prev is None:
+        return descend_at_volume(tracer, upper)
+    start = PathPoint(transfer(prev_model, mh, prev.u), prev.p, upper.zeta, upper.tangent, upper.du_ds, 0.0, 0.0)
+    low, msg = descend_at_volume(tracer, upper, start=start)
+    if low is None:
+        log.debug("descent from the coarser models' state: %s; the model's own descent instead", msg)
+        return descend_at_volume(tracer, upper)
+    return low, f"{msg} (started from the descents with harmonics {', '.join(iters)} iterations)"

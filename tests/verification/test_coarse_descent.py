@@ -1,0 +1,67 @@
+"""The descent started in a coarser model (snapjump_cli.fe.branch.coarse).
+
+The stratified sample's row 12 on a coarse mesh (Q9, nt 1, aspect 8; as in test_axisym_landing.py):
+from its ``n = 1`` bifurcation, in a model with every harmonic 0..5, the energy descent at the
+bifurcation's volume started with harmonics 0..4 comes to rest on the state the model's own
+descent reaches, a stable equilibrium of the model, in fewer iterations of that model.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from snapjump_cli.fe.axisym.lower_state import constrained_instability, descend_at_volume
+from snapjump_cli.fe.branch.bifurcation import harmonic1_gauge, locate_bifurcation
+from snapjump_cli.fe.branch.coarse import coarse_models, descend_coarse_to_fine
+from snapjump_cli.fe.branch.model import MultiHarmonicModel, transfer
+from snapjump_cli.fe.continuation import PathPoint, Tracer
+from snapjump_cli.fe.solve import solve_scene
+from snapjump_cli.geometry.caps import Design
+from snapjump_cli.settings import MeshSettings, SolverSettings
+
+
+@pytest.fixture(scope="module")
+def upper():
+    from dataclasses import replace
+
+    res = solve_scene(Design(8.0, 72.5, 10.0, 76.0, 5.8), MeshSettings(order=2, nt=1, aspect=8.0),
+                      SolverSettings(harmonics=4))
+    bif = locate_bifurcation(res, 1)
+    base = res.model
+    mh = MultiHarmonicModel(base, list(range(6)), gauge=harmonic1_gauge(base, 1, bif.u))
+    tr = Tracer(mh, replace(res.tracer.cfg, fused=False, mixed_tangent=False))
+    U = mh.embed(bif.u)
+    Phi = mh.embed(np.zeros(base.n), {1: bif.mode})
+    z = tr.zeta(U, bif.p)[0]
+    return tr, PathPoint(U, bif.p, z, np.zeros(len(z)), Phi / (tr.alpha * np.linalg.norm(Phi)), 0.0, 0.0)
+
+
+def test_the_coarse_models_keep_the_body_and_gauge(upper):
+    tr, up = upper
+    mh = tr.pb
+    (small,) = coarse_models(mh)
+    assert list(small.hn) == [0, 1, 2, 3, 4] and small.gauge == mh.gauge and small.free_body == mh.free_body
+    assert coarse_models(small) == []  # (0..4 itself has none)
+    back = transfer(small, mh, transfer(mh, small, up.u, strict=False))
+    assert np.array_equal(transfer(mh, small, back, strict=False), transfer(mh, small, up.u, strict=False))
+    with pytest.raises(ValueError):
+        transfer(mh, small, up.u)  # harmonic 5 is not kept: only a restriction drops them
+
+
+def test_the_coarse_start_lands_where_the_models_own_descent_does(upper):
+    tr, up = upper
+    mh = tr.pb
+    n0 = mh.n_assemblies
+    ref, msg_ref = descend_at_volume(tr, up)
+    n_ref = mh.n_assemblies - n0
+    n0 = mh.n_assemblies
+    low, msg = descend_coarse_to_fine(tr, up)
+    n_new = mh.n_assemblies - n0
+    assert ref is not None and low is not None, (msg_ref, msg)
+    assert "started from the descents with harmonics 0-4" in msg
+    assert np.linalg.norm(low.u - ref.u) <= 1e-8 * np.linalg.norm(ref.u)
+    dE_ref, dE = mh.energy(up.u) - mh.energy(ref.u), mh.energy(up.u) - mh.energy(low.u)
+    assert dE == pytest.approx(dE_ref, rel=1e-10) and dE > 0.0
+    assert low.zeta[0] == pytest.approx(up.zeta[0], rel=1e-9)
+    assert constrained_instability(tr, mh.linearize(low.u, low.p)) == 0
+    assert n_new < n_ref, (n_new, n_ref)  # the model's own iterations: fewer from the coarse state
