@@ -25,6 +25,7 @@ JIT_KERNELS: dict[str, tuple[str, ...]] = {
     "mh_basis": ("phi_rule", "point_gradients"),
     "mh_element": ("mh_elements", "mh_assemble_band", "scatter_vector"),
     "mh_cavity": ("mh_cavity",),
+    "mh_mirror": ("mirror_elements", "mirror_cavity"),
 }
 
 # each name of KERNELS, as the solver calls it (``from snapjump_kernels.calls import evaluate``)

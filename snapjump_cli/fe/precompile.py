@@ -49,7 +49,8 @@ def collect_signatures() -> dict[str, dict[str, Any]]:
 
 def warm_followed() -> None:
     """Compile the JIT kernels of a followed branch (:data:`snapjump_kernels.calls.JIT_KERNELS`)
-    into numba's cache: the multi-harmonic model of a small cap linearised and factorised at rest,
+    into numba's cache: the multi-harmonic model of a small cap linearised and factorised at rest
+    (and its mirror-antisymmetric block formed),
     without a solve (so without compiling the axisymmetric kernels, which the ahead-of-time build
     compiles). ``make install`` runs it on the second core beside that build, so that the first
     followed solve does not pay the compilation."""
@@ -70,6 +71,11 @@ def warm_followed() -> None:
     lin = mh.linearize(u, 0.0)
     lin.factor(lin.g, 0.0)
     lin.factor(lin.g, 0.0, shift=lin.diag_abs())
+    # the mirror-antisymmetric block (snapjump_cli.fe.stability.mirror) of a model of harmonics 0..2
+    from snapjump_cli.fe.stability.mirror import MirrorOperator
+
+    mh1 = MultiHarmonicModel(model, [0, 1, 2])
+    MirrorOperator(mh1).matrix(np.zeros(mh1.n), 0.0)
 
 
 def main(argv: list[str] | None = None, cpuinfo: str | Path = aot.CPUINFO) -> int:

@@ -163,3 +163,26 @@ def test_the_phi_rule_converges():
     Wf, Vf = fine.energy_volume(fine.embed(U_axi, modes))
     assert Vc == pytest.approx(Vf, rel=1e-13)  # the cavity is a cubic: exact
     assert Wc == pytest.approx(Wf, rel=1e-6)
+
+
+@pytest.mark.parametrize("hn, turned", [([0, 2, 4, 6], True), ([0, 3, 6], False), ([0, 1, 2], False)])
+def test_a_turn_by_pi_over_n_c_is_a_symmetry_of_a_branch_model(hn, turned):
+    """``secondary.rotation_signs``: for an even ``n_c`` the state turned by ``pi / n_c`` (harmonic
+    ``m n_c`` times ``(-1)^m``) has the same energy and volume and the residual turned alike (a
+    state of a branch turned is one of the same branch model; the secondary check looks at its
+    other class of mirror planes through it); for an odd ``n_c`` and ``n_c = 1`` there is none."""
+    from snapjump_cli.fe.branch.secondary import rotation_signs
+
+    M = _model(2)
+    mh = MultiHarmonicModel(M, hn)
+    U = mh.embed(_state(M, 2), _smooth_modes(M, hn, 0.05))
+    sgn = rotation_signs(mh)
+    assert (sgn is not None) == turned
+    if sgn is None:
+        return
+    assert set(np.unique(sgn)) == {-1.0, 1.0}
+    a, b = mh.linearize(U, 0.9), mh.linearize(sgn * U, 0.9)
+    assert b.E == pytest.approx(a.E, rel=1e-12) and b.V == pytest.approx(a.V, rel=1e-12)
+    scale = np.abs(a.R).max()
+    assert scale > 1e-3 and not np.allclose(sgn * U, U)  # not an equilibrium, and truly turned
+    np.testing.assert_allclose(b.R, sgn * a.R, rtol=0, atol=1e-11 * scale)

@@ -1,9 +1,10 @@
 """The descent started in a coarser model (snapjump_cli.fe.branch.coarse).
 
-The stratified sample's row 12 on a coarse mesh (Q9, nt 1, aspect 8; as in test_axisym_landing.py):
-from its ``n = 1`` bifurcation, in a model with every harmonic 0..5, the energy descent at the
-bifurcation's volume started with harmonics 0..4 comes to rest on the state the model's own
-descent reaches, a stable equilibrium of the model, in fewer iterations of that model.
+The stratified sample's row 0 on a coarse mesh (Q9, nt 1, aspect 8): from its ``n = 1``
+bifurcation, in a model with every harmonic 0..5, the energy descent at the bifurcation's volume
+started with harmonics 0..4 comes to rest on the (asymmetric) state the model's own descent
+reaches, a stable equilibrium of the model, in fewer iterations of that model. A landing that has
+lost the harmonics breaking the upper state's symmetry is not taken (the guard).
 """
 from __future__ import annotations
 
@@ -24,7 +25,7 @@ from snapjump_cli.settings import MeshSettings, SolverSettings
 def upper():
     from dataclasses import replace
 
-    res = solve_scene(Design(8.0, 72.5, 10.0, 76.0, 5.8), MeshSettings(order=2, nt=1, aspect=8.0),
+    res = solve_scene(Design(5.0, 80.0, 10.0, 86.0, 1.0), MeshSettings(order=2, nt=1, aspect=8.0),
                       SolverSettings(harmonics=4))
     bif = locate_bifurcation(res, 1)
     base = res.model
@@ -46,6 +47,18 @@ def test_the_coarse_models_keep_the_body_and_gauge(upper):
     assert np.array_equal(transfer(mh, small, back, strict=False), transfer(mh, small, up.u, strict=False))
     with pytest.raises(ValueError):
         transfer(mh, small, up.u)  # harmonic 5 is not kept: only a restriction drops them
+
+
+def test_a_landing_back_in_the_upper_states_symmetry_is_not_taken(upper):
+    from snapjump_cli.fe.branch.coarse import _breaks_symmetry
+
+    tr, up = upper
+    mh = tr.pb
+    asym = up.u + 1e-2 * up.du_ds / np.linalg.norm(up.du_ds)  # harmonic 1 switched on
+    assert _breaks_symmetry(mh, up.u, asym)
+    assert not _breaks_symmetry(mh, up.u, 1.01 * up.u)  # axisymmetric, as the upper state
+    full = np.random.default_rng(0).standard_normal(mh.n)  # an upper state that lacks no harmonic:
+    assert _breaks_symmetry(mh, full, 1.01 * up.u)  # no condition
 
 
 def test_the_coarse_start_lands_where_the_models_own_descent_does(upper):

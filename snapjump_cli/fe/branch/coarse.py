@@ -6,7 +6,10 @@ walking a long valley of the energy to the lower state. The same valley exists w
 harmonics, where an iteration is several times cheaper (the dofs and the band both grow with the
 harmonics). :func:`descend_coarse_to_fine` walks it there first: the upper state and its mode,
 restricted to the harmonics ``0..4``, descend in that model; the state it comes to rest on, lifted,
-starts the descent in the model itself, which then only settles the higher harmonics. The state returned is a stable equilibrium of the model itself
+starts the descent in the model itself, which then only settles the higher harmonics. A landing
+that has lost the harmonics breaking the upper state's symmetry (the coarse model fell back into
+that state's subspace, which the model's own descent never leaves) is not taken: the model's own
+descent is made instead. The state returned is a stable equilibrium of the model itself
 at the upper state's volume (the last descent is that model's own); a coarse descent that fails
 falls back on the descent in the model alone.
 """
@@ -17,7 +20,7 @@ import logging
 import numpy as np
 
 from snapjump_cli.fe.axisym.descent import descend_at_volume
-from snapjump_cli.fe.branch.model import MultiHarmonicModel, transfer
+from snapjump_cli.fe.branch.model import MultiHarmonicModel, component_index, transfer
 from snapjump_cli.fe.continuation import PathPoint, Tracer
 
 log = logging.getLogger(__name__)
@@ -51,30 +54,54 @@ def _restricted(mh: MultiHarmonicModel, small: MultiHarmonicModel, pt: PathPoint
                      transfer(mh, small, pt.du_ds, strict=False), pt.dp_ds, 0.0)
 
 
-def descend_coarse_to_fine(tracer: Tracer, upper: PathPoint) -> tuple[PathPoint | None, str]:
-    """The stable state reached from ``upper`` at its volume by energy descent in the model of
-    ``tracer`` (a :class:`MultiHarmonicModel`), started in its :func:`coarse_models` (see the
-    module). Returns ``(state or None, message)`` as :func:`descend_at_volume` does."""
+def descend_coarse_to_fine(tracer: Tracer, upper: PathPoint, start: PathPoint | None = None
+                           ) -> tuple[PathPoint | None, str]:
+    """The stable state reached from ``upper`` (or from ``start``, a state of the model) at the
+    volume of ``upper`` by energy descent in the model of ``tracer`` (a :class:`MultiHarmonicModel`),
+    started in its :func:`coarse_models` (see the module). Returns ``(state or None, message)`` as
+    :func:`descend_at_volume` does, whose descent in the model alone it falls back on."""
     mh = tracer.pb
     models = coarse_models(mh) if isinstance(mh, MultiHarmonicModel) else []
-    prev, prev_model, iters = None, None, []
+    prev, prev_model, iters = start, mh, []
     for small in models:
         up = _restricted(mh, small, upper)
-        start = None
+        first = None
         if prev is not None:
-            start = PathPoint(transfer(prev_model, small, prev.u), prev.p, up.zeta, up.tangent, up.du_ds, 0.0, 0.0)
-        low, msg = descend_at_volume(Tracer(small, tracer.cfg), up, start=start)
+            first = PathPoint(transfer(prev_model, small, prev.u, strict=False), prev.p, up.zeta, up.tangent, up.du_ds,
+                              0.0, 0.0)
+        low, msg = descend_at_volume(Tracer(small, tracer.cfg), up, start=first)
         small.release_buffers()
         if low is None:
             log.debug("descent with harmonics 0-%d: %s; the model's own descent instead", int(small.hn[-1]), msg)
-            return descend_at_volume(tracer, upper)
+            return descend_at_volume(tracer, upper, start=start)
         prev, prev_model = low, small
         iters.append(f"0-{int(small.hn[-1])}: {low.newton}")
-    if prev is None:
-        return descend_at_volume(tracer, upper)
-    start = PathPoint(transfer(prev_model, mh, prev.u), prev.p, upper.zeta, upper.tangent, upper.du_ds, 0.0, 0.0)
-    low, msg = descend_at_volume(tracer, upper, start=start)
-    if low is None:
-        log.debug("descent from the coarser models' state: %s; the model's own descent instead", msg)
-        return descend_at_volume(tracer, upper)
+    if not iters:
+        return descend_at_volume(tracer, upper, start=start)
+    first = PathPoint(transfer(prev_model, mh, prev.u), prev.p, upper.zeta, upper.tangent, upper.du_ds, 0.0, 0.0)
+    low, msg = descend_at_volume(tracer, upper, start=first)
+    if low is None or not _breaks_symmetry(mh, upper.u, low.u):
+        log.debug("descent from the coarser models' state: %s; the model's own descent instead",
+                  msg if low is None else "it fell back into the upper state's symmetry")
+        return descend_at_volume(tracer, upper, start=start)
     return low, f"{msg} (started from the descents with harmonics {', '.join(iters)} iterations)"
+
+
+#: :func:`descend_coarse_to_fine`: a harmonic is absent from a state below this fraction of the
+#: state's largest amplitude; a landing holds it above ``BROKEN`` of its own largest amplitude.
+ABSENT, BROKEN = 1e-12, 1e-3
+
+
+def _breaks_symmetry(mh: MultiHarmonicModel, u_up: np.ndarray, u: np.ndarray) -> bool:
+    """Whether ``u`` holds the harmonics that the upper state ``u_up`` lacks (the ones its mode
+    breaks the symmetry with), if it lacks any. A coarse model can lose the symmetry-breaking part
+    (a mode with harmonics above its own, or a descent that falls back into the upper state's
+    subspace, which the model's own descent then never leaves): such a landing is not taken."""
+    A_up, A = np.abs(mh.amplitudes(u_up)), np.abs(mh.amplitudes(u))
+    big_up, big = float(A_up.max()), float(A.max())
+    absent = []
+    for k, n in enumerate(mh.hn):
+        o, w = component_index(k, 0), (2 if int(n) == 0 else 3)
+        if float(A_up[:, o:o + w].max()) <= ABSENT * big_up:
+            absent.append(float(A[:, o:o + w].max()))
+    return not absent or max(absent) > BROKEN * big

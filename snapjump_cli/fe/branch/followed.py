@@ -187,10 +187,12 @@ def record_secondary(fs: FollowResult, chk, sec, n: int) -> str:
     harmonic ``n`` at the secondary bifurcation ``sec``, and return the answer's note."""
     fs.metrics.update(follow_sec_n=sec.n, follow_sec_V_m3=sec.V_m3, follow_sec_p_Pa=sec.p_Pa)
     if fs.kind == "jump":
+        plane = f" (symmetric about phi = pi/{n})" if getattr(fs.parent, "turned", False) else ""
         return (f"the branch of harmonic {n} folds at V = {fs.metrics.get('V_star_m3') or math.nan:.4g} m^3 and "
-                f"the state it jumps to on the branch is unstable in harmonic {sec.n}: the jump goes on, at "
+                f"the state it jumps to on the branch is unstable in harmonic {sec.n}{plane}: the jump goes on, at "
                 f"that volume, to a state with every harmonic 0-{chk.N} (energy descent)")
-    return (f"the branch of harmonic {n} loses stability to harmonic {sec.n} at V = {sec.V_m3:.4g} m^3, "
+    plane = f" (symmetric about phi = pi/{n})" if getattr(fs.parent, "turned", False) else ""
+    return (f"the branch of harmonic {n} loses stability to harmonic {sec.n}{plane} at V = {sec.V_m3:.4g} m^3, "
             f"before its own snap: the branch that leaves it there is traced with harmonics 0-{chk.N}")
 
 

@@ -20,13 +20,14 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from snapjump_cli.fe.axisym.descent import constrained_negatives, descend_at_volume
 from snapjump_cli.fe.axisym.snap import SnapStates, root_on_step
 from snapjump_cli.fe.branch.bifurcation import harmonic1_gauge
+from snapjump_cli.fe.branch.coarse import descend_coarse_to_fine
 from snapjump_cli.fe.branch.model import MultiHarmonicModel, component_index, transfer
 from snapjump_cli.fe.branch.trace import FollowResult, branch_metrics, trace_branch
 from snapjump_cli.fe.continuation import Path, PathPoint, Tracer
@@ -37,7 +38,7 @@ log = logging.getLogger(__name__)
 __all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
            "locate_secondary", "follow_secondary", "visited_points",
            "first_extra", "jump_off_branch", "reached_along", "jump_before", "landing_jump", "mode_counts",
-           "more_outside", "extra_harmonics", "JUMP_KICK", "StabilityWatch", "stability_watch"]
+           "more_outside", "extra_harmonics", "JUMP_KICK", "StabilityWatch", "stability_watch", "rotation_signs", "rotated"]
 
 
 def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray | None = None) -> MultiHarmonicModel:
@@ -164,6 +165,46 @@ def landing_jump(fr, j: int):
     return None if any(f.k < i < j for i in visited_points(fr, j)) else f
 
 
+def rotation_signs(mh: MultiHarmonicModel) -> np.ndarray | None:
+    """The branch model's free vector of signs that turns a state by ``pi / n_c`` about the axis
+    (harmonic ``m n_c`` times ``(-1)^m``), for an even ``n_c`` (``None`` otherwise).
+
+    A state of a branch of ``n_c`` is mirror-symmetric about ``phi = 0`` and about ``phi = pi / n_c``.
+    For an even ``n_c`` the two planes are not turned into one another by the state's rotations
+    (for an odd one they are), so a perturbation symmetric about the second plane is one the model
+    with every harmonic (symmetric about ``phi = 0``) does not hold: it holds it for the state
+    turned by ``pi / n_c``, which is again a state of the branch's model."""
+    hn = [int(n) for n in mh.hn]
+    if len(hn) < 2 or hn[1] % 2:
+        return None
+    S = np.ones((mh.dofmap.shape[0], mh.nc))
+    for k, n in enumerate(hn[1:], start=1):
+        o = component_index(k, 0)
+        S[:, o:o + 3] = (-1.0) ** (n // hn[1])
+    return mh.free_vector(S)
+
+
+def rotated(fr):
+    """The followed branch ``fr`` turned by ``pi / n_c`` (:func:`rotation_signs`; ``None`` for an odd
+    ``n_c``): the same path, states and folds, each state turned (a branch of the same model)."""
+    import copy
+
+    sgn = rotation_signs(fr.model)
+    if sgn is None:
+        return None
+
+    def turn(pt):
+        return None if pt is None else replace(pt, u=sgn * pt.u, du_ds=sgn * pt.du_ds)
+    out = copy.copy(fr)
+    out.path = replace(fr.path, points=[turn(pt) for pt in fr.path.points])
+    if fr.states is not None:
+        out.states = replace(fr.states, upper=turn(fr.states.upper), lower=turn(fr.states.lower))
+    out.folds = [replace(f, upper=turn(f.upper), landing=turn(f.landing)) for f in (fr.folds or [])]
+    out.watch = None
+    out.turned = True
+    return out
+
+
 @dataclass
 class StabilityWatch:
     """The check of :func:`branch_stability` made while a branch is traced up to its upper state
@@ -177,8 +218,14 @@ class StabilityWatch:
     full: MultiHarmonicModel
     stride: int = 5
     counts: dict = field(default_factory=dict)
+    #: the same counts for the state turned by ``pi / n_c`` (an even ``n_c``: :func:`rotation_signs`)
+    counts_turned: dict = field(default_factory=dict)
     _top: float = -math.inf
     _n_visited: int = 0
+    _signs: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self._signs = rotation_signs(self.mh)
 
     def __call__(self, path: Path) -> bool:
         pts = path.points
@@ -195,7 +242,12 @@ class StabilityWatch:
         if (self._n_visited - 1) % self.stride:
             return False
         self.counts[i] = mode_counts(self.mh, self.full, pts[i])
-        return more_outside(*self.counts[i])
+        out = more_outside(*self.counts[i])
+        if self._signs is not None:
+            pt = pts[i]
+            self.counts_turned[i] = mode_counts(self.mh, self.full, replace(pt, u=self._signs * pt.u))
+            out = out or more_outside(*self.counts_turned[i])
+        return out
 
 
 def stability_watch(N: int | None = None, stride: int = 5, u_axi: np.ndarray | None = None):
@@ -367,9 +419,21 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
     reuse = isinstance(watch, StabilityWatch) and watch.stride == stride and watch.mh is fr.model
     full = watch.full if reuse else full_model(fr.model, N, fr.bif.u)
     chk = branch_stability(fr, stride=stride, stop_at_first=True, full=full, counts=watch.counts if reuse else None)
-    if chk.first is None:
+    j1 = first_extra(fr, chk, full) if chk.first is not None else None
+    # the other class of mirror planes (an even n_c): the branch turned by pi / n_c, checked alike;
+    # the actuator leaves the branch where either class loses stability first
+    turned = rotated(fr)
+    if turned is not None:
+        chk_t = branch_stability(turned, stride=stride, stop_at_first=True, full=full,
+                                 counts=watch.counts_turned if reuse else None)
+        if chk_t.first is not None:
+            j1_t = first_extra(turned, chk_t, full)
+            if j1 is None or j1_t < j1:
+                log.info("branch of harmonic %d: unstable outside its harmonics first about the plane phi = pi/%d "
+                         "(path point %d, against %s)", fr.bif.n, fr.bif.n, j1_t, j1)
+                fr, chk, j1 = turned, chk_t, j1_t
+    if j1 is None:
         return None, chk, None
-    j1 = first_extra(fr, chk, full)
     start = None
     if not reached_along(fr, j1):
         # reached by a jump past a fold of the branch: if the state it lands on is unstable
@@ -379,7 +443,8 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
         land = jump.landing if jump is not None else fr.path.points[j1]
         e = extra_eigen(full, lift(fr.model, full, land.u), land.p, extra_dofs(fr.model, full))
         if jump is None or jump.landing_index is not None or e is None or e[0] < 0.0:
-            return jump_off_branch(result, fr, chk, full, j1, jump, eigen=e)
+            return jump_off_branch(result, fr, chk, full, j1, jump, eigen=e,
+                                   coarse=kw.get("landing") == "descent first")
         start = land
     try:
         sec = locate_secondary(fr, chk, full, first=j1, start=start)
@@ -420,7 +485,7 @@ JUMP_KICK = 1e-3
 
 
 def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, landing: int, jump=None,
-                    eigen=None):
+                    eigen=None, coarse: bool = False):
     """The snap of an actuator that jumps past a fold of the followed branch onto a state of the
     branch (``landing``) that is unstable outside the branch's harmonics: the jump goes on, at the
     fold's volume, to the state that an energy descent at fixed volume in the model with every
@@ -429,7 +494,8 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     state the actuator passes through before the landing state: the recorded fold ``jump``
     (:class:`snapjump_cli.fe.branch.trace.FoldJump`, with the state it lands on) when the branch's trace
     located it, else the last path point passed through before ``landing``. ``eigen``: the landing
-    state's :func:`extra_eigen`, if already computed.
+    state's :func:`extra_eigen`, if already computed. ``coarse``: the descent starts with fewer
+    harmonics (:func:`snapjump_cli.fe.branch.coarse.descend_coarse_to_fine`; the actuator mode).
 
     Returns
     -------
@@ -459,7 +525,7 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     amp = float(np.abs(full.amplitudes(L)).max())
     mode = mode * (JUMP_KICK * amp / float(np.abs(full.amplitudes(mode)).max()))
     start = PathPoint(L + mode, land.p, tr.zeta(L + mode, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)
-    low, msg = descend_at_volume(tr, upper, start=start)
+    low, msg = (descend_coarse_to_fine if coarse else descend_at_volume)(tr, upper, start=start)
     amps = {n: float(np.abs(full.harmonic_part(mode, n)).max()) for n in extra_harmonics(mh, full)}
     sc = fr.tracer.sc
     sec = Secondary(land, k_up, full, mode, int(max(amps, key=amps.get)), float(eig),

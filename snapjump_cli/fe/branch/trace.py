@@ -86,6 +86,9 @@ class FollowResult:
     folds: list = field(default_factory=list)
     #: the ``watch`` of a trace up to the upper state (what it computed is reused by the check)
     watch: object = None
+    #: the branch turned by ``pi / n_c`` about the axis (its states, the actuator's, are those of
+    #: a branch whose perturbations symmetric about ``phi = pi / n_c`` went unstable first)
+    turned: bool = False
 
 
 @dataclass
