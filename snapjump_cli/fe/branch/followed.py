@@ -177,7 +177,7 @@ def first_secondary(result, bif, hn: list[int], n_phi: int | None = None,
     if head.states.upper is None and head.path.stop_reason != UNSTABLE_OUTSIDE:
         return None, ""
     fs, chk, sec = follow_secondary(result, head, **kw)
-    if sec is None or fs is None or fs.kind == "jump":
+    if sec is None or fs is None:
         return None, ""
     return fs, record_secondary(fs, chk, sec, bif.n)
 

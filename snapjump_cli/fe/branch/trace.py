@@ -440,8 +440,10 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         w = watch(mh) if watch is not None else None
         path, tracker, failure = run(start, "", watch=w)
         st = tracker.states
+        # the folds traced through (a jump past one is what the check then finds, as on the full trace)
         fr = FollowResult(bif, mh, path, st, tr, tracker.kind if st.upper is not None else "", tracker.first_kind,
-                          failure=failure, watch=w)
+                          failure=failure, watch=w,
+                          folds=[FoldJump(k, up, lo) for k, up, lo in tracker.fold_states if k < len(path.points)])
         fr.metrics = branch_metrics(fr, sc)
         mh.release_buffers()
         return fr
