@@ -23,7 +23,7 @@ from snapjump_cli.fe.stability.harmonics import harmonic_operator
 
 log = logging.getLogger(__name__)
 
-__all__ = ["default_harmonics", "Bifurcation", "locate_bifurcation", "harmonic1_gauge"]
+__all__ = ["default_harmonics", "Bifurcation", "locate_bifurcation", "first_bifurcation", "harmonic1_gauge"]
 
 
 def default_harmonics(n_c: int, N: int | None = None) -> list[int]:
@@ -48,6 +48,7 @@ class Bifurcation:
     mode: np.ndarray  # (nn, 3) critical mode, largest entry 1
     eig: float  # the eigenvalue there (~0)
     iterations: int
+    s: float = float("nan")  # arc length of the axisymmetric path there (scaled)
 
 
 def locate_bifurcation(result, n: int, tol_eig: float = 1e-9, max_iter: int = 30) -> Bifurcation | None:
@@ -88,7 +89,18 @@ def locate_bifurcation(result, n: int, tol_eig: float = 1e-9, max_iter: int = 30
         f(root)
     eig, mode = cache[id(root)]
     log.debug("bifurcation of harmonic %d at V = %.9g (scaled), eigenvalue %.2g", n, root.zeta[0], eig)
-    return Bifurcation(n, np.array(root.u), float(root.p), np.array(root.zeta), mode, eig, len(cache))
+    return Bifurcation(n, np.array(root.u), float(root.p), np.array(root.zeta), mode, eig, len(cache), float(root.s))
+
+
+def first_bifurcation(result, harmonics: list[int]) -> Bifurcation | None:
+    """Of the bifurcations of ``harmonics`` on the axisymmetric path (:func:`locate_bifurcation`),
+    the first along the path (the smallest arc length; the lower harmonic on a tie); ``None`` if
+    none is located. The harmonic check reports every harmonic unstable at its first unstable
+    state; where its refinement of that state did not separate them (near a fold of the volume, a
+    small volume interval holds a long stretch of the path), the located points say which one the
+    actuator meets first."""
+    found = [b for b in (locate_bifurcation(result, int(n)) for n in sorted(set(harmonics))) if b is not None]
+    return min(found, key=lambda b: (b.s, b.n)) if found else None
 
 
 def harmonic1_gauge(base, n: int, u: np.ndarray) -> list[tuple[int, int]]:

@@ -15,7 +15,7 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
+from snapjump_cli.fe.branch.bifurcation import default_harmonics, first_bifurcation, locate_bifurcation
 from snapjump_cli.fe.branch.secondary import follow_secondary, stability_watch
 from snapjump_cli.fe.branch.trace import MICRO_FOLD_DE, UNSTABLE_OUTSIDE, FollowResult, follow_branch
 from snapjump_cli.fe.limits import TimeLimitExceeded
@@ -112,10 +112,17 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
         return FollowedAnswer(out)
     t0 = time.perf_counter()
     n = int(check.asym_n)
-    bif = locate_bifurcation(result, n)
+    # every harmonic the check found unstable at its first unstable state: the first one located
+    ns = [int(x) for x in str(check.asym_ns or n).split(",") if x.strip()]
+    bif = first_bifurcation(result, ns) if len(ns) > 1 else locate_bifurcation(result, n)
     if bif is None:
         out["follow_note"] = f"bifurcation of harmonic {n} not located"
         return FollowedAnswer(out)
+    note_first = ""
+    if bif.n != n:
+        note_first = (f"harmonic {bif.n} bifurcates before harmonic {n} (both unstable at the harmonic check's "
+                      f"first unstable state): its branch is followed")
+        n = bif.n
     hn = default_harmonics(n, N)
     # (a branch of n_c >= 2 keeps only multiples of n_c: a state stable there may not be stable)
     landing = "axisymmetric first" if mode == "actuator" and len(hn) > 1 and int(hn[1]) == 1 else "search"
@@ -131,8 +138,8 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
             fr, note_sec = leave_at_secondary(result, fr, **sec_kw)
     fm = fr.metrics
     out.update({k: v for k, v in fm.items() if k in FOLLOW_KEYS})
-    if note_sec:
-        out["follow_note"] = "; ".join(x for x in (note_sec, out.get("follow_note")) if x)
+    if note_sec or note_first:
+        out["follow_note"] = "; ".join(x for x in (note_first, note_sec, out.get("follow_note")) if x)
     if fm.get("dE_J") is None:
         out["follow_note"] = out.get("follow_note") or "the followed branch did not reach a snap"
         out["follow_wall_s"] = time.perf_counter() - t0
