@@ -28,10 +28,11 @@ log = logging.getLogger(__name__)
 __all__ = ["COARSE_HARMONICS", "coarse_models", "descend_coarse_to_fine"]
 
 #: The highest harmonics of the coarser models a descent starts in (each below the model's own):
-#: ``0..4`` for the models of a secondary branch (``0..8``). A start with ``0..2`` does not pay: in
-#: the ``0..4`` model the descent from the ``0..2`` model's state took 318 iterations against 330
-#: from the upper state (``follow_strata`` row 0), and ``0..8`` from ``0..2`` took 166 against 78
-#: from ``0..4`` (``follow_strata_n2`` row 16).
+#: ``0..4`` for the models of a secondary branch (``0..8``). A start with ``0..2`` did not pay in
+#: scratch measurements (not reproducible from the repository): in the ``0..4`` model the descent
+#: from the ``0..2`` model's state took 318 iterations against 330 from the upper state
+#: (``follow_strata`` row 0), and ``0..8`` from ``0..2`` took 166 against 78 from ``0..4``
+#: (``follow_strata_n2`` row 16, before the second class of mirror planes was checked).
 COARSE_HARMONICS = (4,)
 
 
@@ -54,36 +55,34 @@ def _restricted(mh: MultiHarmonicModel, small: MultiHarmonicModel, pt: PathPoint
                      transfer(mh, small, pt.du_ds, strict=False), pt.dp_ds, 0.0)
 
 
-def descend_coarse_to_fine(tracer: Tracer, upper: PathPoint, start: PathPoint | None = None
-                           ) -> tuple[PathPoint | None, str]:
-    """The stable state reached from ``upper`` (or from ``start``, a state of the model) at the
-    volume of ``upper`` by energy descent in the model of ``tracer`` (a :class:`MultiHarmonicModel`),
-    started in its :func:`coarse_models` (see the module). Returns ``(state or None, message)`` as
-    :func:`descend_at_volume` does, whose descent in the model alone it falls back on."""
+def descend_coarse_to_fine(tracer: Tracer, upper: PathPoint) -> tuple[PathPoint | None, str]:
+    """The stable state reached from ``upper`` at its volume by energy descent in the model of
+    ``tracer`` (a :class:`MultiHarmonicModel`), started in its :func:`coarse_models` (see the
+    module). Returns ``(state or None, message)`` as :func:`descend_at_volume` does, whose descent
+    in the model alone it falls back on."""
     mh = tracer.pb
     models = coarse_models(mh) if isinstance(mh, MultiHarmonicModel) else []
-    prev, prev_model, iters = start, mh, []
+    prev, prev_model, iters = None, None, []
     for small in models:
         up = _restricted(mh, small, upper)
         first = None
         if prev is not None:
-            first = PathPoint(transfer(prev_model, small, prev.u, strict=False), prev.p, up.zeta, up.tangent, up.du_ds,
-                              0.0, 0.0)
+            first = PathPoint(transfer(prev_model, small, prev.u), prev.p, up.zeta, up.tangent, up.du_ds, 0.0, 0.0)
         low, msg = descend_at_volume(Tracer(small, tracer.cfg), up, start=first)
         small.release_buffers()
         if low is None:
             log.debug("descent with harmonics 0-%d: %s; the model's own descent instead", int(small.hn[-1]), msg)
-            return descend_at_volume(tracer, upper, start=start)
+            return descend_at_volume(tracer, upper)
         prev, prev_model = low, small
         iters.append(f"0-{int(small.hn[-1])}: {low.newton}")
-    if not iters:
-        return descend_at_volume(tracer, upper, start=start)
+    if prev is None:
+        return descend_at_volume(tracer, upper)
     first = PathPoint(transfer(prev_model, mh, prev.u), prev.p, upper.zeta, upper.tangent, upper.du_ds, 0.0, 0.0)
     low, msg = descend_at_volume(tracer, upper, start=first)
     if low is None or not _breaks_symmetry(mh, upper.u, low.u):
         log.debug("descent from the coarser models' state: %s; the model's own descent instead",
                   msg if low is None else "it fell back into the upper state's symmetry")
-        return descend_at_volume(tracer, upper, start=start)
+        return descend_at_volume(tracer, upper)
     return low, f"{msg} (started from the descents with harmonics {', '.join(iters)} iterations)"
 
 

@@ -27,7 +27,6 @@ import numpy as np
 from snapjump_cli.fe.axisym.descent import constrained_negatives, descend_at_volume
 from snapjump_cli.fe.axisym.snap import SnapStates, root_on_step
 from snapjump_cli.fe.branch.bifurcation import harmonic1_gauge
-from snapjump_cli.fe.branch.coarse import descend_coarse_to_fine
 from snapjump_cli.fe.branch.model import MultiHarmonicModel, component_index, transfer
 from snapjump_cli.fe.branch.trace import FollowResult, branch_metrics, trace_branch
 from snapjump_cli.fe.continuation import Path, PathPoint, Tracer
@@ -210,9 +209,14 @@ class StabilityWatch:
     """The check of :func:`branch_stability` made while a branch is traced up to its upper state
     (``BranchTracker.watch``): every ``stride``-th state the actuator passes through (a new high of
     the volume: :func:`visited_points` of a trace without recorded folds) is counted in the branch's
-    model and in ``full``; it says stop at the first with more unstable modes in ``full``. The
-    counts (``counts``, by path index) are those :func:`branch_stability` then reads, so the states
-    checked, and the secondary bifurcation located, are those of the trace to the upper state."""
+    model and in ``full`` (and, for an even ``n_c``, turned by ``pi / n_c``: ``counts_turned``); it
+    says stop at the first with more unstable modes in ``full``. A fold is recorded only once the
+    path has come back past it, so the watch picks the states by the volume's highs alone and may
+    count one that :func:`branch_stability` (which honours the recorded folds) then skips; the
+    counts are cached by path index and :func:`branch_stability` reads those of the states it
+    checks, so its result, and the secondary bifurcation located, are those of the trace to the
+    upper state (where the watch stopped on a state the check skips, the check finds nothing and
+    the branch is traced to its snap as in the reference)."""
 
     mh: MultiHarmonicModel
     full: MultiHarmonicModel
@@ -484,7 +488,7 @@ JUMP_KICK = 1e-3
 
 
 def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, landing: int, jump=None,
-                    eigen=None, coarse: bool = False):
+                    eigen=None):
     """The snap of an actuator that jumps past a fold of the followed branch onto a state of the
     branch (``landing``) that is unstable outside the branch's harmonics: the jump goes on, at the
     fold's volume, to the state that an energy descent at fixed volume in the model with every
@@ -493,9 +497,8 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     state the actuator passes through before the landing state: the recorded fold ``jump``
     (:class:`snapjump_cli.fe.branch.trace.FoldJump`, with the state it lands on) when the branch's trace
     located it, else the last path point passed through before ``landing``. ``eigen``: the landing
-    state's :func:`extra_eigen`, if already computed. ``coarse``: the descent starts with fewer
-    harmonics (:func:`snapjump_cli.fe.branch.coarse.descend_coarse_to_fine`; not used: on
-    ``follow_strata_n2`` row 4 it took 1232 iterations with harmonics 0-4 and 826 more with 0-8).
+    state's :func:`extra_eigen`, if already computed. (The descent is the model's own: started with
+    fewer harmonics, :mod:`snapjump_cli.fe.branch.coarse`, it cost more on ``follow_strata_n2`` row 4.)
 
     Returns
     -------
@@ -525,7 +528,7 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     amp = float(np.abs(full.amplitudes(L)).max())
     mode = mode * (JUMP_KICK * amp / float(np.abs(full.amplitudes(mode)).max()))
     start = PathPoint(L + mode, land.p, tr.zeta(L + mode, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)
-    low, msg = (descend_coarse_to_fine if coarse else descend_at_volume)(tr, upper, start=start)
+    low, msg = descend_at_volume(tr, upper, start=start)
     amps = {n: float(np.abs(full.harmonic_part(mode, n)).max()) for n in extra_harmonics(mh, full)}
     sc = fr.tracer.sc
     sec = Secondary(land, k_up, full, mode, int(max(amps, key=amps.get)), float(eig),
