@@ -116,7 +116,7 @@ def _echo_reasons(output: Path) -> None:
     from snapjump_cli.sweep import results as res
 
     try:
-        df = res.read_table(output, columns=["status", "error"]).to_pandas()
+        df = res.read_table(output, columns=["status", "error"]).to_pandas(use_threads=res.ARROW_THREADS)
     except (res.ResultsFileError, OSError) as e:  # the summary above stands; the reasons are extra
         log.warning("could not read the reasons back from %s: %s", output, e)
         return

@@ -343,7 +343,7 @@ def _table(rows: list[dict]) -> pd.DataFrame:
     """Rows in the sweep schema plus ``iteration`` and ``stage``."""
     from snapjump_cli.sweep import results as res
 
-    df = res.rows_to_table(rows).to_pandas(types_mapper=res.pandas_types_mapper())
+    df = res.rows_to_table(rows).to_pandas(types_mapper=res.pandas_types_mapper(), use_threads=res.ARROW_THREADS)
     df["iteration"] = pd.array([int(r.get("iteration", 0)) for r in rows], dtype="Int64")
     df["stage"] = pd.array([str(r.get("stage", "")) for r in rows], dtype="string")
     return df

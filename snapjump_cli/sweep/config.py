@@ -293,7 +293,7 @@ def _read_points_file(ctx: CheckContext, value: str, max_designs: int = MAX_DESI
 
             if (n := pq.ParquetFile(path).metadata.num_rows) > max_designs:
                 raise _too_many(ctx, "points", n, max_designs, f"{path}: ")
-            df = pd.read_parquet(path)
+            df = pd.read_parquet(path, use_threads=False)  # as snapjump_cli.sweep.results.ARROW_THREADS
         else:
             raise ctx.fail("points", "a .csv or .parquet file", value)
     except ConfigError:

@@ -41,6 +41,7 @@ __all__ = [
     "STATUSES",
     "INPUT_COLUMNS",
     "METADATA_KEY",
+    "ARROW_THREADS",
     "BOOL_RESULT_KEYS",
     "INT_RESULT_KEYS",
     "STR_RESULT_KEYS",
@@ -66,6 +67,12 @@ log = logging.getLogger(__name__)
 
 #: Key of the provenance JSON in the parquet schema metadata.
 METADATA_KEY = b"snapjump"
+
+#: Whether result files are read and converted with Arrow's thread pool: never. Result files are
+#: small (a part holds ``chunk_size`` rows, a grid a few thousand), so the pool saves nothing, and a
+#: pool worker still alive when the interpreter exits can abort a finished process with SIGABRT
+#: ("terminate called without an active exception", exit code 134) after every row was written.
+ARROW_THREADS = False
 
 
 def _with_metadata(table: pa.Table, meta: Mapping[str, Any] | None) -> pa.Table:
@@ -120,7 +127,7 @@ def write_frame_atomic(df: pd.DataFrame, path: str | Path, meta: Mapping[str, An
     """Write a DataFrame to parquet atomically, with provenance ``meta`` in the schema metadata."""
     import pyarrow as pa
 
-    table = pa.Table.from_pandas(df, preserve_index=False)
+    table = pa.Table.from_pandas(df, preserve_index=False, nthreads=None if ARROW_THREADS else 1)
     return write_table_atomic(_with_metadata(table, meta), path)
 
 
@@ -237,8 +244,8 @@ def read_table(path: str | Path, columns: list[str] | None = None) -> pa.Table:
         raise ResultsFileError(f"{path}: not a readable parquet file (it does not start as one); expected the "
                                f"results of snapjump sweep")
     try:  # through a Python file object: pyarrow takes no file name that is not valid UTF-8
-        with open(path, "rb") as fh:
-            table = pq.read_table(fh, columns=columns)
+        with open(path, "rb") as fh:  # no Arrow thread pool: see ARROW_THREADS
+            table = pq.read_table(fh, columns=columns, use_threads=ARROW_THREADS)
     except (pa.ArrowException, OSError, KeyError, ValueError) as e:
         why = " ".join(str(e).split()) or type(e).__name__
         raise ResultsFileError(f"{path}: not a readable parquet file ({why[:300]})") from None
@@ -253,7 +260,7 @@ def read_results(path: str | Path, columns: list[str] | None = None) -> pd.DataF
     floats stay ``float64`` with NaN for missing values.
     """
     table = read_table(path, columns=columns)
-    return table.to_pandas(types_mapper=pandas_types_mapper())
+    return table.to_pandas(types_mapper=pandas_types_mapper(), use_threads=ARROW_THREADS)
 
 
 def read_metadata(path: str | Path) -> dict[str, Any]:

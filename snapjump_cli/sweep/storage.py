@@ -329,9 +329,9 @@ def consolidate(output: str | Path, meta: Mapping[str, Any], order: Mapping[str,
                 t = t.append_column(fld, pa.nulls(len(t), type=fld.type))
         tables.append(t.select(schema.names).cast(schema))
     if tables:
-        df = pa.concat_tables(tables).to_pandas(types_mapper=res.pandas_types_mapper())
+        df = pa.concat_tables(tables).to_pandas(types_mapper=res.pandas_types_mapper(), use_threads=res.ARROW_THREADS)
     else:
-        df = res.rows_to_table([]).to_pandas(types_mapper=res.pandas_types_mapper())
+        df = res.rows_to_table([]).to_pandas(types_mapper=res.pandas_types_mapper(), use_threads=res.ARROW_THREADS)
     df = df.drop_duplicates(subset="key", keep="last")
     order = dict(order or {})
     in_grid = df["key"].map(lambda k: k in order).astype(bool)
@@ -343,7 +343,7 @@ def consolidate(output: str | Path, meta: Mapping[str, Any], order: Mapping[str,
     counts = {s: int((df["status"] == s).sum()) for s in res.STATUSES}
     full_meta = dict(meta)
     full_meta.update(n_rows=int(len(df)), status_counts=counts, consolidated_utc=now_utc())
-    table = pa.Table.from_pandas(df, schema=schema, preserve_index=False)
+    table = pa.Table.from_pandas(df, schema=schema, preserve_index=False, nthreads=None if res.ARROW_THREADS else 1)
     res.write_table_atomic(res._with_metadata(table, full_meta), output)
     for f in files:  # only the parts merged here (never a part that appeared meanwhile)
         if f != output:

@@ -277,3 +277,28 @@ def test_progress_counts_invalid_designs_as_done_from_the_start(grid_file, tmp_p
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert last.startswith("sweep: 40/40 designs (100 %)"), last
     assert "ok=4, no_snap=4, invalid=8, failed=24" in last, last
+
+
+def test_result_files_are_read_without_arrows_thread_pool(grid_file, tmp_path, monkeypatch):
+    """Every parquet read of a resumed sweep (its parts, then the output it merges) passes
+    ``use_threads=False``: a pool worker alive at interpreter exit can abort a finished sweep with
+    SIGABRT (docs/reliability.md)."""
+    import pyarrow.parquet as pq
+
+    cfg = load_config(grid_file(chunk_size=4))
+    out = tmp_path / "r.parquet"
+    monkeypatch.setattr(fake, "INTERRUPT_AFTER", [5])
+    monkeypatch.setattr(fake, "_N_CALLS", [0])
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(cfg, output=out, n_jobs=1, solve_fn=fake.interrupting_solve, progress=False)
+    seen = []
+    real = pq.read_table
+
+    def spy(*args, **kw):
+        seen.append(kw.get("use_threads", True))
+        return real(*args, **kw)
+
+    monkeypatch.setattr(pq, "read_table", spy)
+    s = run_sweep(cfg, output=out, n_jobs=1, solve_fn=fake.fast_solve, progress=False)
+    assert s.n_resumed > 0 and len(res.read_results(out)) == 40
+    assert len(seen) >= 2 and not any(seen), seen
