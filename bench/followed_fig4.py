@@ -10,8 +10,9 @@ followed answer of some of those designs. A grid row is replaced by the followed
 design (the five design parameters match) when that row is ``ok`` and ``followed``; the others keep
 their axisymmetric answer. The table is ranked by the jump model as ``snapjump rank`` ranks it and
 the report gives, for the followed designs, followed / axisymmetric of dE, dy_pole, V* and the jump
-(median and range, overall and by the critical harmonic), how many lift off, and whether the top
-20 changes. ``--plots DIR`` draws ``fig4a.png``, ``fig4c.png`` and ``jump_vs_parameters.png`` of
+(median and range, overall and by the critical harmonic), how many lift off (the inner pole rises
+above where it started) with the followed answers and with their axisymmetric ones, and whether
+the top 20 changes. ``--plots DIR`` draws ``fig4a.png``, ``fig4c.png`` and ``jump_vs_parameters.png`` of
 the merged table (a followed design: a diamond at its followed answer, joined by a line to its
 axisymmetric answer).
 
@@ -97,9 +98,15 @@ def _ratio_line(name: str, r: np.ndarray) -> str:
     return f"| {name} | {np.median(r):.2f} | {r.min():.2f} - {r.max():.2f} |"
 
 
-def report(ranked: pd.DataFrame, top: int = 20) -> list[str]:
-    """Followed / axisymmetric ratios of the followed rows of a ranked merged table, and the top."""
+def report(ranked: pd.DataFrame, top: int = 20, axisym: pd.DataFrame | None = None) -> list[str]:
+    """Followed / axisymmetric ratios of the followed rows of a ranked merged table, and the top.
+    ``axisym``: the grid ranked with its axisymmetric answers; each "lift off" line then also
+    counts the same designs' lift-offs with those answers (``jumped``: the inner pole rises above
+    where it started)."""
     fol = ranked[ranked["followed"].astype("boolean").fillna(False).to_numpy(bool)]
+    axi_jumped = None
+    if axisym is not None and "jumped" in axisym.columns:
+        axi_jumped = set(keys(axisym[axisym["jumped"].astype("boolean").fillna(False).to_numpy(bool)]))
     f = lambda c: fol[c].astype("float64").to_numpy()  # noqa: E731
     out = [f"followed designs: {len(fol)}"]
     groups = [("all", fol)] + [(f"n = {int(n)}", g) for n, g in fol.groupby(fol["follow_n"].astype("float64"))]
@@ -111,7 +118,10 @@ def report(ranked: pd.DataFrame, top: int = 20) -> list[str]:
         out.append(_ratio_line("V*", gg("V_star_m3") / gg("axisym_V_star_m3")))
         out.append(_ratio_line("jump", gg("y_jump_m") / gg("y_jump_axisym_m")))
         if "jumped" in g.columns:
-            out.append(f"lift off: {int(g['jumped'].astype('boolean').fillna(False).sum())} of {len(g)}")
+            line = f"lift off: {int(g['jumped'].astype('boolean').fillna(False).sum())} of {len(g)}"
+            if axi_jumped is not None:
+                line += f" (with their axisymmetric answers: {sum(k in axi_jumped for k in keys(g))})"
+            out.append(line)
     if len(fol):
         yj = f("y_jump_m")
         out.append(f"\nhighest followed jump: {np.nanmax(yj) * 1e3:.0f} mm "
@@ -183,7 +193,7 @@ def main(argv: Iterable[str] | None = None) -> int:
     print(f"{len(grid)} grid rows; {n} replaced by their followed answer"
           + (f"; {missing} followed rows are not designs of the grid (ignored)" if missing else ""))
     ranked = rank_results(merged)
-    print("\n".join(report(ranked, a.top)))
+    print("\n".join(report(ranked, a.top, axisym=rank_results(grid))))
     print("\n".join(sample_report(grid, tables)))
     if a.plots is not None:
         from snapjump_cli.viz.figures import make_plots

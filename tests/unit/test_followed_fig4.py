@@ -41,3 +41,16 @@ def test_report_gives_the_followed_over_axisymmetric_ratios():
     assert "| dE | 0.50 | 0.50 - 0.50 |" in text and "| jump | 0.38 | 0.25 - 0.50 |" in text
     assert "n = 1 (1 designs)" in text and "n = 2 (1 designs)" in text
     assert "top 2: 2 of 2 the same" in text
+
+
+def test_report_counts_lift_offs_with_both_answers():
+    r = _grid(4)
+    r["followed"] = pd.array([True, True, True, False], dtype="boolean")
+    r["follow_n"] = [1, 1, 1, None]
+    r["axisym_dE_J"], r["axisym_dy_pole_m"], r["axisym_V_star_m3"], r["V_star_m3"] = r["dE_J"], 0.01, 1.0, 1.0
+    r["y_jump_m"], r["y_jump_axisym_m"] = [0.01, 0.02, 0.03, 0.2], [0.04, 0.05, 0.06, 0.2]
+    r["jumped"] = pd.array([False, True, False, True], dtype="boolean")
+    axi = r.copy()
+    axi["jumped"] = pd.array([True, True, False, True], dtype="boolean")
+    text = "\n".join(ff.report(r, top=2, axisym=axi))
+    assert "lift off: 1 of 3 (with their axisymmetric answers: 2)" in text
