@@ -27,13 +27,14 @@ modules themselves are never modified: a kernel calling another still calls its 
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import importlib
 import json
 import os
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 from snapjump_kernels import source_hash
 
@@ -296,6 +297,33 @@ def _write_stamp(stamp: dict, folder: Path = HERE) -> None:
     os.replace(tmp, folder / STAMP_NAME)
 
 
+@contextlib.contextmanager
+def jit_target() -> Iterator[None]:
+    """Inside the block, numba's ahead-of-time code generator targets exactly what the JIT targets:
+    the host CPU's name *and* the JIT's feature list (``numba.core.codegen.get_host_cpu_features``).
+
+    ``numba.pycc`` with ``target_cpu = "host"`` takes the CPU's name only and lets LLVM infer the
+    features from it. Where that differs from the features the JIT uses, the machine code differs:
+    on a virtual machine that hides some of the model's extensions the build would use
+    instructions the CPU lacks, and where numba turns AVX off (``NUMBA_ENABLE_AVX``; Sandy and Ivy
+    Bridge by default) the vector width of :func:`snapjump_kernels.banded.dot_any_order`'s
+    reassociated sum, hence its round-off, would differ from the JIT's."""
+    from numba.core import codegen
+
+    cls = codegen.AOTCPUCodegen
+    if not hasattr(cls, "_customize_tm_features") or not hasattr(cls, "_get_host_cpu_features"):
+        raise RuntimeError("numba's AOT code generator has changed: cannot give it the JIT's CPU features")
+    original = cls.__dict__.get("_customize_tm_features")
+    cls._customize_tm_features = lambda self: self._get_host_cpu_features()
+    try:
+        yield
+    finally:
+        if original is None:
+            del cls._customize_tm_features
+        else:
+            cls._customize_tm_features = original
+
+
 def build(found: dict[str, dict[str, Any]], cpuinfo: str | Path = CPUINFO) -> Path:
     """Compile the extension (see the module docstring) next to the kernels and write its stamp;
     returns its path. ``found``: kernel module -> name -> the ``@njit`` dispatcher, with the
@@ -311,7 +339,7 @@ def build(found: dict[str, dict[str, Any]], cpuinfo: str | Path = CPUINFO) -> Pa
         from numba.pycc import CC
 
     cc = CC(MODULE)
-    cc.target_cpu = "host"  # the JIT's target: the same machine code
+    cc.target_cpu = "host"  # the JIT's target (with its features: jit_target): the same machine code
     exports: dict[str, dict[str, list]] = {}
     for modname, funcs in found.items():
         for name, disp in funcs.items():
@@ -327,7 +355,7 @@ def build(found: dict[str, dict[str, Any]], cpuinfo: str | Path = CPUINFO) -> Pa
                 exports.setdefault(modname, {}).setdefault(name, []).append({"export": export, "args": specs})
     for old in (STAMP_NAME, "_aot.sha256", "_aot_exports.json"):  # (the last two: an older build's stamp)
         (HERE / old).unlink(missing_ok=True)  # no stale pairing while the extension is rewritten
-    with tempfile.TemporaryDirectory(dir=HERE) as tmp:
+    with tempfile.TemporaryDirectory(dir=HERE) as tmp, jit_target():
         cc.output_dir = tmp
         cc.compile()
         built = next(Path(tmp).glob(f"{MODULE}*"))

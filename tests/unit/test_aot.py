@@ -261,3 +261,17 @@ def test_built_kernels_are_bit_identical():
         keys = [k for k, v in ma.items() if isinstance(v, float) and not k.endswith("_s")]
         assert len(keys) > 10
         assert {k: ma[k] for k in keys} == {k: mb[k] for k in keys}, name
+
+
+def test_the_build_targets_the_jits_cpu_features():
+    """Inside ``jit_target`` numba's ahead-of-time code generator gets the CPU name and the feature
+    list of the JIT (not only the name, from which LLVM would infer features the JIT may not use:
+    a virtual CPU hiding extensions, or NUMBA_ENABLE_AVX=0), on any host; outside, numba's own."""
+    from numba.core import codegen
+    from numba.core.registry import cpu_target
+
+    jit = cpu_target.target_context.codegen()
+    with aot.jit_target():
+        inside = codegen.AOTCPUCodegen("snapjump_test", cpu_name="host")
+    assert inside._tm_features == jit._tm_features and inside._get_host_cpu_name() == jit._get_host_cpu_name()
+    assert codegen.AOTCPUCodegen("snapjump_test", cpu_name="host")._tm_features == ""  # restored
