@@ -109,7 +109,8 @@ def report(ranked: pd.DataFrame, top: int = 20, axisym: pd.DataFrame | None = No
         axi_jumped = set(keys(axisym[axisym["jumped"].astype("boolean").fillna(False).to_numpy(bool)]))
     f = lambda c: fol[c].astype("float64").to_numpy()  # noqa: E731
     out = [f"followed designs: {len(fol)}"]
-    groups = [("all", fol)] + [(f"n = {int(n)}", g) for n, g in fol.groupby(fol["follow_n"].astype("float64"))]
+    groups = ([("all", fol)] + [(f"n = {int(n)}", g) for n, g in fol.groupby(fol["follow_n"].astype("float64"))]
+              + [(f"mu_i/mu_o = {mu:g}", g) for mu, g in fol.groupby(fol["mu_ratio"].astype("float64"))])
     for lab, g in groups:
         gg = lambda c: g[c].astype("float64").to_numpy()  # noqa: E731
         out.append(f"\n{lab} ({len(g)} designs), followed / axisymmetric:\n\n| | median | range |\n|---|---|---|")
@@ -143,12 +144,22 @@ def sample_report(grid: pd.DataFrame, followed: list[pd.DataFrame]) -> list[str]
     rows = pd.concat(followed, ignore_index=True)
     rows = rows[rows["status"] == "ok"]
     out = ["\nthe followed samples (wall times as they ran, on the machine they ran on):",
-           "| n | mu_i/mu_o | designs | followed (secondary) | time limit | dE | dy_pole | V* | wall, followed |",
-           "|---|---|---|---|---|---|---|---|---|"]
+           "| n | mu_i/mu_o | designs | followed (secondary) | time limit | dE | dy_pole | V* | wall, followed "
+           "| following / the grid's solve: median (p90) |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
+    # the following's wall time over the same design's axisymmetric solve and check in the grid
+    grid_wall = pd.Series(grid["wall_s"].astype("float64").to_numpy(), index=keys(grid).to_numpy())
+    axi = keys(rows).map(grid_wall).astype("float64").to_numpy()
+    rows = rows.assign(_cost=(rows["wall_s"].astype("float64").to_numpy() - axi) / axi)
 
     def med(r: np.ndarray) -> str:
         r = r[np.isfinite(r)]
         return f"{np.median(r):.2f} ({r.min():.2f}-{r.max():.2f})" if r.size else "-"
+
+    def cost(c: pd.Series) -> str:
+        c = c.to_numpy(float)
+        c = c[np.isfinite(c)]
+        return f"{np.median(c):.0f}x ({np.quantile(c, 0.9):.0f}x)" if c.size else "-"
 
     for (n, mu), g in rows.groupby([rows["follow_n"].astype("float64"), rows["mu_ratio"].astype("float64")]):
         fol = g[g["followed"].astype("boolean").fillna(False).to_numpy(bool)]
@@ -158,7 +169,9 @@ def sample_report(grid: pd.DataFrame, followed: list[pd.DataFrame]) -> list[str]
         wall = f"{fol['wall_s'].astype('float64').median():.0f} s" if len(fol) else "-"
         out.append(f"| {int(n)} | {mu:g} | {len(g)} | {len(fol)} ({sec}) | {limit} | {med(v('dE_J') / v('axisym_dE_J'))} "
                    f"| {med(v('dy_pole_m') / v('axisym_dy_pole_m'))} | {med(v('V_star_m3') / v('axisym_V_star_m3'))} "
-                   f"| {wall} |")
+                   f"| {wall} | {cost(g['_cost'])} |")
+    asym = rows[rows["follow_n"].notna().to_numpy(bool)]
+    out.append(f"| all | | {len(asym)} | | | | | | | {cost(asym['_cost'])} |")
     ok = grid[grid["status"] == "ok"]
     first = ok[ok["asym_first"].astype("boolean").fillna(False).to_numpy(bool)]
     counts = first["asym_n"].astype("float64").value_counts()
