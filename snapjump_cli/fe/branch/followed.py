@@ -15,7 +15,7 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from snapjump_cli.fe.branch.bifurcation import default_harmonics, first_bifurcation
+from snapjump_cli.fe.branch.bifurcation import default_harmonics, first_bifurcation, locate_bifurcation
 from snapjump_cli.fe.branch.secondary import follow_secondary, stability_watch
 from snapjump_cli.fe.branch.trace import MICRO_FOLD_DE, UNSTABLE_OUTSIDE, FollowResult, follow_branch
 from snapjump_cli.fe.limits import TimeLimitExceeded
@@ -114,7 +114,7 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
     n = int(check.asym_n)
     # every harmonic the check found unstable at its first unstable state: the first one located
     ns = [int(x) for x in str(check.asym_ns or n).split(",") if x.strip()]
-    bif = first_bifurcation(result, ns)
+    bif = first_bifurcation(result, ns) if len(ns) > 1 else locate_bifurcation(result, n)
     if bif is None:
         out["follow_note"] = f"bifurcation of harmonic {n} not located"
         return FollowedAnswer(out)
