@@ -294,8 +294,11 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
     (E, ok, re, Ke) : the energy, False if some point left the Gent domain, the element residuals
         (ne, nen nc) and tangents (ne, nen nc, nen nc; empty unless ``want >= 2``)
     """
+    npr = Np.shape[1]
+    nphi = phis.shape[0]
     return _mh_pass(A, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, hn, phis, wphi, want, Fi, Jimp,
-                    Minvp, False, np.zeros((0, 0), np.int64), np.zeros((0, 0)), np.zeros((0, 0)))
+                    Minvp, False, np.zeros((0, 0), np.int64), np.zeros((0, 0)), np.zeros((0, 0)),
+                    np.zeros((0, nphi, npr)), np.zeros((0, nphi, npr)), np.zeros((0, nphi, npr, 0)))
 
 
 @njit(cache=True)
@@ -303,11 +306,13 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
              kappa: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray, Wq: np.ndarray,
              Np: np.ndarray, Minv: np.ndarray, hn: np.ndarray, phis: np.ndarray, wphi: np.ndarray,
              want: int, Fi: np.ndarray, Jimp: np.ndarray, Minvp: np.ndarray, fused: bool,
-             edofs: np.ndarray, ecoef: np.ndarray, ab: np.ndarray):
+             edofs: np.ndarray, ecoef: np.ndarray, ab: np.ndarray, p_geo: np.ndarray, pb_out: np.ndarray,
+             H_out: np.ndarray):
     """The element pass of :func:`mh_elements`; with ``fused`` (and ``want >= 2``) each
     element's tangent is scattered into the band ``ab`` as soon as it is formed (as
     :func:`snapjump_kernels.harmonics.scatter_band` with factor 1 would, element by element) and
-    not kept: the returned ``Ke`` is then one element's work array."""
+    not kept: the returned ``Ke`` is then one element's work array. ``p_geo``, ``pb_out``,
+    ``H_out``: the mixed linearisation of :func:`mh_assemble_band` (arrays of length 0: none)."""
     ne, nen = conn.shape
     nq = Wq.shape[1]
     npr = Np.shape[1]
@@ -364,6 +369,9 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
             for a in range(nen):
                 hperm[nen * dof_offset(k) + dof * nen + a] = a * nc + dof_offset(k) + dof
     imperfect = Fi.shape[0] > 0
+    use_geo = p_geo.shape[0] == ne
+    keep_pb = pb_out.shape[0] == ne
+    keep_H = H_out.shape[0] == ne and want >= 2
     ve = np.empty(9)
     dpe = np.zeros(9)
     d2pe = np.zeros((9, 9))
@@ -422,6 +430,8 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
                     s += Mi[k2, l2] * g[j, l2]
                 pel[j, k2] = ka * s
                 ev += 0.5 * g[j, k2] * pel[j, k2]
+                if keep_pb:
+                    pb_out[e, j, k2] = pel[j, k2]
             E += wphi[j] * ev
         if want < 1:
             continue
@@ -462,11 +472,16 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
                 bnq[q, a] = bq[a, 2]
             if want < 2:
                 continue
-            # the tangent's pointwise D with the pressure part, W (d2psi + p d2J)
+            # the tangent's pointwise D with the pressure part, W (d2psi + p d2J) (p from p_geo
+            # in the mixed linearisation)
             for j in range(nphi):
                 pq = 0.0
-                for k2 in range(npr):
-                    pq += Np[q, k2] * pel[j, k2]
+                if use_geo:
+                    for k2 in range(npr):
+                        pq += Np[q, k2] * p_geo[e, j, k2]
+                else:
+                    for k2 in range(npr):
+                        pq += Np[q, k2] * pel[j, k2]
                 pw = W * pq
                 for c in range(9):
                     for d in range(9):
@@ -490,6 +505,15 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
                     Ke_e[jj, i] = Ke_e[i, jj]
         _volumetric_tangent(e, dJq, t, Wq, Np, Minv, Minvp, imperfect, wphi, ka, bxq, byq, bnq, hn, Gv, Hv, KL,
                             tmp, Ke_e)
+        if keep_H:  # kappa M^-1 G_j: the element pressures' derivative at every phi point
+            for j in range(nphi):
+                Mi = Minvp[e, j] if imperfect else Minv[e]
+                for k2 in range(npr):
+                    for i in range(nd):
+                        s = 0.0
+                        for l2 in range(npr):
+                            s += Mi[k2, l2] * Gv[j, l2, i]
+                        H_out[e, j, k2, i] = ka * s
         if fuse:
             _scatter_element(Ke_e, edofs[e], ecoef[e], ab)
     return E, True, re, Ke
@@ -518,7 +542,7 @@ def mh_assemble_band(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.nd
                      kappa: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray, Wq: np.ndarray,
                      Np: np.ndarray, Minv: np.ndarray, hn: np.ndarray, phis: np.ndarray, wphi: np.ndarray,
                      Fi: np.ndarray, Jimp: np.ndarray, Minvp: np.ndarray, edofs: np.ndarray, ecoef: np.ndarray,
-                     ext: np.ndarray, ab: np.ndarray):
+                     ext: np.ndarray, ab: np.ndarray, p_geo: np.ndarray, pb_out: np.ndarray, H_out: np.ndarray):
     """Energy, element residuals and the tangent scattered into the lower band ``ab`` in one pass.
 
     ``ab``'s envelope (``ab[j, :ext[j] + 1]``) is zeroed first (entries outside it are neither
@@ -526,6 +550,15 @@ def mh_assemble_band(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.nd
     added as it is formed: the same band, bit for bit, as :func:`mh_elements` (``want = 2``)
     followed by :func:`snapjump_kernels.harmonics.scatter_band` (factor 1), without the
     ``(ne, nd, nd)`` element matrices in memory.
+
+    Mixed linearisation (as :func:`snapjump_kernels.assembly.assemble`'s): the element pressure at
+    every phi point, condensed in the energy and the residual (``kappa M^-1 g_j(u)``), may be taken
+    in the tangent's geometric term ``p d2J`` from ``p_geo (ne, nphi, np)`` instead (the pressure of
+    the three-field Newton iteration: extrapolated along the path, then updated linearly). The
+    residual is the same; only the Newton matrix changes (``p_geo`` equal to the condensed
+    pressures gives the reduced tangent bit for bit). ``pb_out (ne, nphi, np)`` receives the
+    condensed pressures and ``H_out (ne, nphi, np, nd)`` their derivative ``kappa M^-1 G_j`` with
+    respect to the element dofs (node-major, as ``edofs``); arrays of length 0: not used / not wanted.
 
     Returns
     -------
@@ -537,7 +570,7 @@ def mh_assemble_band(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.nd
         for x in range(col.size):
             col[x] = 0.0
     E, ok, re, _ = _mh_pass(A, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, hn, phis, wphi, 2, Fi,
-                            Jimp, Minvp, True, edofs, ecoef, ab)
+                            Jimp, Minvp, True, edofs, ecoef, ab, p_geo, pb_out, H_out)
     return E, ok, re
 
 

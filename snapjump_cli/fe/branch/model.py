@@ -87,6 +87,17 @@ def component_index(k: int, comp: int) -> int:
     return 2 + 3 * (k - 1) + comp
 
 
+class _MixedLinearization(Linearization):
+    """A :class:`~snapjump_cli.fe.axisym.model.Linearization` with the element pressures of every
+    phi point (``aux``, ``(ne, nphi, np)``) and their derivative (``(ne, nphi, np, nd)``)."""
+
+    def aux_dir(self, x: np.ndarray) -> np.ndarray:
+        """Linearised change of the element pressures for a displacement change ``x`` (free dofs)."""
+        m = self.model
+        xe = np.where(m.edofs >= 0, m.ecoef * x[np.maximum(m.edofs, 0)], 0.0)
+        return np.einsum("ejkd,ed->ejk", self._H, xe)
+
+
 class MultiHarmonicModel:
     """A truncated Fourier series of harmonics ``hn`` on an axisymmetric :class:`~snapjump_cli.fe.axisym.model.Model`.
 
@@ -301,19 +312,26 @@ class MultiHarmonicModel:
         return self.section(u, 0.0)
 
     # ---- evaluations ---------------------------------------------------------------------------
-    def _evaluate(self, u: np.ndarray, p: float, want: int):
+    def _no_aux(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Empty element-pressure arrays: the reduced linearisation, nothing kept."""
+        npr, nphi = self.base.Np.shape[1], self.phis.shape[0]
+        return np.zeros((0, nphi, npr)), np.zeros((0, nphi, npr)), np.zeros((0, nphi, npr, 0))
+
+    def _evaluate(self, u: np.ndarray, p: float, want: int, aux_arrays=None):
         """Energy, residual, cavity volume and (``want >= 2``) the tangent: the elements' tangent is
         scattered into a reused band buffer as it is formed
-        (:func:`snapjump_kernels.mh_element.mh_assemble_band`), the cavity's added after."""
+        (:func:`snapjump_kernels.mh_element.mh_assemble_band`), the cavity's added after.
+        ``aux_arrays``: ``(p_geo, pb_out, H_out)`` of the mixed linearisation (default: none)."""
         check_time()  # the design's CPU-time limit (snapjump_cli.fe.limits)
         t0 = time.perf_counter()
         M = self.base
         A = np.ascontiguousarray(self.total_amplitudes(u))
         if want >= 2:  # the elements' tangent scattered into a band as it is formed
             ab = self._band_buffer()
+            p_geo, pb_out, H_out = aux_arrays if aux_arrays is not None else self._no_aux()
             E, ok, re = mh_assemble_band(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
                                          M.Minv, self.hn, self.phis, self.wphi, self.Fi, self.Jimp, self.Minvp,
-                                         self.edofs, self.ecoef, self.band_ext, ab)
+                                         self.edofs, self.ecoef, self.band_ext, ab, p_geo, pb_out, H_out)
         else:
             E, ok, re, _ = mh_elements(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
                                         M.Minv, self.hn, self.phis, self.wphi, max(want, 0), self.Fi, self.Jimp,
@@ -358,14 +376,30 @@ class MultiHarmonicModel:
         out = self._evaluate(u, p, 1)
         return out[1] if out is not None else None
 
-    def linearize(self, u: np.ndarray, p: float, stiffness: bool = True, aux=None) -> Linearization | None:
+    def linearize(self, u: np.ndarray, p: float, stiffness: bool = True, aux: np.ndarray | None = None
+                  ) -> Linearization | None:
         """Residual and (``stiffness``) the band tangent in one pass; ``None`` outside the domain.
-        ``aux`` is accepted for the interface and ignored (no mixed linearisation here)."""
-        out = self._evaluate(u, p, 2 if stiffness else 1)
+
+        ``aux`` (ne, nphi, np): element pressures at every phi point for the tangent's geometric term
+        (the mixed linearisation, :func:`snapjump_kernels.mh_element.mh_assemble_band`; a perfect
+        body only). With the stiffness and a perfect body the result also carries the condensed
+        element pressures at ``u`` (``.aux``) and ``.aux_dir``, as
+        :meth:`snapjump_cli.fe.axisym.model.Model.linearize`'s does."""
+        arrays = None
+        mixed = stiffness and self.Fi.shape[0] == 0
+        if mixed:
+            ne, npr, nphi = self.base.conn.shape[0], self.base.Np.shape[1], self.phis.shape[0]
+            p_geo = np.ascontiguousarray(aux, dtype=float) if aux is not None else np.zeros((0, nphi, npr))
+            arrays = (p_geo, np.zeros((ne, nphi, npr)), np.zeros((ne, nphi, npr, self.edofs.shape[1])))
+        elif aux is not None:
+            raise ValueError("the mixed linearisation needs a perfect body and the stiffness")
+        out = self._evaluate(u, p, 2 if stiffness else 1, arrays)
         if out is None:
             return None
         E, R, g, V, data = out
-        return Linearization(self, u, p, R, g, data, V, E)
+        if not mixed:
+            return Linearization(self, u, p, R, g, data, V, E)
+        return _MixedLinearization(self, u, p, R, g, data, V, E, aux=arrays[1], H=arrays[2])
 
     def measures(self, u: np.ndarray, p: float, lin: Linearization | None = None):
         """Path measures ``(V, p, w)`` and their derivatives (as :meth:`snapjump_cli.fe.axisym.model.Model.measures`)."""

@@ -213,6 +213,13 @@ REJOIN_FRAC = 0.25
 #: (``bench/follow_profile.py@51d9ff8 B --step-grow 1.6 1.2``).
 FOLLOW_STEP_GROW = 1.2
 
+#: The branch's Newton corrector linearises with the element pressures of the three-field
+#: problem (:meth:`MultiHarmonicModel.linearize`'s ``aux``: extrapolated along the branch, then
+#: updated linearly), as the axisymmetric trace does; ``False``: with the condensed pressures of
+#: each iterate (the reduced tangent). The same states; on the stratified ``n = 1`` sample the
+#: branch takes 2-2.6x fewer assemblies (docs/harmonics.md section 10.4).
+MIXED_TANGENT = True
+
 
 #: Folds whose lower state, found off the branch, releases less than ``MICRO_FOLD_DE``: inflation
 #: goes on from that lower state, at most this many times.
@@ -390,7 +397,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     if landing not in LANDINGS:
         raise ValueError(f"landing must be one of {LANDINGS}, got {landing!r}")
     tr0 = result.tracer
-    cfg = replace(tr0.cfg, fused=False, mixed_tangent=False, step_grow=float(step_grow))
+    cfg = replace(tr0.cfg, fused=False, mixed_tangent=MIXED_TANGENT, step_grow=float(step_grow))
     if max_steps is not None:
         cfg = replace(cfg, max_steps=int(max_steps))
     tr = Tracer(mh, cfg)
@@ -400,6 +407,10 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     du_ds = Phi / (alpha * float(np.linalg.norm(Phi)))
     z_c = tr.zeta(U_c, p_c)[0]
     start = PathPoint(U_c, p_c, z_c, np.zeros(len(z_c)), du_ds, 0.0, 0.0)
+    if cfg.mixed_tangent:
+        lin_c = mh.linearize(U_c, p_c)  # the start's element pressures and their rate along the mode
+        if lin_c is not None and getattr(lin_c, "aux", None) is not None:
+            start.aux, start.daux_ds = lin_c.aux, lin_c.aux_dir(du_ds)
     sc = tr0.sc
     p_stop, V_stop, post = tracker_bounds(result)
     micro_dE = micro_energy(result, micro)
