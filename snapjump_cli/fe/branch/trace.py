@@ -407,10 +407,6 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     du_ds = Phi / (alpha * float(np.linalg.norm(Phi)))
     z_c = tr.zeta(U_c, p_c)[0]
     start = PathPoint(U_c, p_c, z_c, np.zeros(len(z_c)), du_ds, 0.0, 0.0)
-    if cfg.mixed_tangent:
-        lin_c = mh.linearize(U_c, p_c)  # the start's element pressures and their rate along the mode
-        if lin_c is not None and getattr(lin_c, "aux", None) is not None:
-            start.aux, start.daux_ds = lin_c.aux, lin_c.aux_dir(du_ds)
     sc = tr0.sc
     p_stop, V_stop, post = tracker_bounds(result)
     micro_dE = micro_energy(result, micro)
