@@ -222,6 +222,8 @@ def test_the_row_says_what_happened(jumped):
     assert out["followed"] and out["follow_n"] == 3 and out["follow_N"] == 6 and out["follow_kind"] == "jump"
     assert out["follow_sec_n"] == sec.n and out["follow_sec_V_m3"] == pytest.approx(sec.V_m3, rel=1e-12)
     assert "jumps to on the branch is unstable in harmonic" in out["follow_note"]
+    # n_c = 3: the mode's two signs are not mirror images; the jump is landed by the descent along its sign
+    assert "(energy descent)" in out["follow_note"] and "fixed-volume path" not in out["follow_note"]
     assert out["dE_J"] > 0 and out["dy_pole_m"] > 0
     assert out["V_star_m3"] < fs.parent.metrics["V_star_m3"]  # before the branch's own volume limit
     bc = branch_curve(fs)
@@ -269,3 +271,37 @@ def test_the_plot_draws_both_branches_and_the_secondary_point(jumped, located, t
     png = plot_pv_curve(res.curve, metrics, tmp_path / "pv2.png", title="located", branch=bc)
     got = labels(png)
     assert "secondary bifurcation (n = 2)" in got and not any("lands here" in t for t in got)
+
+
+def test_the_fixed_volume_path_from_the_jumps_landing_ends_where_the_damped_motion_comes_to_rest(jumped):
+    """The jump's landing by the fixed-volume path (``jump_off_branch(volume_path=True)``, the
+    actuator mode's for an even ``n_c``; here the mechanics on the clamped cap's ``n_c = 3`` jump):
+    the path that leaves the unstable landing state along its unstable mode at the fold's volume
+    ends on an equilibrium at that volume, stable with every harmonic and below the landing state;
+    the damped motion at that volume from the landing state, kicked the way the path went along
+    the mode, comes to rest on the same state (the arbiter, snapjump_cli.fe.branch.dynamics)."""
+    from snapjump_cli.fe.axisym.lower_state import snap_at_fixed_volume
+    from snapjump_cli.fe.branch.dynamics import damped_snap, lowest_frequency
+    from snapjump_cli.fe.continuation import PathPoint
+
+    res, out, fs = jumped
+    fr, sec, full, tr = fs.parent, fs.secondary, fs.model, fs.tracer
+    L, p = lift(fr.model, full, sec.point.u), sec.point.p
+    eig, mode = extra_eigen(full, L, p, extra_dofs(fr.model, full))
+    assert eig < 0.0
+    unit = mode / np.linalg.norm(mode)
+    at_L = PathPoint(L, p, tr.zeta(L, p)[0], fs.states.upper.tangent, unit / tr.alpha, 0.0, 0.0)
+    low, msg = snap_at_fixed_volume(tr, at_L)  # (n_c = 3: the mode's two signs are not mirror images)
+    assert low is not None, msg
+    assert msg.startswith("fixed-volume path (mode control)")
+    V_fold = full.volume(fs.states.upper.u)
+    assert full.volume(low.u) == pytest.approx(V_fold, rel=1e-8)
+    assert unstable_modes(full, low.u, low.p) == 0
+    assert full.energy(low.u) < full.energy(L)
+    lin = full.linearize(low.u, low.p)
+    assert np.linalg.norm(lin.R) < 1e-6 * abs(low.p) * np.linalg.norm(lin.g)
+    way = float(np.sign(unit @ (low.u - L)))
+    omega = lowest_frequency(tr, low.u, low.p)
+    ds = damped_snap(tr, at_L, way * mode, omega, zeta=1.0, steps_per_period=10, rest=1e-6)
+    assert ds.state is not None, ds.message
+    assert np.linalg.norm(ds.state.u - low.u) < 1e-6 * np.linalg.norm(low.u)

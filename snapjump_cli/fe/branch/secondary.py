@@ -25,6 +25,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from snapjump_cli.fe.axisym.descent import constrained_negatives, descend_at_volume
+from snapjump_cli.fe.axisym.lower_state import snap_at_fixed_volume
 from snapjump_cli.fe.axisym.snap import SnapStates, root_on_step
 from snapjump_cli.fe.branch.bifurcation import harmonic1_gauge
 from snapjump_cli.fe.branch.model import MultiHarmonicModel, component_index, transfer
@@ -405,7 +406,7 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
                      float(root.p * mh.S))
 
 
-def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
+def follow_secondary(result, fr, N: int | None = None, stride: int = 5, jump_path: bool = False, **kw):
     """Check a followed branch against the harmonics it does not keep and, if it loses stability
     to them before its volume limit, trace the branch that leaves it there in the model with every
     harmonic ``0..N`` (:func:`snapjump_cli.fe.branch.trace.trace_branch`).
@@ -417,7 +418,8 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
         the stability check and the located point. When the first state with an extra unstable
         mode is one the actuator reaches by a jump past a fold of the branch
         (:func:`visited_points`), there is no secondary bifurcation to locate: the jump itself
-        goes on outside the branch (:func:`jump_off_branch`).
+        goes on outside the branch (:func:`jump_off_branch`; ``jump_path``: its landing by the
+        fixed-volume path first).
     """
     watch = getattr(fr, "watch", None)
     reuse = isinstance(watch, StabilityWatch) and watch.stride == stride and watch.mh is fr.model
@@ -447,7 +449,7 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, **kw):
         land = jump.landing if jump is not None else fr.path.points[j1]
         e = extra_eigen(full, lift(fr.model, full, land.u), land.p, extra_dofs(fr.model, full))
         if jump is None or jump.landing_index is not None or e is None or e[0] < 0.0:
-            return jump_off_branch(result, fr, chk, full, j1, jump, eigen=e)
+            return jump_off_branch(result, fr, chk, full, j1, jump, eigen=e, volume_path=jump_path)
         start = land
     try:
         sec = locate_secondary(fr, chk, full, first=j1, start=start)
@@ -488,7 +490,7 @@ JUMP_KICK = 1e-3
 
 
 def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, landing: int, jump=None,
-                    eigen=None):
+                    eigen=None, volume_path: bool = False):
     """The snap of an actuator that jumps past a fold of the followed branch onto a state of the
     branch (``landing``) that is unstable outside the branch's harmonics: the jump goes on, at the
     fold's volume, to the state that an energy descent at fixed volume in the model with every
@@ -499,6 +501,15 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     located it, else the last path point passed through before ``landing``. ``eigen``: the landing
     state's :func:`extra_eigen`, if already computed. (The descent is the model's own: started with
     fewer harmonics, :mod:`snapjump_cli.fe.branch.coarse`, it cost more on ``follow_strata_n2`` row 4.)
+    With ``volume_path`` and an even ``n_c`` the state is first sought on the fixed-volume path that
+    leaves the landing state along that mode
+    (:func:`snapjump_cli.fe.axisym.lower_state.snap_at_fixed_volume`, mode control): the equilibria
+    at that volume under a generalised force along the mode, up to the first one that is stable
+    and lower; the descent where it finds none. For an even ``n_c`` the mode's two signs are mirror
+    images (the turn by ``pi / n_c`` flips every harmonic outside the branch), so the jump's landing
+    does not depend on the sign, and where the path and the descent land on different states the
+    damped motion at fixed volume comes to rest on the path's (docs/harmonics.md section 10.7). For
+    an odd ``n_c`` the two signs can lead to different states; the descent along the mode's sign is kept.
 
     Returns
     -------
@@ -525,10 +536,17 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
         full.release_buffers()
         return None, chk, None
     eig, mode = e
-    amp = float(np.abs(full.amplitudes(L)).max())
-    mode = mode * (JUMP_KICK * amp / float(np.abs(full.amplitudes(mode)).max()))
-    start = PathPoint(L + mode, land.p, tr.zeta(L + mode, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)
-    low, msg = descend_at_volume(tr, upper, start=start)
+    low, msg = None, ""
+    if volume_path and fr.bif.n % 2 == 0:
+        unit = mode / float(np.linalg.norm(mode))
+        at_L = PathPoint(L, land.p, tr.zeta(L, land.p)[0], up_b.tangent.copy(), unit / tr.alpha, 0.0, 0.0)
+        low, msg = snap_at_fixed_volume(tr, at_L, mode_signs=(1.0,))  # (the other way: its mirror image)
+    if low is None:
+        amp = float(np.abs(full.amplitudes(L)).max())
+        mode = mode * (JUMP_KICK * amp / float(np.abs(full.amplitudes(mode)).max()))
+        start = PathPoint(L + mode, land.p, tr.zeta(L + mode, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)
+        low, msg_d = descend_at_volume(tr, upper, start=start)
+        msg = "; ".join(x for x in (msg, msg_d) if x)
     amps = {n: float(np.abs(full.harmonic_part(mode, n)).max()) for n in extra_harmonics(mh, full)}
     sc = fr.tracer.sc
     sec = Secondary(land, k_up, full, mode, int(max(amps, key=amps.get)), float(eig),
