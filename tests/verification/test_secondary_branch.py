@@ -225,7 +225,11 @@ def test_the_row_says_what_happened(jumped):
     # n_c = 3: the mode's two signs are not mirror images; the jump is landed by the descent along its sign
     assert "(energy descent)" in out["follow_note"] and "fixed-volume path" not in out["follow_note"]
     assert out["dE_J"] > 0 and out["dy_pole_m"] > 0
-    assert out["V_star_m3"] < fs.parent.metrics["V_star_m3"]  # before the branch's own volume limit
+    from snapjump_cli.fe.branch.trace import LEFT_AT_LANDING
+
+    own = fs.parent.metrics.get("V_star_m3")  # the branch's own volume limit, if traced: the jump comes first
+    # (the actuator mode stops the branch where the jump leaves it: no volume limit of its own)
+    assert (own is None and fs.parent.path.stop_reason == LEFT_AT_LANDING) or out["V_star_m3"] < own
     bc = branch_curve(fs)
     assert bc["n_sec"] == sec.n and len(bc["V_m3"]) == sec.index + 1 + len(fs.path.points)  # up to the fold
     assert bc["V_sec_m3"] is None and bc["landing_V_m3"] == sec.V_m3
@@ -305,3 +309,34 @@ def test_the_fixed_volume_path_from_the_jumps_landing_ends_where_the_damped_moti
     ds = damped_snap(tr, at_L, way * mode, omega, zeta=1.0, steps_per_period=10, rest=1e-6)
     assert ds.state is not None, ds.message
     assert np.linalg.norm(ds.state.u - low.u) < 1e-6 * np.linalg.norm(low.u)
+
+
+def test_the_actuator_mode_does_not_trace_past_a_landing_the_jump_leaves():
+    """A branch of ``n_c = 2`` whose first step is subcritical is traced through its micro-folds
+    (the check of the branch's first states finds nothing to stop at); in the actuator mode the
+    trace stops at the first micro-fold's landing that is unstable outside the branch
+    (``follow_branch(settle=leaves_branch(...))``, :data:`~snapjump_cli.fe.branch.trace.LEFT_AT_LANDING`):
+    the branch has no snap of its own (the reference traces it to one, 121 points, and searches
+    its lower state), and the jump off the branch goes on from that landing (the same answer, bit
+    for bit: a scratch comparison)."""
+    from snapjump_cli.fe.branch.secondary import leaves_branch
+
+    res = solve_scene(CapScene(theta_deg=30.0, eta=50.0, bc="clamped"), MeshSettings(nt=1, aspect=2.0),
+                      SolverSettings())
+    chk = check_harmonics(res, 4)
+    assert chk.asym_first and chk.asym_n == 2
+    answer = followed_metrics(res, chk, N=8)
+    out, fs = answer.values, answer.branch
+    assert out["followed"] and out["follow_kind"] == "jump"
+    from snapjump_cli.fe.branch.trace import LEFT_AT_LANDING
+
+    fr = fs.parent
+    assert fr.first_kind == "subcritical" and fr.states.upper is None  # stopped: no snap of its own
+    assert fr.path.stop_reason == LEFT_AT_LANDING
+    land = fs.secondary.point  # the jump goes on from the landing of the branch's micro-fold,
+    assert any(f.landing is land for f in fr.folds)
+    leaves = leaves_branch(u_axi=fr.bif.u)(fr.model)
+    assert leaves(land)  # one the actuator leaves at once (unstable outside the branch),
+    # and the path ends within a few steps past it
+    k = next(f.k for f in fr.folds if f.landing is land)
+    assert len(fr.path.points) - 1 - k <= 30

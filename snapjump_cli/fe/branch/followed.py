@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from snapjump_cli.fe.branch.bifurcation import default_harmonics, first_bifurcation, locate_bifurcation
-from snapjump_cli.fe.branch.secondary import follow_secondary, stability_watch
+from snapjump_cli.fe.branch.secondary import follow_secondary, leaves_branch, stability_watch
 from snapjump_cli.fe.branch.trace import MICRO_FOLD_DE, UNSTABLE_OUTSIDE, FollowResult, follow_branch
 from snapjump_cli.fe.limits import TimeLimitExceeded
 from snapjump_cli.schema import FOLLOWED, keys
@@ -135,7 +135,13 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
     if secondary and mode == "actuator" and len(hn) > 1 and int(hn[1]) > 1:
         fr, note_sec = first_secondary(result, bif, hn, n_phi, **sec_kw)
     if fr is None:
-        fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp)
+        # the actuator mode does not trace a branch of n_c >= 2 on past a micro-fold whose landing it
+        # leaves at once (unstable outside the branch: the jump goes on, leave_at_secondary)
+        settle = None
+        if mode == "actuator" and len(hn) > 1 and int(hn[1]) > 1:
+            def settle(mh):  # (made when the branch's model is)
+                return leaves_branch(u_axi=bif.u)(mh)
+        fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp, settle=settle)
         if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:
             fr, note_sec = leave_at_secondary(result, fr, **sec_kw)
     fm = fr.metrics

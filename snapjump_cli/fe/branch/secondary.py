@@ -38,7 +38,7 @@ log = logging.getLogger(__name__)
 __all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
            "locate_secondary", "follow_secondary", "visited_points",
            "first_extra", "jump_off_branch", "reached_along", "jump_before", "landing_jump", "mode_counts",
-           "more_outside", "extra_harmonics", "JUMP_KICK", "StabilityWatch", "stability_watch", "rotation_signs", "rotated"]
+           "more_outside", "extra_harmonics", "JUMP_KICK", "leaves_branch", "StabilityWatch", "stability_watch", "rotation_signs", "rotated"]
 
 
 def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray | None = None) -> MultiHarmonicModel:
@@ -260,6 +260,33 @@ def stability_watch(N: int | None = None, stride: int = 5, u_axi: np.ndarray | N
     model): :class:`StabilityWatch` against :func:`full_model` ``(mh, N, u_axi)``, as
     :func:`follow_secondary` with the same ``N`` and ``stride`` checks the branch."""
     return lambda mh: StabilityWatch(mh, full_model(mh, N, u_axi), int(stride))
+
+
+def leaves_branch(N: int | None = None, u_axi: np.ndarray | None = None):
+    """A ``settle`` for :func:`snapjump_cli.fe.branch.trace.follow_branch` (made from the branch's
+    model ``mh``): whether a state of the branch is unstable outside its harmonics (the smallest
+    eigenvalue of :func:`extra_eigen` in :func:`full_model` ``(mh, N, u_axi)`` below zero, for the
+    state or, for an even ``n_c``, the state turned by ``pi / n_c``: :func:`rotation_signs`), as
+    :func:`follow_secondary` decides for the state a jump lands on."""
+
+    def make(mh: MultiHarmonicModel):
+        full = full_model(mh, N, u_axi)
+        dofs = extra_dofs(mh, full)
+        signs = rotation_signs(mh)
+
+        def leaves(pt: PathPoint) -> bool:
+            for u in (pt.u, None if signs is None else signs * pt.u):
+                if u is None:
+                    continue
+                e = extra_eigen(full, lift(mh, full, u), pt.p, dofs)
+                full.release_buffers()
+                if e is not None and e[0] < 0.0:
+                    return True
+            return False
+
+        return leaves
+
+    return make
 
 
 def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None = None,

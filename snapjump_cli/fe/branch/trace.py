@@ -128,6 +128,9 @@ class BranchTracker(SnapTracker):
     mode_amplitude: Callable[[np.ndarray], float] | None = None
     asym_amplitude: Callable[[np.ndarray], float] | None = None
     watch: Callable[[Path], bool] | None = None
+    #: (state -> bool) a micro-fold traced through whose landing this says the actuator leaves at
+    #: once (off the branch) ends the trace there (:data:`LEFT_AT_LANDING`; ``follow_branch(settle=...)``)
+    settle: Callable[[PathPoint], bool] | None = None
     _asym_max: float = 0.0
     _mode_sign: float = 0.0
     _asym_prev: float = math.inf
@@ -174,8 +177,15 @@ class BranchTracker(SnapTracker):
                           self.micro_dE)
                 self.states = SnapStates(p_max=st.p_max)
                 self.kind = "supercritical"
+                if self.settle is not None and self.settle(st.lower):
+                    return LEFT_AT_LANDING
                 return None
         return reason
+
+
+#: The stop reason of a branch whose trace reached the landing of a micro-fold that the actuator
+#: leaves at once, off the branch (:class:`BranchTracker`'s ``settle``).
+LEFT_AT_LANDING = "the landing of a fold releasing almost nothing is unstable outside the branch"
 
 
 #: The stop reason of a branch that passed back through the axisymmetric path (:class:`BranchTracker`).
@@ -324,7 +334,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
                   micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
                   step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False,
                   landing: str = "search", volume_path: bool = True,
-                  watch: Callable[[MultiHarmonicModel], Callable[[Path], bool]] | None = None) -> FollowResult:
+                  watch: Callable[[MultiHarmonicModel], Callable[[Path], bool]] | None = None,
+                  settle: Callable[[MultiHarmonicModel], Callable[[PathPoint], bool]] | None = None) -> FollowResult:
     """Trace the branch of ``bif`` with the harmonics ``hn`` (default :func:`default_harmonics`)
     from the bifurcation through its volume limit to the lower state at that volume (with
     ``stop_at_upper``: only up to its first volume limit, :class:`BranchTracker`).
@@ -341,6 +352,10 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     landing, volume_path : how the lower state is found (:func:`trace_branch`)
     watch : with ``stop_at_upper``, made from the branch's model: stops the trace at a state it
         finds unstable outside the branch's harmonics (:class:`BranchTracker`)
+    settle : made from the branch's model (state -> bool): where the state a fold that releases
+        almost nothing lands on is one the actuator does not stay on (unstable outside the
+        branch's harmonics: the jump goes on off the branch), the branch beyond it is not traced;
+        the path then ends at that state, without a snap of its own (:func:`trace_through_micro_folds`)
 
     Returns
     -------
@@ -355,7 +370,7 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     Phi = mh.embed(np.zeros(base.n), {bif.n: bif.mode})
     fr = trace_branch(result, bif, mh, U_c, bif.p, Phi, [int(n) for n in mh.hn[1:]], micro=micro,
                       max_steps=max_steps, step_grow=step_grow, stop_at_upper=stop_at_upper, landing=landing,
-                      volume_path=volume_path, watch=watch)
+                      volume_path=volume_path, watch=watch, settle=settle)
     fr.metrics["follow_wall_s"] = time.perf_counter() - t0
     return fr
 
@@ -364,7 +379,8 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
                  asym_harmonics: list[int], micro: float = MICRO_FOLD_DE, max_steps: int | None = None,
                  step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False,
                  landing: str = "search", volume_path: bool = True,
-                 watch: Callable[[MultiHarmonicModel], Callable[[Path], bool]] | None = None) -> FollowResult:
+                 watch: Callable[[MultiHarmonicModel], Callable[[Path], bool]] | None = None,
+                 settle: Callable[[MultiHarmonicModel], Callable[[PathPoint], bool]] | None = None) -> FollowResult:
     """Trace the branch of the model ``mh`` that leaves the equilibrium ``(U_c, p_c)`` along
     ``Phi`` (a bifurcation point and its critical mode, as free vectors of ``mh``) through its volume
     limit to the lower state at that volume (:func:`follow_branch` for a branch of the axisymmetric
@@ -416,10 +432,12 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         "asym_amplitude": lambda u: max(float(np.abs(mh.harmonic_part(u, int(n))).max()) for n in asym_harmonics),
     }
 
+    stays = settle(mh) if settle is not None else None
+
     def run(first: PathPoint, kind: str, stop: bool = stop_at_upper, steps: int | None = None, watch=None
             ) -> tuple[Path, BranchTracker, str]:
         tk = BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post, kind=kind, micro_dE=micro_dE,
-                           stop_at_upper=stop, watch=watch, **amplitudes)
+                           stop_at_upper=stop, watch=watch, settle=None if stop else stays, **amplitudes)
         try:
             return trace(mh, cfg if steps is None else replace(cfg, max_steps=steps), tk, tracer=tr, start=first), tk, ""
         except ContinuationFailed as exc:
@@ -473,9 +491,14 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
                 fr.metrics = branch_metrics(fr, sc)
                 mh.release_buffers()
                 return fr
-    tb = trace_through_micro_folds(
-        lambda first: run(first, "supercritical" if first is not start else ""), start, lower_state, mh.energy,
-        lambda state: start_point(tr, state.u, state.p), micro_dE)
+    def run_on(first: PathPoint) -> tuple[Path, BranchTracker, str]:
+        if first is start:
+            return run(first, "")
+        # a micro-fold's landing the actuator leaves at once (off the branch): nothing beyond it
+        return run(first, "supercritical", steps=0 if stays is not None and stays(first) else None)
+
+    tb = trace_through_micro_folds(run_on, start, lower_state, mh.energy,
+                                   lambda state: start_point(tr, state.u, state.p), micro_dE)
     path, tracker, failure, low, micro_folds = tb.path, tb.tracker, tb.failure, tb.lower, tb.micro_folds
     st = tracker.states
     kind = (tracker.kind if not tb.restarts else "supercritical") if st.upper is not None else ""
