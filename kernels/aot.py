@@ -180,6 +180,18 @@ def cpu_signature(cpuinfo: str | Path = CPUINFO) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+#: The environment settings with which numba's JIT makes other machine code on the same CPU
+#: (its target CPU and features, AVX, optimisation and vectorisation); numba's defaults where unset.
+NUMBA_CODEGEN_ENV = ("NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES", "NUMBA_ENABLE_AVX", "NUMBA_OPT",
+                     "NUMBA_LOOP_VECTORIZE", "NUMBA_SLP_VECTORIZE")
+
+
+def numba_codegen_env() -> dict[str, str]:
+    """Those of :data:`NUMBA_CODEGEN_ENV` that are set in this process (a build made under other
+    ones is not the JIT's code here: ``NUMBA_ENABLE_AVX=0`` moved the cap's answers by round-off)."""
+    return {k: os.environ[k] for k in NUMBA_CODEGEN_ENV if k in os.environ}
+
+
 def read_stamp(folder: Path = HERE) -> dict | None:
     """The build's stamp in ``folder`` (None when there is none or it cannot be read)."""
     try:
@@ -199,6 +211,8 @@ def stale_reason(stamp: dict | None, cpuinfo: str | Path = CPUINFO) -> str:
         return "built from other kernel sources"
     if stamp.get("cpu") != cpu_signature(cpuinfo):
         return f"built for another CPU ({stamp.get('cpu_model', '?')})"
+    if stamp.get("numba_env", {}) != numba_codegen_env():
+        return f"built under other numba code-generation settings ({stamp.get('numba_env', {})})"
     return ""
 
 
@@ -286,9 +300,10 @@ def active() -> bool:
 
 
 def _what_for(cpuinfo: str | Path = CPUINFO) -> dict[str, str]:
-    """The stamp's record of what a build is for: the kernel sources and this CPU."""
+    """The stamp's record of what a build is for: the kernel sources, this CPU and numba's
+    code-generation settings."""
     return {"sources": source_hash(), "cpu": cpu_signature(cpuinfo),
-            "cpu_model": cpu_fields(cpuinfo).get("model name", "?")}
+            "cpu_model": cpu_fields(cpuinfo).get("model name", "?"), "numba_env": numba_codegen_env()}
 
 
 def _write_stamp(stamp: dict, folder: Path = HERE) -> None:

@@ -40,6 +40,8 @@ def fake_build(tmp_path, cpus, monkeypatch):
     """A build in a temporary folder, made for these kernel sources on the Xeon fixture: its stamp,
     and a loader that hands out a stand-in extension (whose one export says it was called)."""
     monkeypatch.setenv("SNAPJUMP_NO_AOT", "")  # unset for the guard; restored afterwards
+    for k in aot.NUMBA_CODEGEN_ENV:  # numba's defaults, as the stamp below was made under
+        monkeypatch.delenv(k, raising=False)
     folder = tmp_path / "build"
     folder.mkdir()
     stamp = {"sources": source_hash(), "cpu": aot.cpu_signature(cpus[0]), "cpu_model": "Intel(R) Xeon(R) Processor",
@@ -129,6 +131,21 @@ def test_a_matching_build_is_used(fake_build, cpus):
     assert isinstance(f.jit, aot._LazyJit) and f.jit._f is None  # the dispatcher is not imported for it
     lazy = aot.kernel("banded", "band_ldlt", table)  # not in the build: the dispatcher, on first call
     assert isinstance(lazy, aot._LazyJit) and lazy._f is None
+
+
+def test_not_used_under_other_numba_code_generation_settings(fake_build, cpus, monkeypatch):
+    """A build made with numba's defaults is not the JIT's code where the JIT makes other code on
+    the same CPU (``NUMBA_ENABLE_AVX=0``, numba's own default on Sandy and Ivy Bridge), and the other
+    way round: ``make install`` builds again."""
+    assert aot.build_status(fake_build.folder, cpus[0]) == ""
+    monkeypatch.setenv("NUMBA_ENABLE_AVX", "0")
+    assert aot.load_build(fake_build.folder, cpus[0], fake_build.load) == ({}, None)
+    assert aot.build_status(fake_build.folder, cpus[0]).startswith("built under other numba code-generation settings")
+    assert aot._what_for(cpus[0])["numba_env"] == {"NUMBA_ENABLE_AVX": "0"}  # what a build here records
+    _restamp(fake_build, numba_env={"NUMBA_ENABLE_AVX": "0"})
+    assert aot.build_status(fake_build.folder, cpus[0]) == ""
+    monkeypatch.delenv("NUMBA_ENABLE_AVX")
+    assert aot.build_status(fake_build.folder, cpus[0]).startswith("built under other numba code-generation settings")
 
 
 def test_not_used_on_another_cpu(fake_build, cpus):
