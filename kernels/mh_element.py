@@ -474,14 +474,11 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
                 continue
             # the tangent's pointwise D with the pressure part, W (d2psi + p d2J) (p from p_geo
             # in the mixed linearisation)
+            pj = p_geo[e] if use_geo else pel
             for j in range(nphi):
                 pq = 0.0
-                if use_geo:
-                    for k2 in range(npr):
-                        pq += Np[q, k2] * p_geo[e, j, k2]
-                else:
-                    for k2 in range(npr):
-                        pq += Np[q, k2] * pel[j, k2]
+                for k2 in range(npr):
+                    pq += Np[q, k2] * pj[j, k2]
                 pw = W * pq
                 for c in range(9):
                     for d in range(9):

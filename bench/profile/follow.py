@@ -1,7 +1,7 @@
 """Per-design CPU profile of a followed branch (issue 36: where the followed designs' time goes).
 
     .venv/bin/python -m bench.profile.follow [SCENE ...] [--N N] [--mode actuator|full] [--cprofile [K]]
-                                             [--landing] [--compare] [--json PATH]
+                                             [--landing] [--compare] [--condensed] [--json PATH]
     .venv/bin/python -m bench.profile.follow --sample bench/harmonics_sample/follow_strata.yaml \\
         --rows 0 1 2 [--cprofile]
 
@@ -218,8 +218,15 @@ def main(argv: list[str] | None = None) -> int:
                     help="also stop the branch at its upper state and search the landing state at fixed volume")
     ap.add_argument("--cprofile", type=int, nargs="?", const=15, default=None, metavar="K",
                     help="also break the followed solve down under cProfile (the K functions with most exclusive time)")
+    ap.add_argument("--condensed", action="store_true",
+                    help="trace the branches with the condensed element pressures in the Newton matrix "
+                         "(snapjump_cli.fe.branch.trace.MIXED_TANGENT = False), as before the mixed one")
     ap.add_argument("--json", type=Path, default=None, help="also write the numbers here")
     a = ap.parse_args(argv)
+    if a.condensed:
+        from snapjump_cli.fe.branch import trace
+
+        trace.MIXED_TANGENT = False
     rows = []
     print("| design | n_c | axisym + check CPU-s (first / warm) | followed CPU-s | ratio | steps | assemblies "
           "| kind | dE_J | note |")

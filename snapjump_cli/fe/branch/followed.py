@@ -132,15 +132,13 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
     sec_kw = {"volume_path": vp, "landing": "descent first" if mode == "actuator" else "search",
               "jump_path": mode == "actuator"}
     fr, note_sec = None, ""
-    if secondary and mode == "actuator" and len(hn) > 1 and int(hn[1]) > 1:
+    checked = secondary and mode == "actuator" and len(hn) > 1 and int(hn[1]) > 1
+    if checked:
         fr, note_sec = first_secondary(result, bif, hn, n_phi, **sec_kw)
     if fr is None:
         # the actuator mode does not trace a branch of n_c >= 2 on past a micro-fold whose landing it
         # leaves at once (unstable outside the branch: the jump goes on, leave_at_secondary)
-        settle = None
-        if mode == "actuator" and len(hn) > 1 and int(hn[1]) > 1:
-            def settle(mh):  # (made when the branch's model is)
-                return leaves_branch(u_axi=bif.u)(mh)
+        settle = leaves_branch(u_axi=bif.u) if checked else None
         fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp, settle=settle)
         if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:
             fr, note_sec = leave_at_secondary(result, fr, **sec_kw)
@@ -203,7 +201,7 @@ def record_secondary(fs: FollowResult, chk, sec, n: int) -> str:
     fs.metrics.update(follow_sec_n=sec.n, follow_sec_V_m3=sec.V_m3, follow_sec_p_Pa=sec.p_Pa)
     if fs.kind == "jump":
         plane = f" (symmetric about phi = pi/{n})" if getattr(fs.parent, "turned", False) else ""
-        how = "fixed-volume path" if fs.lower_note.startswith("fixed-volume path (") else "energy descent"
+        how = "fixed-volume path" if fs.lower_solver == "volume-path" else "energy descent"
         return (f"the branch of harmonic {n} folds at V = {fs.metrics.get('V_star_m3') or math.nan:.4g} m^3 and "
                 f"the state it jumps to on the branch is unstable in harmonic {sec.n}{plane}: the jump goes on, at "
                 f"that volume, to a state with every harmonic 0-{chk.N} ({how})")

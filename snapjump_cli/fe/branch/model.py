@@ -390,7 +390,8 @@ class MultiHarmonicModel:
         if mixed:
             ne, npr, nphi = self.base.conn.shape[0], self.base.Np.shape[1], self.phis.shape[0]
             p_geo = np.ascontiguousarray(aux, dtype=float) if aux is not None else np.zeros((0, nphi, npr))
-            arrays = (p_geo, np.zeros((ne, nphi, npr)), np.zeros((ne, nphi, npr, self.edofs.shape[1])))
+            # (the element pass writes every entry of both outputs: not zeroed)
+            arrays = (p_geo, np.empty((ne, nphi, npr)), np.empty((ne, nphi, npr, self.edofs.shape[1])))
         elif aux is not None:
             raise ValueError("the mixed linearisation needs a perfect body and the stiffness")
         out = self._evaluate(u, p, 2 if stiffness else 1, arrays)

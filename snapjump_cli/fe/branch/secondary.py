@@ -563,12 +563,13 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
         full.release_buffers()
         return None, chk, None
     eig, mode = e
-    low, msg = None, ""
+    low, msg, solver = None, "", "volume-path"
     if volume_path and fr.bif.n % 2 == 0:
         unit = mode / float(np.linalg.norm(mode))
         at_L = PathPoint(L, land.p, tr.zeta(L, land.p)[0], up_b.tangent.copy(), unit / tr.alpha, 0.0, 0.0)
         low, msg = snap_at_fixed_volume(tr, at_L, mode_signs=(1.0,))  # (the other way: its mirror image)
     if low is None:
+        solver = "energy-descent"
         amp = float(np.abs(full.amplitudes(L)).max())
         mode = mode * (JUMP_KICK * amp / float(np.abs(full.amplitudes(mode)).max()))
         start = PathPoint(L + mode, land.p, tr.zeta(L + mode, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)
@@ -580,7 +581,7 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
                     float(land.zeta[0] * sc[0] * mh.L**3), float(land.p * mh.S))
     st = SnapStates(k_before=0, upper=upper, lower=low, lower_method="descent" if low is not None else "")
     out = FollowResult(fr.bif, full, Path(points=[upper]), st, tr, "jump", fr.first_kind, lower_method="descent",
-                       lower_note=msg, failure="" if low is not None else msg, parent=fr, secondary=sec)
+                       lower_solver=solver, lower_note=msg, failure="" if low is not None else msg, parent=fr, secondary=sec)
     out.metrics = branch_metrics(out, sc)
     full.release_buffers()
     return out, chk, sec

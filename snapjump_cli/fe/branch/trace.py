@@ -73,6 +73,7 @@ class FollowResult:
     kind: str  # "supercritical", "subcritical", "jump" (a jump off a branch, secondary.jump_off_branch) or ""
     first_kind: str = ""  # how the branch leaves the bifurcation (before folds traced through)
     lower_method: str = ""
+    lower_solver: str = ""  # off the branch: "volume-path" or "energy-descent" (as LowerState.solver), where set
     lower_note: str = ""
     failure: str = ""
     micro_folds: list = field(default_factory=list)  # (V, dE) of folds traced through (scaled)
@@ -494,8 +495,12 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     def run_on(first: PathPoint) -> tuple[Path, BranchTracker, str]:
         if first is start:
             return run(first, "")
+        if stays is None or not stays(first):
+            return run(first, "supercritical")
         # a micro-fold's landing the actuator leaves at once (off the branch): nothing beyond it
-        return run(first, "supercritical", steps=0 if stays is not None and stays(first) else None)
+        path, tk, failure = run(first, "supercritical", steps=0)
+        path.stop_reason = LEFT_AT_LANDING
+        return path, tk, failure
 
     tb = trace_through_micro_folds(run_on, start, lower_state, mh.energy,
                                    lambda state: start_point(tr, state.u, state.p), micro_dE)
