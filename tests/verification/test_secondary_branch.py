@@ -311,7 +311,18 @@ def test_the_fixed_volume_path_from_the_jumps_landing_ends_where_the_damped_moti
     assert np.linalg.norm(ds.state.u - low.u) < 1e-6 * np.linalg.norm(low.u)
 
 
-def test_the_actuator_mode_does_not_trace_past_a_landing_the_jump_leaves():
+@pytest.fixture(scope="module")
+def jumped_even():
+    """The clamped cap (30 deg, eta 50), ``n_c = 2``: the followed answer (actuator mode)."""
+    res = solve_scene(CapScene(theta_deg=30.0, eta=50.0, bc="clamped"), MeshSettings(nt=1, aspect=2.0),
+                      SolverSettings())
+    chk = check_harmonics(res, 4)
+    assert chk.asym_first and chk.asym_n == 2
+    answer = followed_metrics(res, chk, N=8)
+    return res, answer.values, answer.branch
+
+
+def test_the_actuator_mode_does_not_trace_past_a_landing_the_jump_leaves(jumped_even):
     """A branch of ``n_c = 2`` whose first step is subcritical is traced through its micro-folds
     (the check of the branch's first states finds nothing to stop at); in the actuator mode the
     trace stops at the first micro-fold's landing that is unstable outside the branch
@@ -321,12 +332,7 @@ def test_the_actuator_mode_does_not_trace_past_a_landing_the_jump_leaves():
     for bit: a scratch comparison)."""
     from snapjump_cli.fe.branch.secondary import leaves_branch
 
-    res = solve_scene(CapScene(theta_deg=30.0, eta=50.0, bc="clamped"), MeshSettings(nt=1, aspect=2.0),
-                      SolverSettings())
-    chk = check_harmonics(res, 4)
-    assert chk.asym_first and chk.asym_n == 2
-    answer = followed_metrics(res, chk, N=8)
-    out, fs = answer.values, answer.branch
+    res, out, fs = jumped_even
     assert out["followed"] and out["follow_kind"] == "jump"
     from snapjump_cli.fe.branch.trace import LEFT_AT_LANDING
 
@@ -340,3 +346,42 @@ def test_the_actuator_mode_does_not_trace_past_a_landing_the_jump_leaves():
     # and the path ends within a few steps past it
     k = next(f.k for f in fr.folds if f.landing is land)
     assert len(fr.path.points) - 1 - k <= 30
+
+
+def test_the_sphere_path_lands_the_jump_where_the_damped_motion_and_the_descent_come_to_rest(jumped_even):
+    """The actuator mode lands the ``n_c = 2`` jump by the sphere path
+    (:func:`snapjump_cli.fe.axisym.sphere_path.descend_on_spheres`; here in two legs: the minima on
+    the spheres around the landing state turn back once): an equilibrium at the fold's volume,
+    stable with every harmonic and below the landing state. The slow references reach the same
+    state from the landing state kicked along its unstable mode: the damped motion at that volume
+    (the arbiter) and the energy descent (the fallback, ~600 iterations here)."""
+    from snapjump_cli.fe.axisym.descent import descend_at_volume
+    from snapjump_cli.fe.branch.dynamics import damped_snap, lowest_frequency
+    from snapjump_cli.fe.branch.secondary import JUMP_KICK
+    from snapjump_cli.fe.continuation import PathPoint
+
+    res, out, fs = jumped_even
+    assert fs.kind == "jump" and fs.lower_solver == "sphere-path", fs.lower_note
+    assert "(sphere path)" in out["follow_note"]
+    fr, sec, full, tr = fs.parent, fs.secondary, fs.model, fs.tracer
+    low, up = fs.states.lower, fs.states.upper
+    L, p = lift(fr.model, full, sec.point.u), sec.point.p
+    eig, mode = extra_eigen(full, L, p, extra_dofs(fr.model, full))
+    assert eig < 0.0
+    assert full.volume(low.u) == pytest.approx(full.volume(up.u), rel=1e-8)
+    assert unstable_modes(full, low.u, low.p) == 0
+    assert full.energy(low.u) < full.energy(L)
+    lin = full.linearize(low.u, low.p)
+    assert np.linalg.norm(lin.R) < 1e-6 * abs(low.p) * np.linalg.norm(lin.g)
+    unit = mode / np.linalg.norm(mode)
+    way = float(np.sign(unit @ (low.u - L)))
+    at_L = PathPoint(L, p, tr.zeta(L, p)[0], up.tangent, unit / tr.alpha, 0.0, 0.0)
+    ds = damped_snap(tr, at_L, way * mode, lowest_frequency(tr, low.u, low.p), zeta=1.0, steps_per_period=10,
+                     rest=1e-6)
+    assert ds.state is not None, ds.message
+    assert np.linalg.norm(ds.state.u - low.u) < 1e-6 * np.linalg.norm(low.u)
+    kick = way * mode * (JUMP_KICK * float(np.abs(full.amplitudes(L)).max()) / float(np.abs(full.amplitudes(mode)).max()))
+    start = PathPoint(L + kick, p, tr.zeta(L + kick, p)[0], up.tangent, up.du_ds, 0.0, 0.0)
+    dsc, msg = descend_at_volume(tr, up, start=start)
+    assert dsc is not None, msg
+    assert np.linalg.norm(dsc.u - low.u) < 1e-8 * np.linalg.norm(low.u)

@@ -63,6 +63,7 @@ __all__ = [
     "LowerState",
     "find_lower_state",
     "FixedVolumeProblem",
+    "MultiBorderedSolver",
     "snap_at_fixed_volume",
     "descend_at_volume",
     "descent_starts",
@@ -151,7 +152,7 @@ def find_lower_state(tracer: Tracer, states: SnapStates, points: list[PathPoint]
     return LowerState(low, "descent" if low is not None else "", solver, note, reason, msg, from_path)
 
 
-class _MultiBorderedSolver:
+class MultiBorderedSolver:
     """Solves ``[[K, B], [C^T, D]] [x; y] = [r; s]`` (``B``, ``C``: n x m, ``D``: m x m) by block
     elimination with the band ``LDL^T`` of ``K`` (and, with ``refine``, one step of iterative
     refinement)."""
@@ -209,7 +210,7 @@ class _FixedVolumeLinearization:
         D = np.array([[0.0, 0.0], [float(c_x[n]), float(c_F)]])
         if pb.control is not None:  # the volume equation's dependence on the pressure (the gas)
             D[0, 0] = pb.c_V * float(pb.control.compliance(float(self.u[-1])))
-        s = _MultiBorderedSolver(base, B, C, D)
+        s = MultiBorderedSolver(base, B, C, D)
         if not np.all(np.isfinite(s.S)) or abs(np.linalg.det(s.S)) == 0.0:
             return None
         return s

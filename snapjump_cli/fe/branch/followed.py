@@ -128,7 +128,7 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
     landing = "axisymmetric first" if mode == "actuator" and len(hn) > 1 and int(hn[1]) == 1 else "search"
     vp = mode == "full"  # the actuator mode searches by the energy descent alone (section 10.8)
     # a subcritical secondary branch: the actuator mode descends from its bifurcation before tracing it
-    # a jump off a branch of n_c >= 2: the actuator mode lands it by the fixed-volume path first
+    # a jump off a branch of n_c >= 2: the actuator mode lands it by the sphere path first
     sec_kw = {"volume_path": vp, "landing": "descent first" if mode == "actuator" else "search",
               "jump_path": mode == "actuator"}
     fr, note_sec = None, ""
@@ -201,7 +201,7 @@ def record_secondary(fs: FollowResult, chk, sec, n: int) -> str:
     fs.metrics.update(follow_sec_n=sec.n, follow_sec_V_m3=sec.V_m3, follow_sec_p_Pa=sec.p_Pa)
     if fs.kind == "jump":
         plane = f" (symmetric about phi = pi/{n})" if getattr(fs.parent, "turned", False) else ""
-        how = "fixed-volume path" if fs.lower_solver == "volume-path" else "energy descent"
+        how = {"volume-path": "fixed-volume path", "sphere-path": "sphere path"}.get(fs.lower_solver, "energy descent")
         return (f"the branch of harmonic {n} folds at V = {fs.metrics.get('V_star_m3') or math.nan:.4g} m^3 and "
                 f"the state it jumps to on the branch is unstable in harmonic {sec.n}{plane}: the jump goes on, at "
                 f"that volume, to a state with every harmonic 0-{chk.N} ({how})")

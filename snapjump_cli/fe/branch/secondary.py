@@ -25,7 +25,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from snapjump_cli.fe.axisym.descent import constrained_negatives, descend_at_volume
-from snapjump_cli.fe.axisym.lower_state import snap_at_fixed_volume
+from snapjump_cli.fe.axisym.sphere_path import descend_on_spheres
 from snapjump_cli.fe.axisym.snap import SnapStates, root_on_step
 from snapjump_cli.fe.branch.bifurcation import harmonic1_gauge
 from snapjump_cli.fe.branch.model import MultiHarmonicModel, component_index, transfer
@@ -446,7 +446,7 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, jump_pat
         mode is one the actuator reaches by a jump past a fold of the branch
         (:func:`visited_points`), there is no secondary bifurcation to locate: the jump itself
         goes on outside the branch (:func:`jump_off_branch`; ``jump_path``: its landing by the
-        fixed-volume path first).
+        sphere path first).
     """
     watch = getattr(fr, "watch", None)
     reuse = isinstance(watch, StabilityWatch) and watch.stride == stride and watch.mh is fr.model
@@ -528,15 +528,15 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     located it, else the last path point passed through before ``landing``. ``eigen``: the landing
     state's :func:`extra_eigen`, if already computed. (The descent is the model's own: started with
     fewer harmonics, :mod:`snapjump_cli.fe.branch.coarse`, it cost more on ``follow_strata_n2`` row 4.)
-    With ``volume_path`` and an even ``n_c`` the state is first sought on the fixed-volume path that
-    leaves the landing state along that mode
-    (:func:`snapjump_cli.fe.axisym.lower_state.snap_at_fixed_volume`, mode control): the equilibria
-    at that volume under a generalised force along the mode, up to the first one that is stable
-    and lower; the descent where it finds none. For an even ``n_c`` the mode's two signs are mirror
-    images (the turn by ``pi / n_c`` flips every harmonic outside the branch), so the jump's landing
-    does not depend on the sign, and where the path and the descent land on different states the
-    damped motion at fixed volume comes to rest on the path's (docs/harmonics.md section 10.7). For
-    an odd ``n_c`` the two signs can lead to different states; the descent along the mode's sign is kept.
+    With ``volume_path`` and an even ``n_c`` the state is first sought on the sphere path from the
+    landing state (:func:`snapjump_cli.fe.axisym.sphere_path.descend_on_spheres`): the minima of the
+    energy at that volume on growing spheres around it, from its unstable mode on to the first
+    equilibrium that is stable and lower; the descent where it finds none. For an even ``n_c`` the
+    mode's two signs are mirror images (the turn by ``pi / n_c`` flips every harmonic outside the
+    branch), so the jump's landing does not depend on the sign; where the sphere path and the
+    descent land on different states the damped motion at fixed volume comes to rest on the
+    sphere path's (docs/harmonics.md section 10.7). For an odd ``n_c`` the two signs can lead to
+    different states; the descent along the mode's sign is kept.
 
     Returns
     -------
@@ -563,15 +563,14 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
         full.release_buffers()
         return None, chk, None
     eig, mode = e
-    low, msg, solver = None, "", "volume-path"
+    low, msg, solver = None, "", "sphere-path"
+    amp = float(np.abs(full.amplitudes(L)).max())
+    mode = mode * (JUMP_KICK * amp / float(np.abs(full.amplitudes(mode)).max()))
     if volume_path and fr.bif.n % 2 == 0:
-        unit = mode / float(np.linalg.norm(mode))
-        at_L = PathPoint(L, land.p, tr.zeta(L, land.p)[0], up_b.tangent.copy(), unit / tr.alpha, 0.0, 0.0)
-        low, msg = snap_at_fixed_volume(tr, at_L, mode_signs=(1.0,))  # (the other way: its mirror image)
+        at_L = PathPoint(L, land.p, tr.zeta(L, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)
+        low, msg = descend_on_spheres(tr, upper, at_L, mode)  # (the other way: its mirror image)
     if low is None:
         solver = "energy-descent"
-        amp = float(np.abs(full.amplitudes(L)).max())
-        mode = mode * (JUMP_KICK * amp / float(np.abs(full.amplitudes(mode)).max()))
         start = PathPoint(L + mode, land.p, tr.zeta(L + mode, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)
         low, msg_d = descend_at_volume(tr, upper, start=start)
         msg = "; ".join(x for x in (msg, msg_d) if x)

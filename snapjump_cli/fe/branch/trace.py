@@ -73,7 +73,7 @@ class FollowResult:
     kind: str  # "supercritical", "subcritical", "jump" (a jump off a branch, secondary.jump_off_branch) or ""
     first_kind: str = ""  # how the branch leaves the bifurcation (before folds traced through)
     lower_method: str = ""
-    lower_solver: str = ""  # off the branch: "volume-path" or "energy-descent" (as LowerState.solver), where set
+    lower_solver: str = ""  # off the branch: "volume-path", "sphere-path" or "energy-descent" (as LowerState.solver), where set
     lower_note: str = ""
     failure: str = ""
     micro_folds: list = field(default_factory=list)  # (V, dE) of folds traced through (scaled)

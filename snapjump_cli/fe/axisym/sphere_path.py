@@ -1,0 +1,260 @@
+"""The stable state at fixed volume reached from a saddle, by the path of the energy's minima on
+growing spheres around it (docs/harmonics.md section 10.7).
+
+From an equilibrium ``c`` at the volume ``V*`` that is unstable there (the unstable landing of a
+jump), the state the actuator comes to rest on lies at the end of a long curved valley of the
+energy. An energy descent (:func:`snapjump_cli.fe.axisym.descent.descend_at_volume`) takes
+Newton steps that the valley's curvature keeps short: hundreds of iterations. Displacement
+control along the unstable mode (:func:`snapjump_cli.fe.axisym.lower_state.snap_at_fixed_volume`)
+follows the valley while the mode's amplitude grows along it, and climbs where the valley turns
+away from the mode. This module follows the valley by the distance from ``c`` instead, which
+grows along it as long as the valley leads away from the saddle:
+
+* unknowns ``x = (u, p)`` (the pressure the multiplier of the volume constraint) and the load
+  ``F``; equations ``f_int(u) - p dV/du - F M (u - c) = 0`` and ``c_V (V(u) - V*) = 0``, with
+  ``M`` the diagonal Jacobi metric ``|diag K|`` at ``c`` (mean 1), the metric of the descent;
+* measures ``w = |u - c|_M`` and ``F``: the solutions at fixed ``w`` are the stationary points of
+  the energy on the sphere of radius ``w`` at ``V*`` (``-F`` the multiplier of the sphere), and
+  the path of their minima leaves ``c`` along the unstable mode (``F`` its eigenvalue) and comes
+  to ``F = 0`` at an equilibrium, the end of the valley. Along it the energy falls
+  (``dW = F w dw``, ``F < 0``);
+* every zero of ``F`` is an equilibrium at ``V*``; the first that is stable under volume control
+  and lies below ``c``'s energy is the state (polished by the volume-control Newton);
+* where the minima on the spheres end (a fold of the path in ``w``: the valley turns back
+  towards ``c``), a new leg starts at the fold, on spheres centred there, along the steepest
+  descent of the energy at ``V*`` in the same metric. This is the trust-region path of the
+  energy at fixed volume, followed by continuation (:func:`snapjump_cli.fe.continuation.trace`)
+  on the small problem :class:`SpherePathProblem`, with longer steps than a pressure-volume path
+  (the path's points are not an answer; its end is polished and checked).
+"""
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from snapjump_cli.fe.continuation import ContinuationFailed, PathPoint, Tracer, start_point, trace
+from snapjump_cli.fe.axisym.lower_state import MultiBorderedSolver, constrained_instability
+from snapjump_cli.fe.axisym.snap import root_on_step
+
+log = logging.getLogger(__name__)
+
+__all__ = ["SpherePathProblem", "descend_on_spheres"]
+
+#: Step growth and largest turn per step of the sphere path (its points are not an answer: the
+#: end is polished; with the pressure-volume path's 1.2 and 10 degrees it took 2x the steps on
+#: ``follow_strata_n2`` row 1, the same state).
+SPHERE_STEP_GROW = 1.5
+
+
+SPHERE_TURN_DEG = 30.0
+
+
+#: Legs (a new centre at each fold of the path in ``w``) before the search gives up.
+SPHERE_LEGS = 6
+
+
+#: A leg started at a fold begins on the sphere of this fraction of the fold's radius (shrunk by
+#: 10 up to 4 times while the first state does not converge).
+SPHERE_RESTART = 0.02
+
+
+class _SphereLinearization:
+    def __init__(self, problem: "SpherePathProblem", x: np.ndarray, F: float, R: np.ndarray, lin, d: np.ndarray):
+        self.problem, self.u, self.p, self.R, self.lin, self.d = problem, x, F, R, lin, d
+        self.aux = lin.aux  # the model's element pressures (the mixed linearisation)
+
+    def aux_dir(self, x: np.ndarray) -> np.ndarray:
+        """Linearised change of the element pressures for a change ``x = (du, dp)``."""
+        return self.lin.aux_dir(x[:-1])
+
+    def factor(self, c_x: np.ndarray, c_F: float):
+        """Factorise ``[[K - F M, -g, -M d], [c_V g^T, 0, 0], [c_u^T, c_p, c_F]]``; ``None`` if singular."""
+        pb, lin = self.problem, self.lin
+        n = pb.model.n
+        base = lin.factor(pb.c_V * lin.g, 0.0, shift=-self.p * pb.m)
+        if base is None:
+            return None
+        B = np.stack([-lin.g, -pb.m * self.d], axis=1)
+        C = np.stack([pb.c_V * lin.g, c_x[:n]], axis=1)
+        D = np.array([[0.0, 0.0], [float(c_x[n]), float(c_F)]])
+        s = MultiBorderedSolver(base, B, C, D)
+        if not np.all(np.isfinite(s.S)) or abs(np.linalg.det(s.S)) == 0.0:
+            return None
+        return s
+
+
+class SpherePathProblem:
+    """Equilibria at the fixed volume ``V_star`` under the load ``F M (u - c)``: the problem
+    interface of :mod:`snapjump_cli.fe.continuation` with state ``x = (u, p)`` and load ``F``;
+    the measures are ``(|u - c|_M, F)``.
+
+    Parameters
+    ----------
+    model : the FE model (its ``linearize`` factorises with a diagonal ``shift``)
+    V_star : the volume (scaled, as ``Linearization.V``)
+    centre : ``c``, the sphere's centre (length ``model.n``)
+    m : the diagonal of the metric ``M`` (length ``model.n``, positive)
+    c_V : weight of the volume equation (force / volume)
+    p_floor : floor of the pressure in the residual reference
+    """
+
+    def __init__(self, model, V_star: float, centre: np.ndarray, m: np.ndarray, c_V: float, p_floor: float) -> None:
+        self.model, self.V_star, self.c_V, self.p_floor = model, V_star, c_V, p_floor
+        self.centre = np.ascontiguousarray(centre, dtype=float)
+        self.m = np.ascontiguousarray(m, dtype=float)
+        self.n = model.n + 1
+
+    def linearize(self, x: np.ndarray, F: float, stiffness: bool = True, aux: np.ndarray | None = None):
+        lin = self.model.linearize(x[:-1], float(x[-1]), stiffness, aux=aux)
+        if lin is None:
+            return None
+        d = x[:-1] - self.centre
+        R = np.empty(self.n)
+        R[:-1] = lin.R - F * self.m * d
+        R[-1] = self.c_V * (lin.V - self.V_star)
+        return _SphereLinearization(self, x, F, R, lin, d)
+
+    def measures(self, x: np.ndarray, F: float, lin=None):
+        """``zeta = (|u - c|_M, F)`` and their derivatives."""
+        d = x[:-1] - self.centre
+        w = math.sqrt(float(d @ (self.m * d)))
+        dz = np.zeros((2, self.n))
+        if w > 0.0:
+            dz[0, :-1] = self.m * d / w
+        return np.array([w, F]), dz, np.array([0.0, 1.0])
+
+    def residual_ref(self, lin) -> float:
+        """The residual scale of the pressure-volume trace: ``|dV/du| max(|p|, p_floor)``."""
+        return float(np.linalg.norm(lin.lin.g)) * max(abs(float(lin.u[-1])), self.p_floor)
+
+
+def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick: np.ndarray,
+                       max_steps: int = 400, max_zeros: int = 6) -> tuple[PathPoint | None, str]:
+    """The stable state at the volume of ``upper`` reached from the saddle ``centre`` along ``kick``.
+
+    Parameters
+    ----------
+    tracer : the tracer of the pressure-volume problem (its problem is the FE model)
+    upper : the state before the jump: its volume is ``V*``; its tangent orients the result's
+    centre : an equilibrium at ``V*`` that is unstable there (the state the jump lands on)
+    kick : the first displacement from ``centre`` (a small multiple of its unstable mode)
+    max_steps : continuation steps of one leg
+    max_zeros : zeros of ``F`` examined on one leg before giving up
+
+    Returns
+    -------
+    (PathPoint or None, message)
+        The state as a point of the pressure-volume problem, or ``None`` with the reason (the
+        caller falls back on the energy descent).
+    """
+    model = tracer.pb
+    cfg = tracer.cfg
+    sV, sp, sw = (float(s) for s in tracer.sc)
+    V_star = float(upper.zeta[0]) * sV
+    lin_c = model.linearize(centre.u, centre.p)
+    if lin_c is None:
+        return None, "sphere path: the centre lies outside the material domain"
+    W_c = lin_c.E
+    p_floor = 1e-3 * sp
+    ref = float(np.linalg.norm(lin_c.g)) * max(abs(centre.p), p_floor)
+    m = lin_c.diag_abs()
+    m = m / float(m.mean())
+    s_w = math.sqrt(model.n) * sw
+    c, p_c, d0 = centre.u.copy(), float(centre.p), np.asarray(kick, float)
+    n_steps = n_newton = 0
+    for leg in range(SPHERE_LEGS):
+        pb = SpherePathProblem(model, V_star, c, m, ref / sV, p_floor)
+        first = _first_state(pb, cfg, c, p_c, d0, s_w)
+        if first is None:
+            return None, f"sphere path: no first state on leg {leg + 1}"
+        ftr, lin_s = first
+        found, fold, why = _leg(tracer, ftr, pb, lin_s, W_c, V_star / sV, max_zeros)
+        n_steps += found[2] if found else why[1]
+        n_newton += ftr.n_newton
+        if found is not None and found[0] is not None:
+            lin, it, _ = found
+            t, v, q, z = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
+            return (PathPoint(lin.u, lin.p, z, t, v, q, math.nan, it),
+                    f"sphere path: stable state in {n_steps} steps, {leg + 1} legs ({n_newton} Newton iterations)")
+        if fold is None:
+            return None, f"sphere path: {why[0]} after {n_steps} steps"
+        # a new leg, centred at the fold, along the steepest descent of the energy at V* (metric M)
+        c, p_c = fold.u[:-1].copy(), float(fold.u[-1])
+        lin_f = model.linearize(c, p_c)
+        g = lin_f.g
+        dirn = -lin_f.R / m
+        dirn -= (float(g @ dirn) / float(g @ (g / m))) * (g / m)
+        wd = math.sqrt(float(dirn @ (m * dirn)))
+        if not wd > 0.0:
+            return None, f"sphere path: no descent direction at the fold of leg {leg + 1}"
+        d0 = dirn * (SPHERE_RESTART * float(fold.zeta[0]) * s_w / wd)
+    return None, f"sphere path: no stable state in {SPHERE_LEGS} legs ({n_steps} steps)"
+
+
+def _first_state(pb: SpherePathProblem, cfg, c: np.ndarray, p_c: float, d0: np.ndarray, s_w: float):
+    """The first state of a leg: the equilibrium on the sphere through ``c + d0`` (shrunk by 10 up to
+    4 times until Newton converges). Returns ``(tracer, linearisation)`` or ``None``."""
+    m = pb.m
+    for _ in range(5):
+        w0 = math.sqrt(float(d0 @ (m * d0)))
+        lin_k = pb.model.linearize(c + d0, p_c)
+        if lin_k is not None and w0 > 0.0:
+            e = m * d0
+            F0 = float(e @ lin_k.R) / float(e @ e)  # the load that best balances the residual there
+            fcfg = replace(cfg, scales=(s_w, max(abs(F0), 1e-300)), step_grow=SPHERE_STEP_GROW,
+                           max_turn_deg=SPHERE_TURN_DEG)
+            ftr = Tracer(pb, fcfg)
+            res = ftr.correct(np.concatenate([c + d0, [p_c]]), F0, None, None, 0.0, target=(0, w0 / s_w))
+            if res is not None:
+                return ftr, res[0]
+        d0 = 0.1 * d0
+    return None
+
+
+def _leg(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: float, V_target: float, max_zeros: int):
+    """Follow one leg from its first state ``lin_s``. Returns ``(found, fold, (reason, steps))``:
+    ``found`` ``(linearisation, iterations, steps)`` of the stable state (its linearisation ``None``
+    if the leg ended without one), ``fold`` the path point where ``w`` turned back (a new leg starts
+    there), else ``None``."""
+    model = tracer.pb
+    s_F = float(ftr.sc[1])
+    state: dict = {"zeros": 0, "found": None, "fold": None}
+
+    def stop(path) -> str | None:
+        pts = path.points
+        a, b = pts[-2], pts[-1]
+        if not model.energy(b.u[:-1]) <= W_c + 1e-9 * max(1.0, abs(W_c)):
+            return "climbed above the saddle's energy"
+        if b.zeta[0] < a.zeta[0]:
+            state["fold"] = a
+            return "turned back"
+        if not (a.p * b.p < 0.0 or (b.p == 0.0 and a.p != 0.0)):
+            return None
+        state["zeros"] += 1
+        root = root_on_step(ftr, a, b, pts[-3] if len(pts) > 2 else None, lambda pt: pt.p, 1e-8 * s_F, 40)
+        res = tracer.correct(root.u[:-1].copy(), float(root.u[-1]), None, None, 0.0, target=(0, V_target))
+        if res is not None:
+            lin, it = res
+            n_unstable = constrained_instability(tracer, lin)
+            log.debug("sphere path: F = 0 at w = %.6g (%d unstable, W %.10g vs %.10g)", a.zeta[0], n_unstable,
+                      lin.E, W_c)
+            if n_unstable == 0 and lin.E < W_c:
+                state["found"] = (lin, it)
+                return "stable state at V*"
+        if state["zeros"] >= max_zeros:
+            return "no stable state among the zeros of the load"
+        return None
+
+    try:
+        start = start_point(ftr, lin_s.u, lin_s.p, t_prev=np.array([1.0, 0.0]))
+        path = trace(pb, ftr.cfg, stop, u0=lin_s.u, tracer=ftr, start=start)
+    except ContinuationFailed as exc:
+        return None, None, (f"failed ({exc})", 0)
+    steps = len(path.points) - 1
+    if state["found"] is not None:
+        lin, it = state["found"]
+        return (lin, it, steps), None, (path.stop_reason, steps)
+    return None, state["fold"], (path.stop_reason, steps)
