@@ -15,7 +15,8 @@ after one step of the branch. Checked here:
 * a design whose actuator lands on an asymmetric state (design B) is not given this state;
 * the actuator mode's search without the fixed-volume path (which fails here, as on every
   multi-harmonic search of the samples) runs the reference's descent and lands on its state;
-* the descent first (before tracing the branch) is that same descent, from the bifurcation.
+* the descent first (before tracing the branch; here the sphere path from the bifurcation gives
+  up) is that same descent, from the bifurcation.
 """
 from __future__ import annotations
 
@@ -133,17 +134,21 @@ def test_the_search_without_the_fixed_volume_path_is_the_references_descent(answ
     assert calls == [(ref.tracer, ref.states.upper, None)]  # the reference's first descent: from the upper state
 
 
-def test_the_descent_first_is_the_references_descent_without_the_branch(design, answers):
+def test_the_descent_first_falls_back_on_the_references_descent_without_the_branch(design, answers):
     """``landing="descent first"`` (the actuator mode's landing of a subcritical secondary branch):
-    after the branch's first step shows it subcritical, the descent from the bifurcation that the
-    reference's search starts with, and no more of the branch; here (a branch whose reference search
-    ends in that descent) the very same state."""
+    after the branch's first step shows it subcritical, the state reached from the bifurcation at
+    its volume (snapjump_cli.fe.branch.landing), and no more of the branch. Here the sphere path
+    from the bifurcation passes an unstable equilibrium (its load turns positive) and gives up, and
+    the fallback is the descent from the bifurcation that the reference's search ends in: the very
+    same state, bit for bit."""
     res, chk = design
     ref = answers[1].branch
     fr = follow_branch(res, locate_bifurcation(res, 1), default_harmonics(1), landing="descent first",
                        volume_path=False)
     assert fr.kind == "subcritical" and len(fr.path.points) == 2 and len(ref.path.points) > 50
-    assert fr.lower_note.startswith("descent converged") and fr.lower_note == ref.lower_note.split("; ")[-1]
+    sphere, descent = fr.lower_note.split("; ")
+    assert sphere.startswith("sphere path: passed an unstable equilibrium"), fr.lower_note
+    assert descent.startswith("descent converged") and descent == ref.lower_note.split("; ")[-1]
     assert np.array_equal(fr.states.lower.u, ref.states.lower.u) and fr.states.lower.p == ref.states.lower.p
     for k in ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa"):
         assert fr.metrics[k] == ref.metrics[k], k

@@ -19,13 +19,19 @@ grows along it as long as the valley leads away from the saddle:
   to ``F = 0`` at an equilibrium, the end of the valley. Along it the energy falls
   (``dW = F w dw``, ``F < 0``);
 * every zero of ``F`` is an equilibrium at ``V*``; the first that is stable under volume control
-  and lies below ``c``'s energy is the state (polished by the volume-control Newton);
-* where the minima on the spheres end (a fold of the path in ``w``: the valley turns back
-  towards ``c``), a new leg starts at the fold, on spheres centred there, along the steepest
-  descent of the energy at ``V*`` in the same metric. This is the trust-region path of the
-  energy at fixed volume, followed by continuation (:func:`snapjump_cli.fe.continuation.trace`)
-  on the small problem :class:`SpherePathProblem`, with longer steps than a pressure-volume path
-  (the path's points are not an answer; its end is polished and checked).
+  and lies below ``c``'s energy is the state;
+* where the minima on the spheres end (a fold of the path in ``w``: the valley turns away from the
+  spheres), a new leg starts at the fold, on spheres centred there, with the Levenberg-Marquardt
+  step from there as its first state (the leg's first sphere); an unstable equilibrium passed
+  (``F`` turning positive), a climb above ``c``'s energy or six legs give up (the caller descends);
+* the spheres lie at ``c``'s own volume: a landing state taken from a path point lies near the
+  fold's volume, not at it, and the state found is brought to ``V*`` by the volume-control
+  Newton and checked stable there.
+
+This is the trust-region path of the energy at fixed volume (the Levenberg-Marquardt path in
+the metric ``M``), followed by continuation (:func:`snapjump_cli.fe.continuation.trace`) on the
+small problem :class:`SpherePathProblem`, with longer steps than a pressure-volume path (its
+points are not an answer; its end is polished and checked).
 """
 from __future__ import annotations
 
@@ -52,13 +58,19 @@ SPHERE_STEP_GROW = 1.5
 SPHERE_TURN_DEG = 30.0
 
 
+#: The load's scale in the path's arc length, relative to the first state's load: large, so that
+#: the arc length is the distance travelled (near a leg's centre the load goes as ``1 / w``).
+SPHERE_LOAD_SCALE = 1e6
+
+
 #: Legs (a new centre at each fold of the path in ``w``) before the search gives up.
 SPHERE_LEGS = 6
 
 
-#: A leg started at a fold begins on the sphere of this fraction of the fold's radius (shrunk by
-#: 10 up to 4 times while the first state does not converge).
-SPHERE_RESTART = 0.02
+#: A leg started at a fold of the last one begins with the Levenberg-Marquardt step from there,
+#: shifted by this multiple of the fold's ``-F`` (the last leg's shift; at the fold the matrix
+#: shifted by ``-F M`` is singular on the sphere), times 4 while Newton does not converge there.
+SPHERE_RESTART_SHIFT = 2.0
 
 
 class _SphereLinearization:
@@ -139,7 +151,7 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
     ----------
     tracer : the tracer of the pressure-volume problem (its problem is the FE model)
     upper : the state before the jump: its volume is ``V*``; its tangent orients the result's
-    centre : an equilibrium at ``V*`` that is unstable there (the state the jump lands on)
+    centre : an equilibrium at (or near) ``V*`` that is unstable there (the state the jump lands on)
     kick : the first displacement from ``centre`` (a small multiple of its unstable mode)
     max_steps : continuation steps of one leg
     max_zeros : zeros of ``F`` examined on one leg before giving up
@@ -153,72 +165,101 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
     model = tracer.pb
     cfg = tracer.cfg
     sV, sp, sw = (float(s) for s in tracer.sc)
-    V_star = float(upper.zeta[0]) * sV
     lin_c = model.linearize(centre.u, centre.p)
     if lin_c is None:
         return None, "sphere path: the centre lies outside the material domain"
+    # the spheres lie at the centre's own volume (a landing state taken from a path point lies near
+    # V*, not at it); the state found there is then brought to V* by Newton at fixed volume
+    V_c = float(lin_c.V)
     W_c = lin_c.E
     p_floor = 1e-3 * sp
-    ref = float(np.linalg.norm(lin_c.g)) * max(abs(centre.p), p_floor)
+    ref = float(np.linalg.norm(lin_c.g)) * max(abs(float(lin_c.p)), p_floor)
     m = lin_c.diag_abs()
     m = m / float(m.mean())
     s_w = math.sqrt(model.n) * sw
-    c, p_c, d0 = centre.u.copy(), float(centre.p), np.asarray(kick, float)
+    c, p_c = centre.u.copy(), float(centre.p)
+    starts = _kicks(model, c, p_c, m, np.asarray(kick, float))
     n_steps = n_newton = 0
     for leg in range(SPHERE_LEGS):
-        pb = SpherePathProblem(model, V_star, c, m, ref / sV, p_floor)
-        first = _first_state(pb, cfg, c, p_c, d0, s_w)
+        pb = SpherePathProblem(model, V_c, c, m, ref / sV, p_floor)
+        first = _first_state(pb, cfg, s_w, starts)
         if first is None:
-            return None, f"sphere path: no first state on leg {leg + 1}"
+            return None, f"sphere path: no first state on leg {leg + 1} ({n_steps} steps before)"
         ftr, lin_s = first
-        found, fold, why = _leg(tracer, ftr, pb, lin_s, W_c, V_star / sV, max_zeros)
-        n_steps += found[2] if found else why[1]
+        found, fold, why = _leg(tracer, ftr, pb, lin_s, W_c, V_c / sV, max_zeros)
+        n_steps += why[1]
         n_newton += ftr.n_newton
-        if found is not None and found[0] is not None:
-            lin, it, _ = found
+        log.debug("sphere path: leg %d: %s after %d steps (first state w %.3g, F %.3g; fold at w %s)", leg + 1,
+                  why[0], why[1], float(pb.measures(lin_s.u, lin_s.p)[0][0]), lin_s.p,
+                  "-" if fold is None else f"{float(fold.zeta[0]) * s_w:.4g}")
+        if found is not None:
+            lin, it = found
+            if V_c != float(upper.zeta[0]) * sV:
+                res = tracer.correct(lin.u.copy(), float(lin.p), None, None, 0.0, target=(0, float(upper.zeta[0])))
+                if res is None or constrained_instability(tracer, res[0]) != 0 or not res[0].E < model.energy(upper.u):
+                    return None, f"sphere path: the stable state at the centre's volume does not reach V* ({n_steps} steps)"
+                lin, it = res[0], it + res[1]
             t, v, q, z = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
             return (PathPoint(lin.u, lin.p, z, t, v, q, math.nan, it),
                     f"sphere path: stable state in {n_steps} steps, {leg + 1} legs ({n_newton} Newton iterations)")
         if fold is None:
             return None, f"sphere path: {why[0]} after {n_steps} steps"
-        # a new leg, centred at the fold, along the steepest descent of the energy at V* (metric M)
+        if not float(fold.p) < 0.0:  # past an unstable equilibrium: the spheres' maxima turned back
+            return None, f"sphere path: turned back past an unstable equilibrium on leg {leg + 1} ({n_steps} steps)"
+        # a new leg, centred at the fold, starting with the Levenberg-Marquardt step from there
         c, p_c = fold.u[:-1].copy(), float(fold.u[-1])
-        lin_f = model.linearize(c, p_c)
-        g = lin_f.g
-        dirn = -lin_f.R / m
-        dirn -= (float(g @ dirn) / float(g @ (g / m))) * (g / m)
-        wd = math.sqrt(float(dirn @ (m * dirn)))
-        if not wd > 0.0:
-            return None, f"sphere path: no descent direction at the fold of leg {leg + 1}"
-        d0 = dirn * (SPHERE_RESTART * float(fold.zeta[0]) * s_w / wd)
+        starts = _lm_steps(model, c, p_c, m, -SPHERE_RESTART_SHIFT * float(fold.p))
     return None, f"sphere path: no stable state in {SPHERE_LEGS} legs ({n_steps} steps)"
 
 
-def _first_state(pb: SpherePathProblem, cfg, c: np.ndarray, p_c: float, d0: np.ndarray, s_w: float):
-    """The first state of a leg: the equilibrium on the sphere through ``c + d0`` (shrunk by 10 up to
-    4 times until Newton converges). Returns ``(tracer, linearisation)`` or ``None``."""
-    m = pb.m
-    for _ in range(5):
-        w0 = math.sqrt(float(d0 @ (m * d0)))
-        lin_k = pb.model.linearize(c + d0, p_c)
-        if lin_k is not None and w0 > 0.0:
-            e = m * d0
-            F0 = float(e @ lin_k.R) / float(e @ e)  # the load that best balances the residual there
-            fcfg = replace(cfg, scales=(s_w, max(abs(F0), 1e-300)), step_grow=SPHERE_STEP_GROW,
-                           max_turn_deg=SPHERE_TURN_DEG)
-            ftr = Tracer(pb, fcfg)
-            res = ftr.correct(np.concatenate([c + d0, [p_c]]), F0, None, None, 0.0, target=(0, w0 / s_w))
-            if res is not None:
-                return ftr, res[0]
+def _kicks(model, c: np.ndarray, p_c: float, m: np.ndarray, kick: np.ndarray):
+    """First-state guesses of the leg from the saddle: ``c + kick`` (then 1/10 of it, 3 times) with
+    the load ``F = d^T R / d^T M d`` there (the Rayleigh quotient of the unstable mode)."""
+    d0 = kick
+    for _ in range(4):
+        lin_k = model.linearize(c + d0, p_c)
+        if lin_k is not None:
+            yield d0, p_c, float(d0 @ lin_k.R) / float(d0 @ (m * d0))
         d0 = 0.1 * d0
+
+
+def _lm_steps(model, c: np.ndarray, p_c: float, m: np.ndarray, mu: float):
+    """First-state guesses of a leg centred at ``c``, a fold of the last one (not an equilibrium):
+    the Levenberg-Marquardt steps ``(K + mu M) d - g dp = -R``, ``g^T d = 0`` with the load ``-mu``,
+    for ``mu`` from the given shift up (x 4, 4 times)."""
+    lin = model.linearize(c, p_c)
+    if lin is None:
+        return
+    for _ in range(5):
+        solver = lin.factor(lin.g, 0.0, shift=mu * m)
+        if solver is not None:
+            x = solver.solve(np.concatenate([-lin.R, [0.0]]))
+            yield x[:-1], p_c + float(x[-1]), -mu
+        mu *= 4.0
+
+
+def _first_state(pb: SpherePathProblem, cfg, s_w: float, starts):
+    """The first state of a leg: Newton on the sphere through the first of ``starts`` (guesses
+    ``(d, p, F)`` of the state ``c + d``) from which it converges. Returns ``(tracer,
+    linearisation)`` or ``None``; the leg's first step is the sphere's radius."""
+    m, c = pb.m, pb.centre
+    for d0, p0, F0 in starts:
+        w0 = math.sqrt(float(d0 @ (m * d0)))
+        if not (w0 > 0.0 and math.isfinite(F0)):
+            continue
+        fcfg = replace(cfg, scales=(s_w, SPHERE_LOAD_SCALE * max(abs(F0), 1e-300)), step_grow=SPHERE_STEP_GROW,
+                       max_turn_deg=SPHERE_TURN_DEG, ds0=min(cfg.ds0, w0 / s_w))
+        ftr = Tracer(pb, fcfg)
+        res = ftr.correct(np.concatenate([c + d0, [p0]]), F0, None, None, 0.0, target=(0, w0 / s_w))
+        if res is not None:
+            return ftr, res[0]
     return None
 
 
 def _leg(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: float, V_target: float, max_zeros: int):
     """Follow one leg from its first state ``lin_s``. Returns ``(found, fold, (reason, steps))``:
-    ``found`` ``(linearisation, iterations, steps)`` of the stable state (its linearisation ``None``
-    if the leg ended without one), ``fold`` the path point where ``w`` turned back (a new leg starts
-    there), else ``None``."""
+    ``found`` ``(linearisation, iterations)`` of the stable state (``None``: none), ``fold`` the path
+    point where ``w`` turned back (a new leg starts there), else ``None``."""
     model = tracer.pb
     s_F = float(ftr.sc[1])
     state: dict = {"zeros": 0, "found": None, "fold": None}
@@ -244,6 +285,8 @@ def _leg(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: float, 
             if n_unstable == 0 and lin.E < W_c:
                 state["found"] = (lin, it)
                 return "stable state at V*"
+        if b.p > 0.0:  # beyond an unstable equilibrium the path leaves the valley (the energy rises)
+            return "passed an unstable equilibrium"
         if state["zeros"] >= max_zeros:
             return "no stable state among the zeros of the load"
         return None
@@ -254,7 +297,4 @@ def _leg(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: float, 
     except ContinuationFailed as exc:
         return None, None, (f"failed ({exc})", 0)
     steps = len(path.points) - 1
-    if state["found"] is not None:
-        lin, it = state["found"]
-        return (lin, it, steps), None, (path.stop_reason, steps)
-    return None, state["fold"], (path.stop_reason, steps)
+    return state["found"], state["fold"], (path.stop_reason, steps)

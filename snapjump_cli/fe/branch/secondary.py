@@ -28,6 +28,7 @@ from snapjump_cli.fe.axisym.descent import constrained_negatives, descend_at_vol
 from snapjump_cli.fe.axisym.sphere_path import descend_on_spheres
 from snapjump_cli.fe.axisym.snap import SnapStates, root_on_step
 from snapjump_cli.fe.branch.bifurcation import harmonic1_gauge
+from snapjump_cli.fe.branch.landing import kick_along
 from snapjump_cli.fe.branch.model import MultiHarmonicModel, component_index, transfer
 from snapjump_cli.fe.branch.trace import FollowResult, branch_metrics, trace_branch
 from snapjump_cli.fe.continuation import Path, PathPoint, Tracer
@@ -564,8 +565,7 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
         return None, chk, None
     eig, mode = e
     low, msg, solver = None, "", "sphere-path"
-    amp = float(np.abs(full.amplitudes(L)).max())
-    mode = mode * (JUMP_KICK * amp / float(np.abs(full.amplitudes(mode)).max()))
+    mode = kick_along(full, L, mode, JUMP_KICK)
     if volume_path and fr.bif.n % 2 == 0:
         at_L = PathPoint(L, land.p, tr.zeta(L, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)
         low, msg = descend_on_spheres(tr, upper, at_L, mode)  # (the other way: its mirror image)

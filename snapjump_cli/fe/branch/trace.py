@@ -35,7 +35,7 @@ import numpy as np
 from snapjump_cli.fe.axisym.lower_state import LowerState, constrained_instability, find_lower_state
 from snapjump_cli.fe.axisym.snap import SnapStates, SnapTracker
 from snapjump_cli.fe.branch.bifurcation import Bifurcation, default_harmonics, harmonic1_gauge
-from snapjump_cli.fe.branch.coarse import descend_coarse_to_fine
+from snapjump_cli.fe.branch.landing import land_from_bifurcation
 from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, multiharmonic_snap_metrics
 from snapjump_cli.fe.branch.model import MultiHarmonicModel
 from snapjump_cli.fe.continuation import ContinuationFailed, Path, PathPoint, Tracer, start_point, trace
@@ -405,11 +405,12 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     ``volume_path``: the search at fixed volume tries the fixed-volume path before the energy
     descent (``False``: the descent alone; in the multi-harmonic model that path has not reached a
     lower state on the stratified samples, docs/harmonics.md section 10.8). ``"descent first"``: for
-    a subcritical branch (its first step tells), the energy descent at the bifurcation's volume from
-    the bifurcation along the branch's mode, before tracing the branch (the start the reference
-    search tries first: where it comes to rest there, below the bifurcation by at least the
-    micro-fold energy, the branch beyond its first step is not needed); it traces and searches as
-    the reference where it does not.
+    a subcritical branch (its first step tells), the state at the bifurcation's volume reached from
+    the bifurcation along the branch's tangent (:func:`snapjump_cli.fe.branch.landing.land_from_bifurcation`:
+    the sphere path, else the energy descent, the start the reference search tries first), before
+    tracing the branch: where it lies below the bifurcation by at least the micro-fold energy, the
+    branch beyond its first step is not needed; it traces and searches as the reference where it
+    does not.
     """
     if landing not in LANDINGS:
         raise ValueError(f"landing must be one of {LANDINGS}, got {landing!r}")
@@ -484,7 +485,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
             if landing == "axisymmetric first":
                 alt, note = axisym_landing(result, mh, tr, st.upper), AXISYM_LANDING
             else:
-                alt, note = descend_coarse_to_fine(tr, st.upper)
+                alt, note = land_from_bifurcation(tr, st.upper)
             if alt is not None and mh.energy(st.upper.u) - mh.energy(alt.u) >= micro_dE:
                 st.lower, st.lower_method = alt, "descent"
                 fr = FollowResult(bif, mh, path, st, tr, "subcritical", "subcritical", lower_method="descent",

@@ -1,0 +1,35 @@
+"""Where a subcritical branch of the multi-harmonic model lands at the volume of its bifurcation
+(docs/harmonics.md section 10.7): the sphere path from the bifurcation along the branch's
+tangent (:func:`snapjump_cli.fe.axisym.sphere_path.descend_on_spheres`), the energy descent
+started in coarser models (:func:`snapjump_cli.fe.branch.coarse.descend_coarse_to_fine`) where it
+finds nothing."""
+from __future__ import annotations
+
+import numpy as np
+
+from snapjump_cli.fe.axisym.sphere_path import descend_on_spheres
+from snapjump_cli.fe.branch.coarse import descend_coarse_to_fine
+from snapjump_cli.fe.branch.model import MultiHarmonicModel
+from snapjump_cli.fe.continuation import PathPoint, Tracer
+
+__all__ = ["KICK", "kick_along", "land_from_bifurcation"]
+
+#: A descent or a sphere path leaves an unstable state displaced along its mode by this fraction
+#: of the state's largest nodal amplitude.
+KICK = 1e-3
+
+
+def kick_along(model: MultiHarmonicModel, u: np.ndarray, mode: np.ndarray, frac: float = KICK) -> np.ndarray:
+    """``mode`` scaled so that its largest nodal amplitude is ``frac`` of the state ``u``'s."""
+    return mode * (frac * float(np.abs(model.amplitudes(u)).max()) / float(np.abs(model.amplitudes(mode)).max()))
+
+
+def land_from_bifurcation(tracer: Tracer, upper: PathPoint) -> tuple[PathPoint | None, str]:
+    """The stable state at ``upper``'s volume reached from it (a bifurcation whose branch lowers the
+    volume) along its tangent ``du_ds``: by the sphere path, else by the energy descent started in
+    coarser models. Returns ``(state or None, message)``."""
+    low, msg = descend_on_spheres(tracer, upper, upper, kick_along(tracer.pb, upper.u, upper.du_ds))
+    if low is not None:
+        return low, msg
+    low, msg_d = descend_coarse_to_fine(tracer, upper)
+    return low, f"{msg}; {msg_d}"
