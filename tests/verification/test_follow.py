@@ -168,3 +168,26 @@ def test_the_axisymmetric_state_at_a_volume_is_offered_only_where_it_is_stable(c
     assert E[0] < mh.energy(before.u) < E[1]
     V_after = 0.5 * (V_b + res.states.upper.zeta[0])
     assert axisym_state_at(res, mh, tr, V_after) is None
+
+
+def test_design_b_lands_by_the_sphere_path_on_the_state_the_traced_branch_returns_to():
+    """Design B (the ``curve`` command's mesh): the actuator mode lands its subcritical ``n = 1``
+    branch from the bifurcation by the sphere path (snapjump_cli.fe.branch.landing), tracing one
+    step of the branch; the reference (``follow_mode: full``) traces the branch down in volume and
+    back up to the bifurcation's volume and takes the state it returns to there. The same state and
+    answers, and the reference's energy released equals the work along its traced path (dE two
+    ways)."""
+    from snapjump_cli.fe.branch.followed import followed_metrics
+    from snapjump_cli.geometry.designs import get_design
+
+    res = solve_scene(get_design("B"), MeshSettings(), SolverSettings(harmonics=4))
+    chk = check_harmonics(res, 4)
+    assert chk.asym_first and chk.asym_n == 1
+    act, ref = followed_metrics(res, chk, mode="actuator"), followed_metrics(res, chk, mode="full")
+    a, r = act.branch, ref.branch
+    assert a.lower_note.startswith("sphere path: stable state") and len(a.path.points) == 2
+    assert r.states.lower_method == "path" and len(r.path.points) > 50
+    assert np.linalg.norm(a.states.lower.u - r.states.lower.u) < 1e-7 * np.linalg.norm(r.states.lower.u)
+    for k in ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa"):
+        assert act.values[k] == pytest.approx(ref.values[k], rel=1e-7), k
+    assert ref.values["dE_rel_diff"] < 1e-3

@@ -1,8 +1,8 @@
 """Where a subcritical branch of the multi-harmonic model lands at the volume of its bifurcation
-(docs/harmonics.md section 10.7): the sphere path from the bifurcation along the branch's
-tangent (:func:`snapjump_cli.fe.axisym.sphere_path.descend_on_spheres`), the energy descent
-started in coarser models (:func:`snapjump_cli.fe.branch.coarse.descend_coarse_to_fine`) where it
-finds nothing."""
+(docs/harmonics.md sections 10.7-10.8): the sphere path from the bifurcation along the branch's
+tangent (:func:`snapjump_cli.fe.axisym.sphere_path.descend_on_spheres`); for a secondary branch
+the energy descent started in coarser models
+(:func:`snapjump_cli.fe.branch.coarse.descend_coarse_to_fine`) where it finds nothing."""
 from __future__ import annotations
 
 import numpy as np
@@ -24,12 +24,12 @@ def kick_along(model: MultiHarmonicModel, u: np.ndarray, mode: np.ndarray, frac:
     return mode * (frac * float(np.abs(model.amplitudes(u)).max()) / float(np.abs(model.amplitudes(mode)).max()))
 
 
-def land_from_bifurcation(tracer: Tracer, upper: PathPoint) -> tuple[PathPoint | None, str]:
+def land_from_bifurcation(tracer: Tracer, upper: PathPoint, descent: bool = True) -> tuple[PathPoint | None, str]:
     """The stable state at ``upper``'s volume reached from it (a bifurcation whose branch lowers the
-    volume) along its tangent ``du_ds``: by the sphere path, else by the energy descent started in
-    coarser models. Returns ``(state or None, message)``."""
+    volume) along its tangent ``du_ds``: by the sphere path, else (with ``descent``) by the energy
+    descent started in coarser models. Returns ``(state or None, message)``."""
     low, msg = descend_on_spheres(tracer, upper, upper, kick_along(tracer.pb, upper.u, upper.du_ds))
-    if low is not None:
+    if low is not None or not descent:
         return low, msg
     low, msg_d = descend_coarse_to_fine(tracer, upper)
     return low, f"{msg}; {msg_d}"

@@ -401,7 +401,9 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     the axisymmetric path's state at the upper state's volume beyond its snap when one is stable
     with every harmonic of ``mh`` (:func:`axisym_landing`): for a subcritical branch before
     tracing it (its first step tells), and for a branch that passed back through the axisymmetric
-    path before the search; it traces and searches as the reference where there is none.
+    path before the search; where there is none, a subcritical branch lands where the sphere path
+    from the bifurcation comes to rest (``land_from_bifurcation(descent=False)``), and the branch
+    is traced and searched as the reference where that finds nothing.
     ``volume_path``: the search at fixed volume tries the fixed-volume path before the energy
     descent (``False``: the descent alone; in the multi-harmonic model that path has not reached a
     lower state on the stratified samples, docs/harmonics.md section 10.8). ``"descent first"``: for
@@ -484,6 +486,8 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         if tracker.kind == "subcritical" and st.upper is not None:
             if landing == "axisymmetric first":
                 alt, note = axisym_landing(result, mh, tr, st.upper), AXISYM_LANDING
+                if alt is None:  # the state the sphere path reaches from the bifurcation, if any
+                    alt, note = land_from_bifurcation(tr, st.upper, descent=False)
             else:
                 alt, note = land_from_bifurcation(tr, st.upper)
             if alt is not None and mh.energy(st.upper.u) - mh.energy(alt.u) >= micro_dE:
