@@ -137,9 +137,9 @@ def test_the_search_without_the_fixed_volume_path_is_the_references_descent(answ
 def test_the_descent_first_falls_back_on_the_references_descent_without_the_branch(design, answers):
     """``landing="descent first"`` (the actuator mode's landing of a subcritical secondary branch):
     after the branch's first step shows it subcritical, the state reached from the bifurcation at
-    its volume (snapjump_cli.fe.branch.landing), and no more of the branch. Here the sphere path
-    from the bifurcation passes an unstable equilibrium (its load turns positive) and gives up, and
-    the fallback is the descent from the bifurcation that the reference's search ends in: the very
+    its volume (snapjump_cli.fe.branch.landing), and no more of the branch. Here the minima on the
+    spheres around the bifurcation turn back before any is an equilibrium, the sphere path gives
+    up, and the fallback is the descent from the bifurcation that the reference's search ends in: the very
     same state, bit for bit."""
     res, chk = design
     ref = answers[1].branch
@@ -147,7 +147,7 @@ def test_the_descent_first_falls_back_on_the_references_descent_without_the_bran
                        volume_path=False)
     assert fr.kind == "subcritical" and len(fr.path.points) == 2 and len(ref.path.points) > 50
     sphere, descent = fr.lower_note.split("; ")
-    assert sphere.startswith("sphere path: passed an unstable equilibrium"), fr.lower_note
+    assert sphere.startswith("sphere path: turned back"), fr.lower_note
     assert descent.startswith("descent converged") and descent == ref.lower_note.split("; ")[-1]
     assert np.array_equal(fr.states.lower.u, ref.states.lower.u) and fr.states.lower.p == ref.states.lower.p
     for k in ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa"):

@@ -348,31 +348,29 @@ def test_the_actuator_mode_does_not_trace_past_a_landing_the_jump_leaves(jumped_
     assert len(fr.path.points) - 1 - k <= 30
 
 
-def test_the_sphere_path_lands_the_jump_where_the_damped_motion_and_the_descent_come_to_rest(jumped_even):
-    """The actuator mode lands the ``n_c = 2`` jump by the sphere path
-    (:func:`snapjump_cli.fe.axisym.sphere_path.descend_on_spheres`; here in two legs: the minima on
-    the spheres around the landing state turn back once): an equilibrium at the fold's volume,
-    stable with every harmonic and below the landing state. The slow references reach the same
-    state from the landing state kicked along its unstable mode: the damped motion at that volume
-    (the arbiter) and the energy descent (the fallback, ~600 iterations here)."""
-    from snapjump_cli.fe.axisym.descent import descend_at_volume
+def test_where_the_sphere_path_turns_back_the_jump_lands_where_the_descent_and_the_damped_motion_do(jumped_even):
+    """The actuator mode lands the ``n_c = 2`` jump by the sphere path first
+    (:func:`snapjump_cli.fe.axisym.sphere_path.descend_on_spheres`); here the minima on the spheres
+    around the landing state turn back before any is an equilibrium, and the energy descent from the
+    landing state kicked along its unstable mode lands it: an equilibrium at the fold's volume,
+    stable with every harmonic and below the landing state, where the damped motion at that volume
+    (the arbiter) from the same kick comes to rest."""
     from snapjump_cli.fe.branch.dynamics import damped_snap, lowest_frequency
-    from snapjump_cli.fe.branch.secondary import JUMP_KICK
     from snapjump_cli.fe.continuation import PathPoint
 
     res, out, fs = jumped_even
-    assert fs.kind == "jump" and fs.lower_solver == "sphere-path", fs.lower_note
-    assert "(sphere path)" in out["follow_note"]
+    assert fs.kind == "jump" and fs.lower_solver == "energy-descent", fs.lower_note
+    assert fs.lower_note.startswith("sphere path: turned back") and "descent converged" in fs.lower_note
+    assert "(energy descent)" in out["follow_note"]
     fr, sec, full, tr = fs.parent, fs.secondary, fs.model, fs.tracer
     low, up = fs.states.lower, fs.states.upper
     L, p = lift(fr.model, full, sec.point.u), sec.point.p
+    assert full.volume(L) == pytest.approx(full.volume(up.u), rel=1e-12)  # (the landing is at the fold's volume)
     eig, mode = extra_eigen(full, L, p, extra_dofs(fr.model, full))
     assert eig < 0.0
     assert full.volume(low.u) == pytest.approx(full.volume(up.u), rel=1e-8)
     assert unstable_modes(full, low.u, low.p) == 0
     assert full.energy(low.u) < full.energy(L)
-    lin = full.linearize(low.u, low.p)
-    assert np.linalg.norm(lin.R) < 1e-6 * abs(low.p) * np.linalg.norm(lin.g)
     unit = mode / np.linalg.norm(mode)
     way = float(np.sign(unit @ (low.u - L)))
     at_L = PathPoint(L, p, tr.zeta(L, p)[0], up.tangent, unit / tr.alpha, 0.0, 0.0)
@@ -380,8 +378,29 @@ def test_the_sphere_path_lands_the_jump_where_the_damped_motion_and_the_descent_
                      rest=1e-6)
     assert ds.state is not None, ds.message
     assert np.linalg.norm(ds.state.u - low.u) < 1e-6 * np.linalg.norm(low.u)
-    kick = way * mode * (JUMP_KICK * float(np.abs(full.amplitudes(L)).max()) / float(np.abs(full.amplitudes(mode)).max()))
-    start = PathPoint(L + kick, p, tr.zeta(L + kick, p)[0], up.tangent, up.du_ds, 0.0, 0.0)
-    dsc, msg = descend_at_volume(tr, up, start=start)
-    assert dsc is not None, msg
-    assert np.linalg.norm(dsc.u - low.u) < 1e-8 * np.linalg.norm(low.u)
+
+
+def test_a_jump_landed_by_the_sphere_path():
+    """``follow_strata_n2`` row 8's design on a coarser mesh (Q9, nt 1, aspect 3): its ``n = 2``
+    branch folds and the state it jumps to is unstable in harmonic 1; the sphere path from that
+    state lands the jump, on an equilibrium at the fold's volume (the landing state, a path point,
+    lies 2e-4 above it), stable with every harmonic and below the fold."""
+    from snapjump_cli.geometry.caps import Design
+
+    res = solve_scene(Design(7.4, 80.0, 20.0 / 3.0, 90.0, 1.0), MeshSettings(order=2, nt=1, aspect=3.0),
+                      SolverSettings(harmonics=4))
+    chk = check_harmonics(res, 4)
+    assert chk.asym_first and chk.asym_n == 2
+    answer = followed_metrics(res, chk, mode="actuator")
+    out, fs = answer.values, answer.branch
+    assert fs.kind == "jump" and fs.lower_solver == "sphere-path", fs.lower_note
+    assert fs.lower_note.startswith("sphere path: stable state") and "(sphere path)" in out["follow_note"]
+    full, up, low = fs.model, fs.states.upper, fs.states.lower
+    L = lift(fs.parent.model, full, fs.secondary.point.u)
+    assert abs(full.volume(L) / full.volume(up.u) - 1.0) > 1e-5  # the spheres' volume is the landing state's
+    assert full.volume(low.u) == pytest.approx(full.volume(up.u), rel=1e-8)
+    assert unstable_modes(full, low.u, low.p) == 0
+    assert full.energy(low.u) < full.energy(up.u)
+    lin = full.linearize(low.u, low.p)
+    assert np.linalg.norm(lin.R) < 1e-6 * abs(low.p) * np.linalg.norm(lin.g)
+    assert out["dE_J"] > 0.0

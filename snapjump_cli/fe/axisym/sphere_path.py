@@ -21,9 +21,11 @@ grows along it as long as the valley leads away from the saddle:
 * every zero of ``F`` is an equilibrium at ``V*``; the first that is stable under volume control
   and lies below ``c``'s energy is the state;
 * where the minima on the spheres end (a fold of the path in ``w``: the valley turns away from the
-  spheres), a new leg starts at the fold, on spheres centred there, with the Levenberg-Marquardt
-  step from there as its first state (the leg's first sphere); an unstable equilibrium passed
-  (``F`` turning positive), a climb above ``c``'s energy or six legs give up (the caller descends);
+  spheres), past an unstable equilibrium (``F`` turning positive) or above ``c``'s energy, the
+  path gives up and the caller descends. (New paths centred where the minima turn back, started
+  with the Levenberg-Marquardt step, reached a stable state on ``follow_strata_n2`` rows 3, 13
+  and 23, but on rows 13 and 23 not the state that the descent and the damped motion reach;
+  scratch runs.)
 * the spheres lie at ``c``'s own volume: a landing state taken from a path point lies near the
   fold's volume, not at it, and the state found is brought to ``V*`` by the volume-control
   Newton and checked stable there.
@@ -59,18 +61,8 @@ SPHERE_TURN_DEG = 30.0
 
 
 #: The load's scale in the path's arc length, relative to the first state's load: large, so that
-#: the arc length is the distance travelled (near a leg's centre the load goes as ``1 / w``).
+#: the arc length is the distance travelled (near the centre the load can go as ``1 / w``).
 SPHERE_LOAD_SCALE = 1e6
-
-
-#: Legs (a new centre at each fold of the path in ``w``) before the search gives up.
-SPHERE_LEGS = 6
-
-
-#: A leg started at a fold of the last one begins with the Levenberg-Marquardt step from there,
-#: shifted by this multiple of the fold's ``-F`` (the last leg's shift; at the fold the matrix
-#: shifted by ``-F M`` is singular on the sphere), times 4 while Newton does not converge there.
-SPHERE_RESTART_SHIFT = 2.0
 
 
 class _SphereLinearization:
@@ -153,8 +145,8 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
     upper : the state before the jump: its volume is ``V*``; its tangent orients the result's
     centre : an equilibrium at (or near) ``V*`` that is unstable there (the state the jump lands on)
     kick : the first displacement from ``centre`` (a small multiple of its unstable mode)
-    max_steps : continuation steps of one leg
-    max_zeros : zeros of ``F`` examined on one leg before giving up
+    max_steps : continuation steps
+    max_zeros : zeros of ``F`` examined before giving up
 
     Returns
     -------
@@ -178,42 +170,30 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
     m = m / float(m.mean())
     s_w = math.sqrt(model.n) * sw
     c, p_c = centre.u.copy(), float(centre.p)
-    starts = _kicks(model, c, p_c, m, np.asarray(kick, float))
-    n_steps = n_newton = 0
-    for leg in range(SPHERE_LEGS):
-        pb = SpherePathProblem(model, V_c, c, m, ref / sV, p_floor)
-        first = _first_state(pb, cfg, s_w, starts)
-        if first is None:
-            return None, f"sphere path: no first state on leg {leg + 1} ({n_steps} steps before)"
-        ftr, lin_s = first
-        found, fold, why = _leg(tracer, ftr, pb, lin_s, W_c, V_c / sV, max_zeros)
-        n_steps += why[1]
-        n_newton += ftr.n_newton
-        log.debug("sphere path: leg %d: %s after %d steps (first state w %.3g, F %.3g; fold at w %s)", leg + 1,
-                  why[0], why[1], float(pb.measures(lin_s.u, lin_s.p)[0][0]), lin_s.p,
-                  "-" if fold is None else f"{float(fold.zeta[0]) * s_w:.4g}")
-        if found is not None:
-            lin, it = found
-            if V_c != float(upper.zeta[0]) * sV:
-                res = tracer.correct(lin.u.copy(), float(lin.p), None, None, 0.0, target=(0, float(upper.zeta[0])))
-                if res is None or constrained_instability(tracer, res[0]) != 0 or not res[0].E < model.energy(upper.u):
-                    return None, f"sphere path: the stable state at the centre's volume does not reach V* ({n_steps} steps)"
-                lin, it = res[0], it + res[1]
-            t, v, q, z = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
-            return (PathPoint(lin.u, lin.p, z, t, v, q, math.nan, it),
-                    f"sphere path: stable state in {n_steps} steps, {leg + 1} legs ({n_newton} Newton iterations)")
-        if fold is None:
-            return None, f"sphere path: {why[0]} after {n_steps} steps"
-        if not float(fold.p) < 0.0:  # past an unstable equilibrium: the spheres' maxima turned back
-            return None, f"sphere path: turned back past an unstable equilibrium on leg {leg + 1} ({n_steps} steps)"
-        # a new leg, centred at the fold, starting with the Levenberg-Marquardt step from there
-        c, p_c = fold.u[:-1].copy(), float(fold.u[-1])
-        starts = _lm_steps(model, c, p_c, m, -SPHERE_RESTART_SHIFT * float(fold.p))
-    return None, f"sphere path: no stable state in {SPHERE_LEGS} legs ({n_steps} steps)"
+    pb = SpherePathProblem(model, V_c, c, m, ref / sV, p_floor)
+    first = _first_state(pb, cfg, s_w, _kicks(model, c, p_c, m, np.asarray(kick, float)))
+    if first is None:
+        return None, "sphere path: no first state"
+    ftr, lin_s = first
+    found, fold, (why, n_steps) = _follow(tracer, ftr, pb, lin_s, W_c, V_c / sV, max_zeros)
+    log.debug("sphere path: %s after %d steps (first state w %.3g, F %.3g; turned back at w %s)", why, n_steps,
+              float(pb.measures(lin_s.u, lin_s.p)[0][0]), lin_s.p,
+              "-" if fold is None else f"{float(fold.zeta[0]) * s_w:.4g}")
+    if found is None:
+        return None, f"sphere path: {why} after {n_steps} steps"
+    lin, it = found
+    if V_c != float(upper.zeta[0]) * sV:
+        res = tracer.correct(lin.u.copy(), float(lin.p), None, None, 0.0, target=(0, float(upper.zeta[0])))
+        if res is None or constrained_instability(tracer, res[0]) != 0 or not res[0].E < model.energy(upper.u):
+            return None, f"sphere path: the stable state at the centre's volume does not reach V* ({n_steps} steps)"
+        lin, it = res[0], it + res[1]
+    t, v, q, z = tracer.tangent(lin, (upper.tangent, tracer.alpha * upper.du_ds))
+    return (PathPoint(lin.u, lin.p, z, t, v, q, math.nan, it),
+            f"sphere path: stable state in {n_steps} steps ({ftr.n_newton} Newton iterations)")
 
 
 def _kicks(model, c: np.ndarray, p_c: float, m: np.ndarray, kick: np.ndarray):
-    """First-state guesses of the leg from the saddle: ``c + kick`` (then 1/10 of it, 3 times) with
+    """First-state guesses of the path from the saddle: ``c + kick`` (then 1/10 of it, 3 times) with
     the load ``F = d^T R / d^T M d`` there (the Rayleigh quotient of the unstable mode)."""
     d0 = kick
     for _ in range(4):
@@ -223,25 +203,10 @@ def _kicks(model, c: np.ndarray, p_c: float, m: np.ndarray, kick: np.ndarray):
         d0 = 0.1 * d0
 
 
-def _lm_steps(model, c: np.ndarray, p_c: float, m: np.ndarray, mu: float):
-    """First-state guesses of a leg centred at ``c``, a fold of the last one (not an equilibrium):
-    the Levenberg-Marquardt steps ``(K + mu M) d - g dp = -R``, ``g^T d = 0`` with the load ``-mu``,
-    for ``mu`` from the given shift up (x 4, 4 times)."""
-    lin = model.linearize(c, p_c)
-    if lin is None:
-        return
-    for _ in range(5):
-        solver = lin.factor(lin.g, 0.0, shift=mu * m)
-        if solver is not None:
-            x = solver.solve(np.concatenate([-lin.R, [0.0]]))
-            yield x[:-1], p_c + float(x[-1]), -mu
-        mu *= 4.0
-
-
 def _first_state(pb: SpherePathProblem, cfg, s_w: float, starts):
-    """The first state of a leg: Newton on the sphere through the first of ``starts`` (guesses
+    """The first state of the path: Newton on the sphere through the first of ``starts`` (guesses
     ``(d, p, F)`` of the state ``c + d``) from which it converges. Returns ``(tracer,
-    linearisation)`` or ``None``; the leg's first step is the sphere's radius."""
+    linearisation)`` or ``None``; the path's first step is the sphere's radius."""
     m, c = pb.m, pb.centre
     for d0, p0, F0 in starts:
         w0 = math.sqrt(float(d0 @ (m * d0)))
@@ -256,10 +221,10 @@ def _first_state(pb: SpherePathProblem, cfg, s_w: float, starts):
     return None
 
 
-def _leg(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: float, V_target: float, max_zeros: int):
-    """Follow one leg from its first state ``lin_s``. Returns ``(found, fold, (reason, steps))``:
+def _follow(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: float, V_target: float, max_zeros: int):
+    """Follow the path from its first state ``lin_s``. Returns ``(found, fold, (reason, steps))``:
     ``found`` ``(linearisation, iterations)`` of the stable state (``None``: none), ``fold`` the path
-    point where ``w`` turned back (a new leg starts there), else ``None``."""
+    point where ``w`` turned back, else ``None``."""
     model = tracer.pb
     s_F = float(ftr.sc[1])
     state: dict = {"zeros": 0, "found": None, "fold": None}
