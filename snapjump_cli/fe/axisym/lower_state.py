@@ -63,6 +63,7 @@ __all__ = [
     "LowerState",
     "find_lower_state",
     "FixedVolumeProblem",
+    "FixedVolumeLinearization",
     "MultiBorderedSolver",
     "snap_at_fixed_volume",
     "descend_at_volume",
@@ -188,8 +189,12 @@ class MultiBorderedSolver:
         return np.concatenate([x, y])
 
 
-class _FixedVolumeLinearization:
-    def __init__(self, problem: "FixedVolumeProblem", x, F, R, lin):
+class FixedVolumeLinearization:
+    """The linearisation of an equilibrium problem at fixed volume under a load ``F`` (the problem's
+    ``model``, ``c_V`` and ``control``): :class:`FixedVolumeProblem`'s, whose load acts along the
+    fixed direction ``e``; a subclass sets :meth:`direction` and :meth:`shift` for another."""
+
+    def __init__(self, problem, x, F, R, lin):
         self.problem, self.u, self.p, self.R, self.lin = problem, x, F, R, lin
         self.aux = lin.aux  # the model's element pressures (the mixed linearisation)
 
@@ -197,19 +202,27 @@ class _FixedVolumeLinearization:
         """Linearised change of the element pressures for a change ``x = (du, dp)``."""
         return self.lin.aux_dir(x[:-1])
 
+    def direction(self) -> np.ndarray:
+        """``-dR/dF`` of the displacement equations: the direction the load acts along."""
+        return self.problem.e
+
+    def shift(self) -> "float | np.ndarray":
+        """``dR/du`` of the load term, added to the stiffness's diagonal."""
+        return 0.0
+
     def factor(self, c_x: np.ndarray, c_F: float):
-        """Factorise ``[[K, -g, -e_w], [c_V g^T, 0, 0], [c_u^T, c_p, c_F]]``; ``None`` if singular."""
+        """Factorise ``[[K + shift, -g, -e_w], [c_V g^T, 0, 0], [c_u^T, c_p, c_F]]``; ``None`` if singular."""
         pb, lin = self.problem, self.lin
         n = pb.model.n
-        e = pb.e
-        base = lin.factor(pb.c_V * lin.g, 0.0)
+        base = lin.factor(pb.c_V * lin.g, 0.0, shift=self.shift())
         if base is None:
             return None
-        B = np.stack([-lin.g, -e], axis=1)
+        B = np.stack([-lin.g, -self.direction()], axis=1)
         C = np.stack([pb.c_V * lin.g, c_x[:n]], axis=1)
         D = np.array([[0.0, 0.0], [float(c_x[n]), float(c_F)]])
-        if pb.control is not None:  # the volume equation's dependence on the pressure (the gas)
-            D[0, 0] = pb.c_V * float(pb.control.compliance(float(self.u[-1])))
+        control = getattr(pb, "control", None)
+        if control is not None:  # the volume equation's dependence on the pressure (the gas)
+            D[0, 0] = pb.c_V * float(control.compliance(float(self.u[-1])))
         s = MultiBorderedSolver(base, B, C, D)
         if not np.all(np.isfinite(s.S)) or abs(np.linalg.det(s.S)) == 0.0:
             return None
@@ -248,7 +261,7 @@ class FixedVolumeProblem:
         R[-1] = self.c_V * (lin.V - self.V_star)
         if self.control is not None:
             R[-1] = self.c_V * (lin.V + float(self.control.extra_volume(x[-1])) - self.V_star)
-        return _FixedVolumeLinearization(self, x, F, R, lin)
+        return FixedVolumeLinearization(self, x, F, R, lin)
 
     def measures(self, x: np.ndarray, F: float, lin=None):
         """``zeta = (e . u, F)`` and their derivatives."""

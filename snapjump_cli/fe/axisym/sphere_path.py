@@ -44,7 +44,7 @@ from dataclasses import replace
 import numpy as np
 
 from snapjump_cli.fe.continuation import ContinuationFailed, PathPoint, Tracer, start_point, trace
-from snapjump_cli.fe.axisym.lower_state import MultiBorderedSolver, constrained_instability
+from snapjump_cli.fe.axisym.lower_state import FixedVolumeLinearization, constrained_instability
 from snapjump_cli.fe.axisym.snap import root_on_step
 
 log = logging.getLogger(__name__)
@@ -65,29 +65,19 @@ SPHERE_TURN_DEG = 30.0
 SPHERE_LOAD_SCALE = 1e6
 
 
-class _SphereLinearization:
+class _SphereLinearization(FixedVolumeLinearization):
+    """The sphere path's linearisation: the load acts along ``M d`` (``d = u - c``), and its
+    derivative ``-F M`` shifts the stiffness."""
+
     def __init__(self, problem: "SpherePathProblem", x: np.ndarray, F: float, R: np.ndarray, lin, d: np.ndarray):
-        self.problem, self.u, self.p, self.R, self.lin, self.d = problem, x, F, R, lin, d
-        self.aux = lin.aux  # the model's element pressures (the mixed linearisation)
+        super().__init__(problem, x, F, R, lin)
+        self.d = d
 
-    def aux_dir(self, x: np.ndarray) -> np.ndarray:
-        """Linearised change of the element pressures for a change ``x = (du, dp)``."""
-        return self.lin.aux_dir(x[:-1])
+    def direction(self) -> np.ndarray:
+        return self.problem.m * self.d
 
-    def factor(self, c_x: np.ndarray, c_F: float):
-        """Factorise ``[[K - F M, -g, -M d], [c_V g^T, 0, 0], [c_u^T, c_p, c_F]]``; ``None`` if singular."""
-        pb, lin = self.problem, self.lin
-        n = pb.model.n
-        base = lin.factor(pb.c_V * lin.g, 0.0, shift=-self.p * pb.m)
-        if base is None:
-            return None
-        B = np.stack([-lin.g, -pb.m * self.d], axis=1)
-        C = np.stack([pb.c_V * lin.g, c_x[:n]], axis=1)
-        D = np.array([[0.0, 0.0], [float(c_x[n]), float(c_F)]])
-        s = MultiBorderedSolver(base, B, C, D)
-        if not np.all(np.isfinite(s.S)) or abs(np.linalg.det(s.S)) == 0.0:
-            return None
-        return s
+    def shift(self) -> np.ndarray:
+        return -self.p * self.problem.m
 
 
 class SpherePathProblem:
