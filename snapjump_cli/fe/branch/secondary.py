@@ -534,10 +534,10 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     energy at that volume on growing spheres around it, from its unstable mode on to the first
     equilibrium that is stable and lower; the descent where it finds none. For an even ``n_c`` the
     mode's two signs are mirror images (the turn by ``pi / n_c`` flips every harmonic outside the
-    branch), so the jump's landing does not depend on the sign; where the sphere path and the
-    descent land on different states the damped motion at fixed volume comes to rest on the
-    sphere path's (docs/harmonics.md section 10.7). For an odd ``n_c`` the two signs can lead to
-    different states; the descent along the mode's sign is kept.
+    branch), so the jump's landing does not depend on the sign; on the 16 jumps of
+    ``follow_strata_n2`` that the sphere path lands, the descent from the same start reaches the same
+    state (docs/harmonics.md section 10.7). For an odd ``n_c`` the two signs can lead to different
+    states; the descent along the mode's sign is kept.
 
     Returns
     -------
