@@ -275,8 +275,7 @@ class FixedVolumeProblem:
 
 
 def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400, max_zeros: int = 6,
-                         control: Tracer | None = None, mode_signs: tuple[float, ...] = (1.0, -1.0)
-                         ) -> tuple[PathPoint | None, str]:
+                         control: Tracer | None = None) -> tuple[PathPoint | None, str]:
     """The stable state at ``V*`` reached from the upper state (see the module docstring).
 
     Parameters
@@ -287,7 +286,6 @@ def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400,
     max_zeros : zeros of ``F`` examined on one path before giving up
     control : another control than the cavity volume (see :func:`find_lower_state`): the
         constraint, the polish, the stability and the energy (``potential``) are its problem's
-    mode_signs : the ways the mode's control is tried, in turn (one where the two are mirror images)
 
     Returns
     -------
@@ -319,7 +317,7 @@ def snap_at_fixed_volume(tracer: Tracer, upper: PathPoint, max_steps: int = 400,
     if upper.du_ds[pole] != 0.0:
         attempts.append(("pole", e_pole, float(np.sign(upper.du_ds[pole])), sw))
     if nrm > 0.0:
-        attempts += [("mode", upper.du_ds / nrm, float(d), math.sqrt(model.n) * sw) for d in mode_signs]
+        attempts += [("mode", upper.du_ds / nrm, float(d), math.sqrt(model.n) * sw) for d in (1.0, -1.0)]
     msgs = []
     for name, e, direction, s_w in attempts:
         pb = FixedVolumeProblem(model, V_star, e, c_V=ref_up / sV, p_floor=p_floor,

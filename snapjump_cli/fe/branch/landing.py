@@ -15,7 +15,8 @@ from snapjump_cli.fe.continuation import PathPoint, Tracer
 __all__ = ["KICK", "kick_along", "land_from_bifurcation"]
 
 #: A descent or a sphere path leaves an unstable state displaced along its mode by this fraction
-#: of the state's largest nodal amplitude.
+#: of the state's largest nodal amplitude (a jump off a branch: the branch's symmetric subspace is
+#: invariant under both, and without the kick they would stay on the branch).
 KICK = 1e-3
 
 

@@ -39,7 +39,7 @@ log = logging.getLogger(__name__)
 __all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
            "locate_secondary", "follow_secondary", "visited_points",
            "first_extra", "jump_off_branch", "reached_along", "jump_before", "landing_jump", "mode_counts",
-           "more_outside", "extra_harmonics", "JUMP_KICK", "leaves_branch", "StabilityWatch", "stability_watch", "rotation_signs", "rotated"]
+           "more_outside", "extra_harmonics", "leaves_branch", "StabilityWatch", "stability_watch", "rotation_signs", "rotated"]
 
 
 def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray | None = None) -> MultiHarmonicModel:
@@ -511,12 +511,6 @@ def first_extra(fr, chk: SecondaryCheck, full: MultiHarmonicModel) -> int:
     return j1
 
 
-#: The jump off a branch starts from the landing state displaced along its unstable mode outside
-#: the branch by this fraction of the state's largest nodal displacement (the symmetric subspace
-#: is invariant under the descent: without it the descent would stay on the branch).
-JUMP_KICK = 1e-3
-
-
 def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, landing: int, jump=None,
                     eigen=None, volume_path: bool = False):
     """The snap of an actuator that jumps past a fold of the followed branch onto a state of the
@@ -565,7 +559,7 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
         return None, chk, None
     eig, mode = e
     low, msg, solver = None, "", "sphere-path"
-    mode = kick_along(full, L, mode, JUMP_KICK)
+    mode = kick_along(full, L, mode)  # (the branch's subspace is invariant: without it the jump stays on it)
     if volume_path and fr.bif.n % 2 == 0:
         at_L = PathPoint(L, land.p, tr.zeta(L, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)
         low, msg = descend_on_spheres(tr, upper, at_L, mode)  # (the other way: its mirror image)
