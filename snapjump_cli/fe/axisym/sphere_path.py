@@ -51,13 +51,19 @@ log = logging.getLogger(__name__)
 
 __all__ = ["SpherePathProblem", "descend_on_spheres"]
 
-#: Step growth and largest turn per step of the sphere path (its points are not an answer: the
-#: end is polished; with the pressure-volume path's 1.2 and 10 degrees it took 2x the steps on
-#: ``follow_strata_n2`` row 1, the same state).
-SPHERE_STEP_GROW = 1.5
+#: Step growth, largest turn per step and Newton tolerance (the error test's) of the sphere path:
+#: its points are not an answer (the state it ends on is polished to the residual test and checked),
+#: so it steps further and is corrected less than a pressure-volume path (1.2, 10 degrees and 1e-6).
+#: On ``follow_strata`` rows 0, 2, 5, 10, 23 and ``follow_strata_n2`` rows 0, 1, 4, 5 the path took
+#: 18-25 steps and 33-60 Newton iterations with 1.5, 30 degrees and 1e-6, and 9-18 steps and 19-45
+#: with 4, 30 degrees and 1e-4 (growth 2 or 3: a few more), on the same states (docs/performance.md).
+SPHERE_STEP_GROW = 4.0
 
 
 SPHERE_TURN_DEG = 30.0
+
+
+SPHERE_TOL_PATH = 1e-4
 
 
 #: The load's scale in the path's arc length, relative to the first state's load: large, so that
@@ -203,7 +209,7 @@ def _first_state(pb: SpherePathProblem, cfg, s_w: float, starts):
         if not (w0 > 0.0 and math.isfinite(F0)):
             continue
         fcfg = replace(cfg, scales=(s_w, SPHERE_LOAD_SCALE * max(abs(F0), 1e-300)), step_grow=SPHERE_STEP_GROW,
-                       max_turn_deg=SPHERE_TURN_DEG, ds0=min(cfg.ds0, w0 / s_w))
+                       max_turn_deg=SPHERE_TURN_DEG, tol_path=SPHERE_TOL_PATH, ds0=min(cfg.ds0, w0 / s_w))
         ftr = Tracer(pb, fcfg)
         res = ftr.correct(np.concatenate([c + d0, [p0]]), F0, None, None, 0.0, target=(0, w0 / s_w))
         if res is not None:

@@ -43,6 +43,7 @@ from snapjump_cli.fe.continuation import ContinuationFailed, Path, PathPoint, Tr
 log = logging.getLogger(__name__)
 
 __all__ = ["FoldJump", "FollowResult", "BranchTracker", "MICRO_FOLD_DE", "REJOIN_FRAC", "FOLLOW_STEP_GROW",
+           "FIRST_STEP_HALVINGS", "PROBE_HALVINGS",
            "MAX_RESTARTS", "ThroughFolds", "trace_through_micro_folds", "tracker_bounds", "micro_energy",
            "follow_branch", "trace_branch", "axisym_crossings", "UNSTABLE_OUTSIDE", "axisym_state_at", "axisym_landing", "branch_metrics", "REJOINED",
            "LANDINGS"]
@@ -223,6 +224,19 @@ REJOIN_FRAC = 0.25
 #: at 1.2 the branch takes 16-18 % fewer assemblies, with answers equal to 1.5e-13
 #: (``bench/follow_profile.py@51d9ff8 B --step-grow 1.6 1.2``).
 FOLLOW_STEP_GROW = 1.2
+
+#: A branch's first step off its bifurcation starts at ``ds0`` halved this many times: from ``ds0``
+#: Newton failed 6 to 9 times before that step converged on each of the 48 branches of the
+#: ``follow_strata`` and ``follow_strata_n2`` samples (the corrector's basin shrinks towards the
+#: pitchfork; at ``ds0 / 2**7`` on 33 of them, ``ds0 / 2**6`` on 3, down to ``ds0 / 2**9``), each
+#: failure 1-3 assemblies. Starting at the largest step that converged there skips only steps
+#: that failed: the branches traced are the same, bit for bit.
+FIRST_STEP_HALVINGS = 6
+
+#: Where a branch is only probed for sub- or supercritical (one step, the sign of its volume: the
+#: actuator mode's landings from the bifurcation), the step's length does not enter the answer,
+#: and the probe starts at the smallest of those steps, where each of the 48 converged at once.
+PROBE_HALVINGS = 9
 
 #: The branch's Newton corrector linearises with the element pressures of the three-field
 #: problem (:meth:`MultiHarmonicModel.linearize`'s ``aux``: extrapolated along the branch, then
@@ -442,8 +456,11 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
             ) -> tuple[Path, BranchTracker, str]:
         tk = BranchTracker(tr, p_stop=p_stop, V_stop=V_stop, post_snap_steps=post, kind=kind, micro_dE=micro_dE,
                            stop_at_upper=stop, watch=watch, settle=None if stop else stays, **amplitudes)
+        run_cfg = cfg if steps is None else replace(cfg, max_steps=steps)
+        if first is start:  # off the bifurcation: one step of a probe, or the branch
+            run_cfg = replace(run_cfg, ds0=cfg.ds0 * 0.5**(PROBE_HALVINGS if steps == 1 else FIRST_STEP_HALVINGS))
         try:
-            return trace(mh, cfg if steps is None else replace(cfg, max_steps=steps), tk, tracer=tr, start=first), tk, ""
+            return trace(mh, run_cfg, tk, tracer=tr, start=first), tk, ""
         except ContinuationFailed as exc:
             return getattr(exc, "path", None) or Path(points=[first]), tk, str(exc)
 

@@ -69,12 +69,12 @@ ZERO_PIVOT = 1e-7
 
 
 def eig_near(op: HarmonicOperator, u: np.ndarray, p: float, sigma: float, mode: bool = False,
-             project: bool = False):
+             project: bool = False, ncv: int | None = None):
     """The smallest of the two eigenvalues of ``(K_n, M_n)`` nearest ``sigma`` (rigid modes gauged
     out, or with ``project`` projected out: :func:`_eig_near_projected`; the rotation about the
     axis of ``n = 0`` left out: :func:`axis_rotation`; scaled units), with (``mode``) its
     eigenvector as nodal amplitudes ``(nn, 3)``, largest entry 1; ``None`` outside the Gent
-    domain."""
+    domain. ``ncv``: ARPACK's Lanczos vectors (default: its own choice, 20 or more)."""
     import scipy.sparse.linalg as spla
 
     if project:
@@ -90,10 +90,13 @@ def eig_near(op: HarmonicOperator, u: np.ndarray, p: float, sigma: float, mode: 
     # a fixed start vector: ARPACK's default is random, and the answers then differ between
     # processes at the level of the eigenvalue tolerance (followed dE by ~1e-8)
     v0 = np.random.default_rng(0).standard_normal(K.shape[0])
+    if ncv is not None:
+        ncv = min(int(ncv), K.shape[0])
     rot = axis_rotation(op, u)
     if rot is None and not mode:
-        return float(np.min(spla.eigsh(K, k=2, M=M, sigma=sigma, which="LM", v0=v0, return_eigenvectors=False)))
-    vals, vecs = spla.eigsh(K, k=2 if rot is None else 3, M=M, sigma=sigma, which="LM", v0=v0)
+        return float(np.min(spla.eigsh(K, k=2, M=M, sigma=sigma, which="LM", v0=v0, ncv=ncv,
+                                       return_eigenvectors=False)))
+    vals, vecs = spla.eigsh(K, k=2 if rot is None else 3, M=M, sigma=sigma, which="LM", v0=v0, ncv=ncv)
     if rot is not None:
         r = rot[keep]
         Mr = M @ r
@@ -171,14 +174,27 @@ def smallest_eigenvalue(op: HarmonicOperator, u: np.ndarray, p: float, shift: fl
     return lam
 
 
+#: ARPACK's Lanczos vectors in :func:`lowest_eigen` (the bifurcation's root finding calls it 5-10
+#: times per followed design): its default (20) spends most of a call in the reverse-communication
+#: loop; with 8 a call takes a third of the CPU and the eigenvalue moves by ~1e-15 ``mu_min / L^2``
+#: (``follow_strata`` row 0 at its bifurcation). Where ARPACK does not converge with them, the
+#: default is used.
+LOWEST_NCV = 8
+
+
 def lowest_eigen(op: HarmonicOperator, u: np.ndarray, p: float, shift: float = 2.0) -> tuple[float, np.ndarray] | None:
     """The smallest eigenvalue of the pencil ``(K_n, M_n)`` (the rigid modes gauged out) and its
     mode as nodal amplitudes ``(nn, 3)`` scaled to a largest entry of 1; ``None`` outside the Gent
     domain. In units of ``mu_min / L^2`` of the scaled model (the harmonic check's measure).
     Shift-invert about ``-shift mu_min``: exact for the smallest eigenvalue while it lies above
     that (near a bifurcation it is close to 0; physical eigenvalues are of order 0.1-10)."""
+    import scipy.sparse.linalg as spla
+
     mu = float(np.min(op.model.mu))
-    found = eig_near(op, u, p, -shift * mu, mode=True)
+    try:
+        found = eig_near(op, u, p, -shift * mu, mode=True, ncv=LOWEST_NCV)
+    except spla.ArpackNoConvergence:
+        found = eig_near(op, u, p, -shift * mu, mode=True)
     if found is None:
         return None
     return found[0] / mu, found[1]
