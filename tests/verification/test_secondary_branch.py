@@ -343,6 +343,8 @@ def test_the_actuator_mode_does_not_trace_past_a_landing_the_jump_leaves(jumped_
     assert any(f.landing is land for f in fr.folds)
     leaves = leaves_branch(u_axi=fr.bif.u)(fr.model)
     assert leaves(land)  # one the actuator leaves at once (unstable outside the branch),
+    e = fr.settle.eigen(land.u, land.p)  # (the trace's check computed its eigenpair: the jump takes it)
+    assert e is not None and e[0] == fs.secondary.eig and leaves.eigen(land.u, land.p)[0] == e[0]
     # and the path ends within a few steps past it
     k = next(f.k for f in fr.folds if f.landing is land)
     assert len(fr.path.points) - 1 - k <= 30

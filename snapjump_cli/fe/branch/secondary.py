@@ -39,7 +39,7 @@ log = logging.getLogger(__name__)
 __all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
            "locate_secondary", "follow_secondary", "visited_points",
            "first_extra", "jump_off_branch", "reached_along", "jump_before", "landing_jump", "mode_counts",
-           "more_outside", "extra_harmonics", "leaves_branch", "StabilityWatch", "stability_watch", "rotation_signs", "rotated"]
+           "more_outside", "extra_harmonics", "leaves_branch", "LeavesBranch", "StabilityWatch", "stability_watch", "rotation_signs", "rotated"]
 
 
 def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray | None = None) -> MultiHarmonicModel:
@@ -270,24 +270,38 @@ def leaves_branch(N: int | None = None, u_axi: np.ndarray | None = None):
     state or, for an even ``n_c``, the state turned by ``pi / n_c``: :func:`rotation_signs`), as
     :func:`follow_secondary` decides for the state a jump lands on."""
 
-    def make(mh: MultiHarmonicModel):
-        full = full_model(mh, N, u_axi)
-        dofs = extra_dofs(mh, full)
-        signs = rotation_signs(mh)
+    return lambda mh: LeavesBranch(mh, full_model(mh, N, u_axi), N, u_axi)
 
-        def leaves(pt: PathPoint) -> bool:
-            for u in (pt.u, None if signs is None else signs * pt.u):
-                if u is None:
-                    continue
-                e = extra_eigen(full, lift(mh, full, u), pt.p, dofs)
-                full.release_buffers()
-                if e is not None and e[0] < 0.0:
-                    return True
-            return False
 
-        return leaves
+class LeavesBranch:
+    """:func:`leaves_branch`'s check for the branch model ``mh`` against ``full`` (``full_model(mh,
+    N, u_axi)``): ``leaves(pt)``. It keeps the model and the eigenpairs it computed
+    (:meth:`eigen`), which :func:`follow_secondary` reuses for the state the jump lands on."""
 
-    return make
+    def __init__(self, mh: MultiHarmonicModel, full: MultiHarmonicModel, N: int | None, u_axi) -> None:
+        self.mh, self.full, self.N, self.u_axi = mh, full, N, u_axi
+        self.dofs = extra_dofs(mh, full)
+        self.signs = rotation_signs(mh)
+        self._seen: dict = {}
+
+    def __call__(self, pt: PathPoint) -> bool:
+        for u in (pt.u, None if self.signs is None else self.signs * pt.u):
+            if u is None:
+                continue
+            e = extra_eigen(self.full, lift(self.mh, self.full, u), pt.p, self.dofs)
+            self.full.release_buffers()
+            self._seen[(u.tobytes(), float(pt.p))] = e
+            if e is not None and e[0] < 0.0:
+                return True
+        return False
+
+    def serves(self, mh: MultiHarmonicModel, N: int | None, u_axi) -> bool:
+        """Whether its model is the one :func:`follow_secondary` would build for ``mh``."""
+        return mh is self.mh and N == self.N and (u_axi is self.u_axi or np.array_equal(u_axi, self.u_axi))
+
+    def eigen(self, u: np.ndarray, p: float):
+        """The :func:`extra_eigen` of the branch state ``(u, p)`` if this check computed it, else ``None``."""
+        return self._seen.get((np.asarray(u).tobytes(), float(p)))
 
 
 def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None = None,
@@ -451,7 +465,9 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, jump_pat
     """
     watch = getattr(fr, "watch", None)
     reuse = isinstance(watch, StabilityWatch) and watch.stride == stride and watch.mh is fr.model
-    full = watch.full if reuse else full_model(fr.model, N, fr.bif.u)
+    settle = getattr(fr, "settle", None)
+    settle = settle if isinstance(settle, LeavesBranch) and settle.serves(fr.model, N, fr.bif.u) else None
+    full = watch.full if reuse else (settle.full if settle is not None else full_model(fr.model, N, fr.bif.u))
     chk = branch_stability(fr, stride=stride, stop_at_first=True, full=full, counts=watch.counts if reuse else None)
     j1 = first_extra(fr, chk, full) if chk.first is not None else None
     # the other class of mirror planes (an even n_c): the branch turned by pi / n_c, checked alike;
@@ -475,7 +491,9 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, jump_pat
         # between that state and j1 (a landing between two path points, a micro-fold traced through)
         jump = landing_jump(fr, j1)
         land = jump.landing if jump is not None else fr.path.points[j1]
-        e = extra_eigen(full, lift(fr.model, full, land.u), land.p, extra_dofs(fr.model, full))
+        e = settle.eigen(land.u, land.p) if settle is not None else None
+        if e is None:
+            e = extra_eigen(full, lift(fr.model, full, land.u), land.p, extra_dofs(fr.model, full))
         if jump is None or jump.landing_index is not None or e is None or e[0] < 0.0:
             return jump_off_branch(result, fr, chk, full, j1, jump, eigen=e, volume_path=jump_path)
         start = land

@@ -88,6 +88,8 @@ class FollowResult:
     folds: list = field(default_factory=list)
     #: the ``watch`` of a trace up to the upper state (what it computed is reused by the check)
     watch: object = None
+    #: the ``settle`` check of the trace's micro-fold landings (what it computed is reused by the check)
+    settle: object = None
     #: the branch turned by ``pi / n_c`` about the axis (its states, the actuator's, are those of
     #: a branch whose perturbations symmetric about ``phi = pi / n_c`` went unstable first)
     turned: bool = False
@@ -531,7 +533,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     kind = (tracker.kind if not tb.restarts else "supercritical") if st.upper is not None else ""
     first_kind = tb.first_kind
     fr = FollowResult(bif, mh, path, st, tr, kind, first_kind, failure=failure, micro_folds=micro_folds,
-                      folds=tb.folds)
+                      folds=tb.folds, settle=stays)
     if st.upper is not None and low is not None:
         fr.lower_method, fr.lower_note = low.method, low.note or low.message
     fr.metrics = branch_metrics(fr, sc)
