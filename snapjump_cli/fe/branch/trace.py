@@ -232,7 +232,8 @@ FOLLOW_STEP_GROW = 1.2
 #: ``follow_strata`` and ``follow_strata_n2`` samples (the corrector's basin shrinks towards the
 #: pitchfork; at ``ds0 / 2**7`` on 33 of them, ``ds0 / 2**6`` on 3, down to ``ds0 / 2**9``), each
 #: failure 1-3 assemblies. Starting at the largest step that converged there skips only steps
-#: that failed: the branches traced are the same, bit for bit.
+#: that failed: those 48 branches are traced as before, bit for bit (a branch whose first step
+#: would converge longer now starts shorter).
 FIRST_STEP_HALVINGS = 6
 
 #: Where a branch is only probed for sub- or supercritical (one step, the sign of its volume: the
