@@ -90,10 +90,10 @@ REF_CHECK_FACTOR = 1.32
 #: With ``solver.follow``: per critical harmonic, the share of the paper grid's valid designs whose
 #: branch is followed (2310 and 611 of 4079, ``make run``) and the mean seconds of one followed
 #: design of that class on the stratified samples in the default ``follow_mode``, each half of a
-#: sample (``mu_i/mu_o`` 1 and 5.8) weighted by its share of the uniform sample's designs of that
-#: class (``n = 1``: 2.7 and 0.36 s, 145 : 72; ``n = 2``: 7.3 and 49.6 s, 48 : 12;
+#: sample (``mu_i/mu_o`` 1 and 5.8) weighted by its share of the grid's designs of that class
+#: (``n = 1``: 2.7 and 0.36 s, 1600 : 710; ``n = 2``: 7.3 and 49.6 s, 439 : 172, ``make run``;
 #: ``bench/harmonics_sample/``, docs/performance.md), each at most the solver's ``time_limit_s``.
-REF_FOLLOW = {1: (2310 / 4079, 1.9), 2: (611 / 4079, 15.8)}
+REF_FOLLOW = {1: (2310 / 4079, 2.0), 2: (611 / 4079, 19.2)}
 #: Seconds of a sweep that do not depend on the number of designs: the imports and the kernels
 #: loaded in the parent, the workers started, each worker's first solve (``configs/smoke.yaml``:
 #: 2 designs of ~0.07 CPU-s each on 2 workers, 3.8 CPU-s for the whole command).
