@@ -220,9 +220,8 @@ class FixedVolumeLinearization:
         B = np.stack([-lin.g, -self.direction()], axis=1)
         C = np.stack([pb.c_V * lin.g, c_x[:n]], axis=1)
         D = np.array([[0.0, 0.0], [float(c_x[n]), float(c_F)]])
-        control = getattr(pb, "control", None)
-        if control is not None:  # the volume equation's dependence on the pressure (the gas)
-            D[0, 0] = pb.c_V * float(control.compliance(float(self.u[-1])))
+        if pb.control is not None:  # the volume equation's dependence on the pressure (the gas)
+            D[0, 0] = pb.c_V * float(pb.control.compliance(float(self.u[-1])))
         s = MultiBorderedSolver(base, B, C, D)
         if not np.all(np.isfinite(s.S)) or abs(np.linalg.det(s.S)) == 0.0:
             return None

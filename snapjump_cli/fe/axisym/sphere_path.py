@@ -56,7 +56,8 @@ __all__ = ["SpherePathProblem", "descend_on_spheres"]
 #: so it steps further and is corrected less than a pressure-volume path (1.2, 10 degrees and 1e-6).
 #: On ``follow_strata`` rows 0, 2, 5, 10, 23 and ``follow_strata_n2`` rows 0, 1, 4, 5 the path took
 #: 18-25 steps and 33-60 Newton iterations with 1.5, 30 degrees and 1e-6, and 9-18 steps and 19-45
-#: with 4, 30 degrees and 1e-4 (growth 2 or 3: a few more), on the same states (docs/performance.md).
+#: with 4, 30 degrees and 1e-4 (growth 2 or 3: a few more), on the same states (``bench.profile.follow``
+#: with these constants changed, a scratch sweep of them; docs/performance.md).
 SPHERE_STEP_GROW = 4.0
 
 
@@ -100,6 +101,9 @@ class SpherePathProblem:
     c_V : weight of the volume equation (force / volume)
     p_floor : floor of the pressure in the residual reference
     """
+
+    #: no other control than the cavity volume (:class:`FixedVolumeLinearization` reads it)
+    control = None
 
     def __init__(self, model, V_star: float, centre: np.ndarray, m: np.ndarray, c_V: float, p_floor: float) -> None:
         self.model, self.V_star, self.c_V, self.p_floor = model, V_star, c_V, p_floor
@@ -171,10 +175,9 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
     if first is None:
         return None, "sphere path: no first state"
     ftr, lin_s = first
-    found, fold, (why, n_steps) = _follow(tracer, ftr, pb, lin_s, W_c, V_c / sV, max_zeros)
-    log.debug("sphere path: %s after %d steps (first state w %.3g, F %.3g; turned back at w %s)", why, n_steps,
-              float(pb.measures(lin_s.u, lin_s.p)[0][0]), lin_s.p,
-              "-" if fold is None else f"{float(fold.zeta[0]) * s_w:.4g}")
+    found, (why, n_steps) = _follow(tracer, ftr, pb, lin_s, W_c, V_c / sV, max_zeros)
+    log.debug("sphere path: %s after %d steps (first state w %.3g, F %.3g)", why, n_steps,
+              float(pb.measures(lin_s.u, lin_s.p)[0][0]), lin_s.p)
     if found is None:
         return None, f"sphere path: {why} after {n_steps} steps"
     lin, it = found
@@ -218,12 +221,11 @@ def _first_state(pb: SpherePathProblem, cfg, s_w: float, starts):
 
 
 def _follow(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: float, V_target: float, max_zeros: int):
-    """Follow the path from its first state ``lin_s``. Returns ``(found, fold, (reason, steps))``:
-    ``found`` ``(linearisation, iterations)`` of the stable state (``None``: none), ``fold`` the path
-    point where ``w`` turned back, else ``None``."""
+    """Follow the path from its first state ``lin_s``. Returns ``(found, (reason, steps))``:
+    ``found`` ``(linearisation, iterations)`` of the stable state (``None``: none)."""
     model = tracer.pb
     s_F = float(ftr.sc[1])
-    state: dict = {"zeros": 0, "found": None, "fold": None}
+    state: dict = {"zeros": 0, "found": None}
 
     def stop(path) -> str | None:
         pts = path.points
@@ -231,7 +233,6 @@ def _follow(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: floa
         if not model.energy(b.u[:-1]) <= W_c + 1e-9 * max(1.0, abs(W_c)):
             return "climbed above the saddle's energy"
         if b.zeta[0] < a.zeta[0]:
-            state["fold"] = a
             return "turned back"
         if not (a.p * b.p < 0.0 or (b.p == 0.0 and a.p != 0.0)):
             return None
@@ -256,6 +257,5 @@ def _follow(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: floa
         start = start_point(ftr, lin_s.u, lin_s.p, t_prev=np.array([1.0, 0.0]))
         path = trace(pb, ftr.cfg, stop, u0=lin_s.u, tracer=ftr, start=start)
     except ContinuationFailed as exc:
-        return None, None, (f"failed ({exc})", 0)
-    steps = len(path.points) - 1
-    return state["found"], state["fold"], (path.stop_reason, steps)
+        return None, (f"failed ({exc})", 0)
+    return state["found"], (path.stop_reason, len(path.points) - 1)

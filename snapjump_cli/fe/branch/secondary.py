@@ -285,9 +285,7 @@ class LeavesBranch:
         self._seen: dict = {}
 
     def __call__(self, pt: PathPoint) -> bool:
-        for u in (pt.u, None if self.signs is None else self.signs * pt.u):
-            if u is None:
-                continue
+        for u in [pt.u] if self.signs is None else [pt.u, self.signs * pt.u]:
             e = extra_eigen(self.full, lift(self.mh, self.full, u), pt.p, self.dofs)
             self.full.release_buffers()
             self._seen[(u.tobytes(), float(pt.p))] = e
