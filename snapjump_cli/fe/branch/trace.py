@@ -230,8 +230,8 @@ FOLLOW_STEP_GROW = 1.2
 #: A branch's first step off its bifurcation starts at ``ds0`` halved this many times: from ``ds0``
 #: Newton failed 6 to 9 times before that step converged on each of the 48 branches of the
 #: ``follow_strata`` and ``follow_strata_n2`` samples (the corrector's basin shrinks towards the
-#: pitchfork; at ``ds0 / 2**7`` on 33 of them, ``ds0 / 2**6`` on 3, down to ``ds0 / 2**9``), each
-#: failure 1-3 assemblies. Starting at the largest step that converged there skips only steps
+#: pitchfork; at ``ds0 / 2**7`` on 33 of them, ``ds0 / 2**6`` on 3, down to ``ds0 / 2**9``; a
+#: scratch count of each branch's first accepted step), each failure 1-3 assemblies. Starting at the largest step that converged there skips only steps
 #: that failed: those 48 branches are traced as before, bit for bit (a branch whose first step
 #: would converge longer now starts shorter).
 FIRST_STEP_HALVINGS = 6

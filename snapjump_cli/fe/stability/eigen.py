@@ -176,9 +176,9 @@ def smallest_eigenvalue(op: HarmonicOperator, u: np.ndarray, p: float, shift: fl
 
 #: ARPACK's Lanczos vectors in :func:`lowest_eigen` (the bifurcation's root finding calls it 5-10
 #: times per followed design): its default (20) spends most of a call in the reverse-communication
-#: loop; with 8 a call takes a third of the CPU and the eigenvalue moves by ~1e-15 ``mu_min / L^2``
-#: (``follow_strata`` row 0 at its bifurcation). Where ARPACK does not converge with them, the
-#: default is used.
+#: loop; with 8 a call took a third of the CPU and the eigenvalue moved by ~1e-15 ``mu_min / L^2``
+#: (``follow_strata`` row 0 at its bifurcation, a scratch timing; the agreement is pinned by
+#: ``tests/unit/test_lowest_eigen.py``). Where ARPACK does not converge with them, the default is used.
 LOWEST_NCV = 8
 
 
