@@ -13,6 +13,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -288,18 +289,33 @@ def solve_checked(
 
 def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool,
                      fluid: FluidSettings | None, fused: bool, short_recheck: bool = False) -> SceneResult:
-    res = _solve_mesh_checked(scene, mesh, solver, check_mesh, fluid, fused, short_recheck)
+    checked: dict = {}  # the harmonic check of a solve, made before the mesh re-check (followed solves)
+
+    def check(res: SceneResult):
+        from snapjump_cli.fe.stability.harmonics import check_harmonics
+
+        if checked.get("result") is not res:
+            t0 = time.perf_counter()
+            checked.update(result=res, check=check_harmonics(res, solver.harmonics), wall=time.perf_counter() - t0)
+        return checked["check"], checked["wall"]
+
+    def goes_asymmetric_first(res: SceneResult) -> str:
+        if res.model is None or res.path is None:
+            return ""
+        h, _ = check(res)
+        return f"not re-checked: harmonic {h.asym_n} goes unstable first (the actuator does not make this snap)" \
+            if h.asym_first else ""
+    skip = goes_asymmetric_first if solver.follow and solver.harmonics > 0 else None
+    res = _solve_mesh_checked(scene, mesh, solver, check_mesh, fluid, fused, short_recheck, skip_recheck=skip)
     m = res.metrics
     m.update({k: None for k in columns(HARMONIC_CHECK)})
     m.update({k: None for k in columns(FOLLOWED)})
     m.update({k: None for k in columns(MARGINS)})
+    if checked and checked["result"] is not res:  # (the check of the solve the re-check replaced)
+        m["wall_s"] = (m.get("wall_s") or 0.0) + checked["wall"]
     if solver.harmonics > 0 and res.model is not None and res.path is not None:
-        from snapjump_cli.fe.stability.harmonics import check_harmonics
-
-        t0 = time.perf_counter()
-        h = check_harmonics(res, solver.harmonics)
+        h, m["asym_wall_s"] = check(res)
         m.update(h.as_row())
-        m["asym_wall_s"] = time.perf_counter() - t0
         m["wall_s"] = (m.get("wall_s") or 0.0) + m["asym_wall_s"]
         if solver.margins:
             from snapjump_cli.fe.stability.margins import path_margins
@@ -317,6 +333,7 @@ def _solve_and_check(scene: Design | CapScene, mesh: MeshSettings, solver: Solve
 def _solve_mesh_checked(
     scene: Design | CapScene, mesh: MeshSettings, solver: SolverSettings, check_mesh: bool,
     fluid: FluidSettings | None = None, fused: bool = True, short_recheck: bool = False,
+    skip_recheck: Callable[[SceneResult], str] | None = None,
 ) -> SceneResult:
     """:func:`solve_scene`, then the mesh check.
 
@@ -329,6 +346,9 @@ def _solve_mesh_checked(
     a re-solved scene the timing keys (``wall_s``, ``mesh_s``, ``t_assembly_s``, ``t_residual_s``,
     ``t_factor_s``, ``t_newton_s``) cover both solves. With ``short_recheck`` the re-check of a
     design whose coarse path went to zero volume stops its trace at the snap (:func:`_short_recheck`).
+    ``skip_recheck(result)``: a reason not to re-solve a suspicious snap (``""``: re-solve it); a
+    followed solve passes the harmonic check, so that the snap of a design that goes asymmetric
+    first, which its actuator does not make, is not re-solved (``mesh_check`` then says so).
 
     Returns
     -------
@@ -345,6 +365,10 @@ def _solve_mesh_checked(
     m.update(mesh_sensitive=False, dE_J_coarse=None, dy_pole_m_coarse=None, mesh_check="")
     why = suspicious_snap(m) if check_mesh else ""
     if not why:
+        return res
+    skip = skip_recheck(res) if skip_recheck is not None else ""
+    if skip:
+        m["mesh_check"] = f"{why}; {skip}"
         return res
     nt = mesh.nt + 1
     # element length along the arc ~ aspect * t / nt: halve it for a near-cusp, keep it otherwise

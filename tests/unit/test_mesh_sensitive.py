@@ -69,3 +69,61 @@ def test_near_cusp_is_resolved_finer_along_the_arc(monkeypatch, fine, sensitive,
     assert m["mesh_sensitive"] is sensitive and m["dE_J"] == fine["dE_J"] and m["dE_J_coarse"] == 2.5e-3
     assert m["mesh_check"].startswith("volume limit at a near-cusp; re-solved at nt=3, aspect=2.25")
     assert ("still a near-cusp" in m["mesh_check"]) is still_cusp
+
+
+class _Check:
+    """A stand-in for the harmonic check's result."""
+
+    def __init__(self, asym_first: bool):
+        self.asym_first, self.asym_n = asym_first, 2 if asym_first else None
+
+    def as_row(self) -> dict:
+        return {"asym_first": self.asym_first, "asym_n": self.asym_n}
+
+
+def _checked(monkeypatch, coarse, fine, asym_first: bool):
+    """solve_scene, the harmonic check and the followed branch faked: returns the lists of the
+    meshes solved, the results checked and the results followed."""
+    import snapjump_cli.fe.branch.followed as followed
+    import snapjump_cli.fe.stability.harmonics as harmonics
+
+    seen, checked, follow = [], [], []
+
+    def fake(scene, mesh, solver, **kw):
+        seen.append(mesh.nt)
+        return solve.SceneResult(metrics=dict(coarse if mesh.nt == 2 else fine), model=object(), path=object())
+
+    def check(res, n):
+        checked.append(res)
+        return _Check(asym_first)
+    monkeypatch.setattr(solve, "solve_scene", fake)
+    monkeypatch.setattr(harmonics, "check_harmonics", check)
+    monkeypatch.setattr(followed, "apply_followed", lambda res, h, N=0, mode="actuator": follow.append(res))
+    return seen, checked, follow
+
+
+def test_a_followed_solve_does_not_recheck_a_snap_its_actuator_does_not_make(monkeypatch):
+    """With the followed branch on, a suspicious snap (here its lower state by descent) of a design
+    that goes asymmetric first is not re-solved on the finer mesh: the harmonic check runs on the
+    sweep's mesh first, once, and the branch is followed there; ``mesh_check`` says why."""
+    seen, checked, follow = _checked(monkeypatch, _m(0.03, 0.019, "descent"), _m(0.0301, 0.019), True)
+    res = solve.solve_checked(get_design("C"), MeshSettings(nt=2), SolverSettings(harmonics=4, follow=True))
+    m = res.metrics
+    assert seen == [2] and checked == [res] and follow == [res]
+    assert m["dE_J"] == 0.03 and m["mesh_sensitive"] is False and m["dE_J_coarse"] is None
+    assert m["mesh_check"] == ("lower state by descent; not re-checked: harmonic 2 goes unstable first "
+                               "(the actuator does not make this snap)")
+    assert m["asym_first"] is True and m["asym_n"] == 2
+
+
+@pytest.mark.parametrize("follow,asym_first", [(True, False), (False, True), (False, False)])
+def test_otherwise_the_suspicious_snap_is_rechecked_and_the_finer_solve_checked(monkeypatch, follow, asym_first):
+    """A design that stays axisymmetric in a followed solve (its axisymmetric snap is the answer),
+    and every design without the followed branch, is re-solved as before; the harmonic check and
+    the branch are those of the finer solve."""
+    seen, checked, followed = _checked(monkeypatch, _m(0.03, 0.019, "descent"), _m(0.0301, 0.019), asym_first)
+    res = solve.solve_checked(get_design("C"), MeshSettings(nt=2), SolverSettings(harmonics=4, follow=follow))
+    m = res.metrics
+    assert seen == [2, 3] and checked[-1] is res and len(checked) == (2 if follow else 1)
+    assert followed == ([res] if follow else [])
+    assert m["dE_J"] == 0.0301 and m["dE_J_coarse"] == 0.03 and m["mesh_check"] == "lower state by descent; re-solved at nt=3"
