@@ -87,13 +87,12 @@ REF_CPU_S_PER_DESIGN = 0.196
 #: The harmonic check (``solver.harmonics``, n <= 4) multiplies a design's CPU by this: 1057
 #: against 800 CPU-s over the same grid.
 REF_CHECK_FACTOR = 1.32
-#: With ``solver.follow``: per critical harmonic, the share of the paper grid's valid designs whose
-#: branch is followed (2310 and 611 of 4079, ``make run``) and the mean seconds of one followed
-#: design of that class on the stratified samples in the default ``follow_mode``, each half of a
-#: sample (``mu_i/mu_o`` 1 and 5.8) weighted by its share of the grid's designs of that class
-#: (``n = 1``: 2.7 and 0.36 s, 1600 : 710; ``n = 2``: 7.3 and 49.6 s, 439 : 172, ``make run``;
-#: ``bench/harmonics_sample/``, docs/performance.md), each at most the solver's ``time_limit_s``.
-REF_FOLLOW = {1: (2310 / 4079, 2.0), 2: (611 / 4079, 19.2)}
+#: With ``solver.follow``: per followed harmonic, the share of the paper grid's valid designs whose
+#: branch is followed (2128 and 787 of 4079) and the mean seconds of one followed design of that
+#: class, both from the grid's own followed run (``make run-followed``; its rows but the re-solves on
+#: a finer mesh that a followed solve no longer makes, two workers on the two cores: wall ~ CPU;
+#: docs/performance.md), each at most the solver's ``time_limit_s``.
+REF_FOLLOW = {1: (2128 / 4079, 2.5), 2: (787 / 4079, 16.3)}
 #: Seconds of a sweep that do not depend on the number of designs: the imports and the kernels
 #: loaded in the parent, the workers started, each worker's first solve (``configs/smoke.yaml``:
 #: 2 designs of ~0.07 CPU-s each on 2 workers, 3.8 CPU-s for the whole command).
