@@ -10,7 +10,7 @@ import pytest
 import bench.profile
 
 #: every module of bench/profile/, plus the bench tools that no make target runs
-TOOLS = ["bench.grid_compare", "bench.followed_fig4", "bench.arbiter"] + [
+TOOLS = ["bench.grid_compare", "bench.followed_fig4", "bench.followed_grid_time", "bench.arbiter"] + [
     f"bench.profile.{m.name}" for m in pkgutil.iter_modules(bench.profile.__path__)]
 
 
@@ -37,3 +37,29 @@ def test_follow_profile_stages_are_library_functions() -> None:
         names |= {n for n, v in vars(mod).items() if callable(v)}
         names |= {n for c in vars(mod).values() if isinstance(c, type) for n in vars(c)}
     assert set(follow.STAGES) <= names, set(follow.STAGES) - names
+
+
+def test_followed_grid_time_leaves_the_re_solved_rows_out_of_the_class_means(tmp_path, capsys) -> None:
+    """The class means without the rows re-solved one mesh finer, the design wall at those means
+    over the grid's rows, and the estimate's mean per harmonic weighted by each class's rows."""
+    import pandas as pd
+
+    from bench import followed_grid_time
+
+    rows = [  # (status, followed, follow_n, mu_ratio, mesh_check, wall_s)
+        ("ok", True, 1, 1.0, "", 2.0), ("ok", True, 1, 1.0, "", 4.0),
+        ("ok", True, 2, 5.8, "", 10.0), ("ok", True, 2, 5.8, "lower state by descent; not re-checked: ...", 30.0),
+        ("ok", True, 2, 5.8, "lower state by descent; re-solved at nt=3", 300.0),
+        ("ok", False, None, 1.0, "", 1.0), ("invalid_geometry", None, None, 1.0, None, 0.0),
+    ]
+    d = pd.DataFrame(rows, columns=["status", "followed", "follow_n", "mu_ratio", "mesh_check", "wall_s"])
+    d["followed"] = d["followed"].astype("boolean")
+    d["follow_n"] = d["follow_n"].astype("Int64")
+    path = tmp_path / "f.parquet"
+    d.to_parquet(path)
+    assert followed_grid_time.main([str(path)]) == 0
+    out = capsys.readouterr().out
+    # n = 2, mu 5.8 without the re-solved row: mean 20 s over its 3 rows; n = 1: 3 s over 2
+    assert "design wall at those class means: 67 s" in out  # 2 x 3 + 3 x 20 + 1 (+ 0)
+    assert "REF_FOLLOW[1]: share 2 / 6, mean wall 3.00 s" in out
+    assert "REF_FOLLOW[2]: share 3 / 6, mean wall 20.00 s" in out
