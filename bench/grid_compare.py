@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     for label, df in (("old", old), ("new", new)):
         v = df[df["status"] == "ok"]
         w = v["wall_s"].astype(float)
-        line = (f"{label}: CPU per valid design mean {w.mean():.3f} s, p50 {w.median():.3f}, p90 {w.quantile(0.9):.3f}, "
+        line = (f"{label}: wall per valid design (its wall_s) mean {w.mean():.3f} s, p50 {w.median():.3f}, p90 {w.quantile(0.9):.3f}, "
                 f"max {w.max():.2f}; {int((w > 3).sum())} over 3 s; sum {w.sum():.0f} s")
         for meth, g in v.groupby(v["lower_state_method"].astype(str)):
             gw = g["wall_s"].astype(float)
