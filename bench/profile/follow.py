@@ -1,7 +1,8 @@
 """Per-design CPU profile of a followed branch (issue 36: where the followed designs' time goes).
 
     .venv/bin/python -m bench.profile.follow [SCENE ...] [--N N] [--mode actuator|full] [--cprofile [K]]
-                                             [--landing] [--compare] [--condensed] [--json PATH]
+                                             [--landing] [--compare] [--compare-lower-landing]
+                                             [--condensed] [--json PATH]
     .venv/bin/python -m bench.profile.follow --sample bench/harmonics_sample/follow_strata.yaml \\
         --rows 0 1 2 [--cprofile]
 
@@ -124,12 +125,34 @@ def landing(res, n: int, N: int, fr) -> dict[str, Any]:
 def compare_modes(res, chk, N: int, mode: str, out: dict, fr) -> dict[str, Any]:
     """The ``--compare`` figures: the other follow mode's answer on the same solve against this
     mode's ``out`` (its values) and ``fr`` (its branch)."""
-    import numpy as np
-
     other = "full" if mode == "actuator" else "actuator"
     t0 = time.process_time()
     ans = followed_metrics(res, chk, N=N or None, mode=other)
     cpu = time.process_time() - t0
+    return answer_diff(other, cpu, out, fr, ans)
+
+
+def compare_lower_landing(res, chk, N: int, mode: str, out: dict, fr) -> dict[str, Any]:
+    """The ``--compare-lower-landing`` figures: the same mode without the axisymmetric lower state
+    as a landing candidate (``snapjump_cli.fe.branch.trace.axisym_lower_landing`` giving nothing: the
+    sphere path, the branch traced, the search at fixed volume) against ``out``/``fr``."""
+    from snapjump_cli.fe.branch import trace
+
+    t0 = time.process_time()
+    keep = trace.axisym_lower_landing
+    trace.axisym_lower_landing = lambda *a, **k: None
+    try:
+        ans = followed_metrics(res, chk, N=N or None, mode=mode)
+    finally:
+        trace.axisym_lower_landing = keep
+    return answer_diff(f"{mode} without the axisymmetric lower state", time.process_time() - t0, out, fr, ans)
+
+
+def answer_diff(other: str, cpu: float, out: dict, fr, ans) -> dict[str, Any]:
+    """The answer values of ``ans`` (a ``followed_metrics`` answer, computed in ``cpu`` CPU-s) that
+    differ from ``out`` and the distance between the two lower states (relative to ``fr``'s)."""
+    import numpy as np
+
     keys = [k for k in set(out) | set(ans.values) if k not in ("follow_wall_s", "follow_note")]
     same = [k for k in keys if out.get(k) == ans.values.get(k) or (
         isinstance(out.get(k), float) and isinstance(ans.values.get(k), float)
@@ -145,7 +168,7 @@ def compare_modes(res, chk, N: int, mode: str, out: dict, fr) -> dict[str, Any]:
 
 
 def profile_one(label: str, scene, mesh, solver, N: int, mode: str, top: int | None, with_landing: bool,
-                compare: bool = False) -> dict:
+                compare: bool = False, compare_lower: bool = False) -> dict:
     """Profile one design (steps 1-5 of the module's docstring); returns the numbers."""
     t0 = time.process_time()
     res = solve_scene(scene, mesh, solver)
@@ -194,6 +217,8 @@ def profile_one(label: str, scene, mesh, solver, N: int, mode: str, top: int | N
         row["landing"] = landing(res, n, N, fr)
     if compare and fr is not None:
         row["compare"] = compare_modes(res, chk, N, mode, out, fr)
+    if compare_lower and fr is not None:
+        row["compare_lower_landing"] = compare_lower_landing(res, chk, N, mode, out, fr)
     return row
 
 
@@ -214,6 +239,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mode", choices=("actuator", "full"), default="actuator", help="solver.follow_mode")
     ap.add_argument("--compare", action="store_true",
                     help="also solve with the other follow mode: its CPU, the answer values that differ, the lower states' distance")
+    ap.add_argument("--compare-lower-landing", action="store_true",
+                    help="also solve without the axisymmetric lower state as a landing candidate "
+                         "(trace.axisym_lower_landing): its CPU, the answer values that differ, the lower states' distance")
     ap.add_argument("--landing", action="store_true",
                     help="also stop the branch at its upper state and search the landing state at fixed volume")
     ap.add_argument("--cprofile", type=int, nargs="?", const=15, default=None, metavar="K",
@@ -232,7 +260,7 @@ def main(argv: list[str] | None = None) -> int:
           "| kind | dE_J | note |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for label, scene, mesh, solver in scenes(a.scenes, a.sample, a.rows):
-        r = profile_one(label, scene, mesh, solver, a.N, a.mode, a.cprofile, a.landing, a.compare)
+        r = profile_one(label, scene, mesh, solver, a.N, a.mode, a.cprofile, a.landing, a.compare, a.compare_lower_landing)
         rows.append(r)
         print(f"| {label} | {_fmt(r.get('asym_n'))} | {r['cpu_axisym_check_first_s']:.3f} / "
               f"{r['cpu_axisym_check_s']:.3f} | {_fmt(r.get('cpu_followed_s'))} | {_fmt(r.get('ratio'))} "
@@ -246,10 +274,12 @@ def main(argv: list[str] | None = None) -> int:
                   f"{b['lower'] or '-'} {b['lower_note'] or ''}")
         if "landing" in r:
             print(f"{r['design']}: landing from the upper state: {r['landing']}")
-        if "compare" in r:
-            c = r["compare"]
+        for key in ("compare", "compare_lower_landing"):
+            if key not in r:
+                continue
+            c = r[key]
             print(f"{r['design']}: --mode {c['mode']} {c['cpu_s']:.3g} CPU-s ({c['cpu_s'] / r['cpu_followed_s']:.2f}x this "
-                  f"mode's); {len(c['differ'])} of {c['values']} answer values differ {c['differ'] or ''} "
+                  f"solve's); {len(c['differ'])} of {c['values']} answer values differ {c['differ'] or ''} "
                   f"(largest relative difference {c['largest_rel_diff']:.2g}); "
                   f"lower states' distance {c.get('landing_distance', float('nan')):.2g}")
     for r in rows:

@@ -29,6 +29,12 @@ __all__ = ["branch_curve", "pole_height", "ground_height", "multiharmonic_snap_m
 AXISYM_LANDING = "the axisymmetric path's state at that volume beyond its snap, stable with every harmonic kept"
 
 
+#: The note of a lower state that is the axisymmetric solve's own lower state, found off its path, brought to the
+#: branch's volume (:func:`snapjump_cli.fe.branch.trace.axisym_lower_landing`).
+AXISYM_LOWER_LANDING = ("the axisymmetric lower state (found off the path) brought to that volume, stable with every "
+                        "harmonic kept")
+
+
 def branch_curve(fr: FollowResult) -> dict:
     """The followed branch in SI units for plots: ``V_m3``, ``p_Pa`` per traced point (from the
     bifurcation; for a branch that left another at a secondary bifurcation, that branch up to it

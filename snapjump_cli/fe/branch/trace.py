@@ -36,7 +36,7 @@ from snapjump_cli.fe.axisym.lower_state import LowerState, constrained_instabili
 from snapjump_cli.fe.axisym.snap import SnapStates, SnapTracker
 from snapjump_cli.fe.branch.bifurcation import Bifurcation, default_harmonics, harmonic1_gauge
 from snapjump_cli.fe.branch.landing import land_from_bifurcation
-from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, multiharmonic_snap_metrics
+from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, AXISYM_LOWER_LANDING, multiharmonic_snap_metrics
 from snapjump_cli.fe.branch.model import MultiHarmonicModel
 from snapjump_cli.fe.continuation import ContinuationFailed, Path, PathPoint, Tracer, start_point, trace
 
@@ -45,7 +45,7 @@ log = logging.getLogger(__name__)
 __all__ = ["FoldJump", "FollowResult", "BranchTracker", "MICRO_FOLD_DE", "REJOIN_FRAC", "FOLLOW_STEP_GROW",
            "FIRST_STEP_HALVINGS", "PROBE_HALVINGS",
            "MAX_RESTARTS", "ThroughFolds", "trace_through_micro_folds", "tracker_bounds", "micro_energy",
-           "follow_branch", "trace_branch", "axisym_crossings", "UNSTABLE_OUTSIDE", "axisym_state_at", "axisym_landing", "branch_metrics", "REJOINED",
+           "follow_branch", "trace_branch", "axisym_crossings", "UNSTABLE_OUTSIDE", "axisym_state_at", "axisym_landing", "axisym_lower_landing", "branch_metrics", "REJOINED",
            "LANDINGS"]
 
 
@@ -506,6 +506,8 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         if tracker.kind == "subcritical" and st.upper is not None:
             if landing == "axisymmetric first":
                 alt, note = axisym_landing(result, mh, tr, st.upper), AXISYM_LANDING
+                if alt is None:  # the axisymmetric lower state, where the path does not come back to that volume
+                    alt, note = axisym_lower_landing(result, mh, tr, st.upper), AXISYM_LOWER_LANDING
                 if alt is None:  # the state the sphere path reaches from the bifurcation, if any
                     alt, note = land_from_bifurcation(tr, st.upper, descent=False)
             else:
@@ -597,16 +599,58 @@ def axisym_landing(result, mh: MultiHarmonicModel, tr: Tracer, upper: PathPoint)
     for _, q in axisym_crossings(result, V, beyond_snap=True):
         if q is None:
             continue
-        res = tr.correct(mh.embed(q.u), q.p, None, None, 0.0, target=(0, V))
-        if res is None:
-            continue
-        lin, it = res
-        E = mh.energy(lin.u)
-        if E >= E_best or constrained_instability(tr, lin) != 0:
-            continue
-        t, v, qq, z = tr.tangent(lin, (upper.tangent, tr.alpha * upper.du_ds))
-        best, E_best = PathPoint(lin.u, lin.p, z, t, v, qq, float("nan"), it), E
+        pt, E = _stable_below(mh, tr, upper, q.u, float(q.p), E_best)
+        if pt is not None:
+            best, E_best = pt, E
     return best
+
+
+#: :func:`axisym_lower_landing`: the axisymmetric lower state is brought to the branch's volume in
+#: this many equal volume steps of Newton at fixed volume (the first count that converges).
+LOWER_STATE_SUBSTEPS = (1, 4)
+
+
+def axisym_lower_landing(result, mh: MultiHarmonicModel, tr: Tracer, upper: PathPoint) -> PathPoint | None:
+    """The axisymmetric solve's own lower state, where it was found off the axisymmetric path (by
+    the energy descent: the path does not come back to its volume limit, so :func:`axisym_landing`
+    has no crossing to polish), brought to the volume of ``upper`` by Newton at fixed volume in the
+    axisymmetric model (:data:`LOWER_STATE_SUBSTEPS`), polished in ``mh`` and returned if it is
+    stable under volume control with every harmonic of ``mh`` and below ``upper``'s energy; else
+    ``None``. It is the axisymmetric inverted state at that volume, as :func:`axisym_landing`'s;
+    on the designs whose bifurcation lies within 0.3 % of the axisymmetric volume limit it is the
+    state the energy descent from the bifurcation comes to rest on (docs/harmonics.md, section 10.8)."""
+    st0 = result.states
+    if st0 is None or st0.lower is None or st0.lower_method != "descent":
+        return None
+    V = float(upper.zeta[0])
+    low = st0.lower
+    V0 = float(low.zeta[0])
+    for k in LOWER_STATE_SUBSTEPS:
+        u, p = low.u.copy(), float(low.p)
+        for j in range(1, k + 1):
+            res = result.tracer.correct(u, p, None, None, 0.0, target=(0, V0 + (V - V0) * j / k))
+            if res is None:
+                break
+            u, p = np.array(res[0].u, dtype=float), float(res[0].p)
+        else:
+            return _stable_below(mh, tr, upper, u, p, mh.energy(upper.u))[0]
+    return None
+
+
+def _stable_below(mh: MultiHarmonicModel, tr: Tracer, upper: PathPoint, u_axi: np.ndarray, p: float,
+                  E_max: float) -> tuple[PathPoint | None, float]:
+    """The axisymmetric state ``(u_axi, p)`` polished at ``upper``'s volume in ``mh`` (by ``tr``), as a
+    point oriented by ``upper``'s tangent, with its energy, if that is below ``E_max`` and the state
+    is stable under volume control with every harmonic of ``mh``; else ``(None, nan)``."""
+    res = tr.correct(mh.embed(u_axi), p, None, None, 0.0, target=(0, float(upper.zeta[0])))
+    if res is None:
+        return None, math.nan
+    lin, it = res
+    E = mh.energy(lin.u)
+    if E >= E_max or constrained_instability(tr, lin) != 0:
+        return None, math.nan
+    t, v, qq, z = tr.tangent(lin, (upper.tangent, tr.alpha * upper.du_ds))
+    return PathPoint(lin.u, lin.p, z, t, v, qq, float("nan"), it), E
 
 
 def branch_metrics(fr: FollowResult, sc: np.ndarray) -> dict:
