@@ -1,7 +1,7 @@
 """Per-design CPU profile of a followed branch (issue 36: where the followed designs' time goes).
 
     .venv/bin/python -m bench.profile.follow [SCENE ...] [--N N] [--mode actuator|full] [--cprofile [K]]
-                                             [--landing] [--compare] [--compare-lower-landing]
+                                             [--landing] [--compare] [--compare-axisym-first]
                                              [--condensed] [--json PATH]
     .venv/bin/python -m bench.profile.follow --sample bench/harmonics_sample/follow_strata.yaml \\
         --rows 0 1 2 [--cprofile]
@@ -132,20 +132,22 @@ def compare_modes(res, chk, N: int, mode: str, out: dict, fr) -> dict[str, Any]:
     return answer_diff(other, cpu, out, fr, ans)
 
 
-def compare_lower_landing(res, chk, N: int, mode: str, out: dict, fr) -> dict[str, Any]:
-    """The ``--compare-lower-landing`` figures: the same mode without the axisymmetric lower state
-    as a landing candidate (``snapjump_cli.fe.branch.trace.axisym_lower_landing`` giving nothing: the
-    sphere path, the branch traced, the search at fixed volume) against ``out``/``fr``."""
+def compare_axisym_first(res, chk, N: int, mode: str, out: dict, fr) -> dict[str, Any]:
+    """The ``--compare-axisym-first`` figures: the same mode without the axisymmetric inverted state
+    taken first where the axisymmetric path has no crossing to polish (``trace.axisym_lower_landing``
+    giving nothing: the sphere path, the branch traced, the search at fixed volume) and where the
+    sphere path gives up on an ``n_c >= 2`` landing (``trace.AXISYM_BEFORE_DESCENT = False``: the
+    descent), against ``out``/``fr``."""
     from snapjump_cli.fe.branch import trace
 
     t0 = time.process_time()
-    keep = trace.axisym_lower_landing
-    trace.axisym_lower_landing = lambda *a, **k: None
+    keep = trace.axisym_lower_landing, trace.AXISYM_BEFORE_DESCENT
+    trace.axisym_lower_landing, trace.AXISYM_BEFORE_DESCENT = (lambda *a, **k: None), False
     try:
         ans = followed_metrics(res, chk, N=N or None, mode=mode)
     finally:
-        trace.axisym_lower_landing = keep
-    return answer_diff(f"{mode} without the axisymmetric lower state", time.process_time() - t0, out, fr, ans)
+        trace.axisym_lower_landing, trace.AXISYM_BEFORE_DESCENT = keep
+    return answer_diff(f"{mode} without the axisymmetric state first", time.process_time() - t0, out, fr, ans)
 
 
 def answer_diff(other: str, cpu: float, out: dict, fr, ans) -> dict[str, Any]:
@@ -168,7 +170,7 @@ def answer_diff(other: str, cpu: float, out: dict, fr, ans) -> dict[str, Any]:
 
 
 def profile_one(label: str, scene, mesh, solver, N: int, mode: str, top: int | None, with_landing: bool,
-                compare: bool = False, compare_lower: bool = False) -> dict:
+                compare: bool = False, compare_axisym: bool = False) -> dict:
     """Profile one design (steps 1-5 of the module's docstring); returns the numbers."""
     t0 = time.process_time()
     res = solve_scene(scene, mesh, solver)
@@ -217,8 +219,8 @@ def profile_one(label: str, scene, mesh, solver, N: int, mode: str, top: int | N
         row["landing"] = landing(res, n, N, fr)
     if compare and fr is not None:
         row["compare"] = compare_modes(res, chk, N, mode, out, fr)
-    if compare_lower and fr is not None:
-        row["compare_lower_landing"] = compare_lower_landing(res, chk, N, mode, out, fr)
+    if compare_axisym and fr is not None:
+        row["compare_axisym_first"] = compare_axisym_first(res, chk, N, mode, out, fr)
     return row
 
 
@@ -239,9 +241,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mode", choices=("actuator", "full"), default="actuator", help="solver.follow_mode")
     ap.add_argument("--compare", action="store_true",
                     help="also solve with the other follow mode: its CPU, the answer values that differ, the lower states' distance")
-    ap.add_argument("--compare-lower-landing", action="store_true",
-                    help="also solve without the axisymmetric lower state as a landing candidate "
-                         "(trace.axisym_lower_landing): its CPU, the answer values that differ, the lower states' distance")
+    ap.add_argument("--compare-axisym-first", action="store_true",
+                    help="also solve without the axisymmetric inverted state taken first (trace.axisym_lower_landing, "
+                         "trace.AXISYM_BEFORE_DESCENT): its CPU, the answer values that differ, the lower states' distance")
     ap.add_argument("--landing", action="store_true",
                     help="also stop the branch at its upper state and search the landing state at fixed volume")
     ap.add_argument("--cprofile", type=int, nargs="?", const=15, default=None, metavar="K",
@@ -260,7 +262,7 @@ def main(argv: list[str] | None = None) -> int:
           "| kind | dE_J | note |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for label, scene, mesh, solver in scenes(a.scenes, a.sample, a.rows):
-        r = profile_one(label, scene, mesh, solver, a.N, a.mode, a.cprofile, a.landing, a.compare, a.compare_lower_landing)
+        r = profile_one(label, scene, mesh, solver, a.N, a.mode, a.cprofile, a.landing, a.compare, a.compare_axisym_first)
         rows.append(r)
         print(f"| {label} | {_fmt(r.get('asym_n'))} | {r['cpu_axisym_check_first_s']:.3f} / "
               f"{r['cpu_axisym_check_s']:.3f} | {_fmt(r.get('cpu_followed_s'))} | {_fmt(r.get('ratio'))} "
@@ -274,7 +276,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"{b['lower'] or '-'} {b['lower_note'] or ''}")
         if "landing" in r:
             print(f"{r['design']}: landing from the upper state: {r['landing']}")
-        for key in ("compare", "compare_lower_landing"):
+        for key in ("compare", "compare_axisym_first"):
             if key not in r:
                 continue
             c = r[key]

@@ -134,13 +134,17 @@ def test_the_search_without_the_fixed_volume_path_is_the_references_descent(answ
     assert calls == [(ref.tracer, ref.states.upper, None)]  # the reference's first descent: from the upper state
 
 
-def test_the_descent_first_falls_back_on_the_references_descent_without_the_branch(design, answers):
+def test_the_descent_first_falls_back_on_the_references_descent_without_the_branch(design, answers, monkeypatch):
     """``landing="descent first"`` (the actuator mode's landing of a subcritical secondary branch):
     after the branch's first step shows it subcritical, the state reached from the bifurcation at
     its volume (snapjump_cli.fe.branch.landing), and no more of the branch. Here the minima on the
     spheres around the bifurcation turn back before any is an equilibrium, the sphere path gives
-    up, and the fallback is the descent from the bifurcation that the reference's search ends in: the very
-    same state, bit for bit."""
+    up, and (without the axisymmetric inverted state taken first: the next test) the fallback is
+    the descent from the bifurcation that the reference's search ends in: the very same state, bit
+    for bit."""
+    import snapjump_cli.fe.branch.trace as trace
+
+    monkeypatch.setattr(trace, "AXISYM_BEFORE_DESCENT", False)
     res, chk = design
     ref = answers[1].branch
     fr = follow_branch(res, locate_bifurcation(res, 1), default_harmonics(1), landing="descent first",
@@ -152,6 +156,22 @@ def test_the_descent_first_falls_back_on_the_references_descent_without_the_bran
     assert np.array_equal(fr.states.lower.u, ref.states.lower.u) and fr.states.lower.p == ref.states.lower.p
     for k in ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa"):
         assert fr.metrics[k] == ref.metrics[k], k
+
+
+def test_the_descent_first_takes_the_axisymmetric_inverted_state_before_the_descent(design, answers):
+    """Where the sphere path gives up, ``landing="descent first"`` takes the axisymmetric inverted
+    state at the bifurcation's volume (stable with every harmonic) before descending: the state the
+    reference's descent comes to rest on, to round-off, without the descent."""
+    res, chk = design
+    ref = answers[1].branch
+    fr = follow_branch(res, locate_bifurcation(res, 1), default_harmonics(1), landing="descent first",
+                       volume_path=False)
+    assert fr.kind == "subcritical" and len(fr.path.points) == 2
+    sphere, axisym = fr.lower_note.split("; ")
+    assert sphere.startswith("sphere path: turned back") and axisym == AXISYM_LANDING, fr.lower_note
+    assert np.linalg.norm(fr.states.lower.u - ref.states.lower.u) < 1e-10 * np.linalg.norm(ref.states.lower.u)
+    for k in ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa"):
+        assert fr.metrics[k] == pytest.approx(ref.metrics[k], rel=1e-9), k
 
 
 def test_the_lumped_mass_is_positive_and_halved_for_n_ge_1(answers):

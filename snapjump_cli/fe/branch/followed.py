@@ -202,9 +202,11 @@ def record_secondary(fs: FollowResult, chk, sec, n: int) -> str:
     if fs.kind == "jump":
         plane = f" (symmetric about phi = pi/{n})" if getattr(fs.parent, "turned", False) else ""
         how = {"volume-path": "fixed-volume path", "sphere-path": "sphere path"}.get(fs.lower_solver, "energy descent")
+        to = (f"the axisymmetric inverted state, stable with every harmonic 0-{chk.N}"
+              if fs.lower_solver == "axisymmetric path" else f"a state with every harmonic 0-{chk.N} ({how})")
         return (f"the branch of harmonic {n} folds at V = {fs.metrics.get('V_star_m3') or math.nan:.4g} m^3 and "
                 f"the state it jumps to on the branch is unstable in harmonic {sec.n}{plane}: the jump goes on, at "
-                f"that volume, to a state with every harmonic 0-{chk.N} ({how})")
+                f"that volume, to {to}")
     plane = f" (symmetric about phi = pi/{n})" if getattr(fs.parent, "turned", False) else ""
     return (f"the branch of harmonic {n} loses stability to harmonic {sec.n}{plane} at V = {sec.V_m3:.4g} m^3, "
             f"before its own snap: the branch that leaves it there is traced with harmonics 0-{chk.N}")

@@ -30,7 +30,9 @@ from snapjump_cli.fe.axisym.snap import SnapStates, root_on_step
 from snapjump_cli.fe.branch.bifurcation import harmonic1_gauge
 from snapjump_cli.fe.branch.landing import kick_along
 from snapjump_cli.fe.branch.model import MultiHarmonicModel, component_index, transfer
-from snapjump_cli.fe.branch.trace import FollowResult, branch_metrics, trace_branch
+from snapjump_cli.fe.branch import trace as branch_trace
+from snapjump_cli.fe.branch.trace import (MICRO_FOLD_DE, FollowResult, axisym_inverted_state, branch_metrics,
+                                          micro_energy, trace_branch)
 from snapjump_cli.fe.continuation import Path, PathPoint, Tracer
 from snapjump_cli.fe.stability.eigen import extra_eigen
 
@@ -579,6 +581,13 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     if volume_path and fr.bif.n % 2 == 0:
         at_L = PathPoint(L, land.p, tr.zeta(L, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)
         low, msg = descend_on_spheres(tr, upper, at_L, mode)  # (the other way: its mirror image)
+    if low is None and branch_trace.AXISYM_BEFORE_DESCENT:
+        # the axisymmetric inverted state at the fold's volume, if it is stable with every harmonic
+        # (where the sphere path gives up: on follow_strata_n2 row 3 the descent comes to rest there)
+        alt, note = axisym_inverted_state(result, full, tr, upper)
+        if alt is not None and full.energy(upper.u) - full.energy(alt.u) >= micro_energy(result, MICRO_FOLD_DE):
+            low, solver = alt, "axisymmetric path"
+            msg = "; ".join(x for x in (msg, note) if x)
     if low is None:
         solver = "energy-descent"
         start = PathPoint(L + mode, land.p, tr.zeta(L + mode, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)

@@ -35,6 +35,7 @@ import numpy as np
 from snapjump_cli.fe.axisym.lower_state import LowerState, constrained_instability, find_lower_state
 from snapjump_cli.fe.axisym.snap import SnapStates, SnapTracker
 from snapjump_cli.fe.branch.bifurcation import Bifurcation, default_harmonics, harmonic1_gauge
+from snapjump_cli.fe.branch.coarse import descend_coarse_to_fine
 from snapjump_cli.fe.branch.landing import land_from_bifurcation
 from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, AXISYM_LOWER_LANDING, multiharmonic_snap_metrics
 from snapjump_cli.fe.branch.model import MultiHarmonicModel
@@ -45,7 +46,7 @@ log = logging.getLogger(__name__)
 __all__ = ["FoldJump", "FollowResult", "BranchTracker", "MICRO_FOLD_DE", "REJOIN_FRAC", "FOLLOW_STEP_GROW",
            "FIRST_STEP_HALVINGS", "PROBE_HALVINGS",
            "MAX_RESTARTS", "ThroughFolds", "trace_through_micro_folds", "tracker_bounds", "micro_energy",
-           "follow_branch", "trace_branch", "axisym_crossings", "UNSTABLE_OUTSIDE", "axisym_state_at", "axisym_landing", "axisym_lower_landing", "branch_metrics", "REJOINED",
+           "follow_branch", "trace_branch", "axisym_crossings", "UNSTABLE_OUTSIDE", "axisym_state_at", "axisym_landing", "axisym_lower_landing", "axisym_inverted_state", "AXISYM_BEFORE_DESCENT", "branch_metrics", "REJOINED",
            "LANDINGS"]
 
 
@@ -505,13 +506,17 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         st = tracker.states
         if tracker.kind == "subcritical" and st.upper is not None:
             if landing == "axisymmetric first":
-                alt, note = axisym_landing(result, mh, tr, st.upper), AXISYM_LANDING
-                if alt is None:  # the axisymmetric lower state, where the path does not come back to that volume
-                    alt, note = axisym_lower_landing(result, mh, tr, st.upper), AXISYM_LOWER_LANDING
+                alt, note = axisym_inverted_state(result, mh, tr, st.upper)
                 if alt is None:  # the state the sphere path reaches from the bifurcation, if any
                     alt, note = land_from_bifurcation(tr, st.upper, descent=False)
             else:
-                alt, note = land_from_bifurcation(tr, st.upper)
+                alt, note = land_from_bifurcation(tr, st.upper, descent=False)
+                if alt is None and AXISYM_BEFORE_DESCENT:  # the axisymmetric inverted state, if stable
+                    alt, note_a = axisym_inverted_state(result, mh, tr, st.upper)
+                    note = "; ".join(x for x in (note, note_a) if x)
+                if alt is None:
+                    alt, note_d = descend_coarse_to_fine(tr, st.upper)
+                    note = "; ".join(x for x in (note, note_d) if x)
             if alt is not None and mh.energy(st.upper.u) - mh.energy(alt.u) >= micro_dE:
                 st.lower, st.lower_method = alt, "descent"
                 fr = FollowResult(bif, mh, path, st, tr, "subcritical", "subcritical", lower_method="descent",
@@ -603,6 +608,23 @@ def axisym_landing(result, mh: MultiHarmonicModel, tr: Tracer, upper: PathPoint)
         if pt is not None:
             best, E_best = pt, E
     return best
+
+
+def axisym_inverted_state(result, mh: MultiHarmonicModel, tr: Tracer, upper: PathPoint) -> tuple[PathPoint | None, str]:
+    """The axisymmetric inverted state at ``upper``'s volume, stable with every harmonic of ``mh``
+    and below ``upper``: :func:`axisym_landing`, else :func:`axisym_lower_landing`. Returns
+    ``(state, note)`` (the note for ``follow_note``), ``(None, "")`` if neither gives one."""
+    alt = axisym_landing(result, mh, tr, upper)
+    if alt is not None:
+        return alt, AXISYM_LANDING
+    alt = axisym_lower_landing(result, mh, tr, upper)
+    return (alt, AXISYM_LOWER_LANDING) if alt is not None else (None, "")
+
+
+#: Where the sphere path finds no landing of a secondary branch or of a jump off a branch (a branch of
+#: ``n_c >= 2``), take :func:`axisym_inverted_state` before the energy descent (``False``: the descent,
+#: as before; a switch for measurements).
+AXISYM_BEFORE_DESCENT = True
 
 
 #: :func:`axisym_lower_landing`: the axisymmetric lower state is brought to the branch's volume in
