@@ -137,16 +137,18 @@ def compare_axisym_first(res, chk, N: int, mode: str, out: dict, fr) -> dict[str
     taken first where the axisymmetric path has no crossing to polish (``trace.axisym_lower_landing``
     giving nothing: the sphere path, the branch traced, the search at fixed volume) and where the
     sphere path gives up on an ``n_c >= 2`` landing (``trace.AXISYM_BEFORE_DESCENT = False``: the
-    descent), against ``out``/``fr``."""
-    from snapjump_cli.fe.branch import trace
+    descent) or a branch of ``n_c >= 2`` is subcritical (``followed.AXISYM_FIRST_ALL = False``: the
+    branch traced and searched), against ``out``/``fr``."""
+    from snapjump_cli.fe.branch import followed, trace
 
     t0 = time.process_time()
-    keep = trace.axisym_lower_landing, trace.AXISYM_BEFORE_DESCENT
-    trace.axisym_lower_landing, trace.AXISYM_BEFORE_DESCENT = (lambda *a, **k: None), False
+    keep = trace.axisym_lower_landing, trace.AXISYM_BEFORE_DESCENT, followed.AXISYM_FIRST_ALL
+    trace.axisym_lower_landing, trace.AXISYM_BEFORE_DESCENT, followed.AXISYM_FIRST_ALL = (
+        (lambda *a, **k: None), False, False)
     try:
         ans = followed_metrics(res, chk, N=N or None, mode=mode)
     finally:
-        trace.axisym_lower_landing, trace.AXISYM_BEFORE_DESCENT = keep
+        trace.axisym_lower_landing, trace.AXISYM_BEFORE_DESCENT, followed.AXISYM_FIRST_ALL = keep
     return answer_diff(f"{mode} without the axisymmetric state first", time.process_time() - t0, out, fr, ans)
 
 
@@ -243,7 +245,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="also solve with the other follow mode: its CPU, the answer values that differ, the lower states' distance")
     ap.add_argument("--compare-axisym-first", action="store_true",
                     help="also solve without the axisymmetric inverted state taken first (trace.axisym_lower_landing, "
-                         "trace.AXISYM_BEFORE_DESCENT): its CPU, the answer values that differ, the lower states' distance")
+                         "trace.AXISYM_BEFORE_DESCENT, followed.AXISYM_FIRST_ALL): its CPU, the answer values that differ, the lower states' distance")
     ap.add_argument("--landing", action="store_true",
                     help="also stop the branch at its upper state and search the landing state at fixed volume")
     ap.add_argument("--cprofile", type=int, nargs="?", const=15, default=None, metavar="K",

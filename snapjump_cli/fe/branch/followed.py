@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from snapjump_cli.fe.branch.bifurcation import default_harmonics, first_bifurcation, locate_bifurcation
-from snapjump_cli.fe.branch.secondary import follow_secondary, leaves_branch, stability_watch
+from snapjump_cli.fe.branch.secondary import follow_secondary, full_model, leaves_branch, stability_watch
 from snapjump_cli.fe.branch.trace import MICRO_FOLD_DE, UNSTABLE_OUTSIDE, FollowResult, follow_branch
 from snapjump_cli.fe.limits import TimeLimitExceeded
 from snapjump_cli.schema import FOLLOWED, keys
@@ -24,13 +24,19 @@ from snapjump_cli.schema import FOLLOWED, keys
 if TYPE_CHECKING:
     from snapjump_cli.fe.stability.harmonics import HarmonicCheck
 
-__all__ = ["FOLLOW_MODES", "first_secondary", "record_secondary", "FOLLOW_KEYS", "REPLACED_KEYS",
+__all__ = ["FOLLOW_MODES", "AXISYM_FIRST_ALL", "first_secondary", "record_secondary", "FOLLOW_KEYS", "REPLACED_KEYS",
            "FollowedAnswer", "axisym_answer", "followed_metrics", "leave_at_secondary", "apply_followed"]
 
 #: How a branch is followed (:func:`followed_metrics`): ``"actuator"`` (the default: only the
 #: states the actuator passes through before a secondary bifurcation are traced) or ``"full"``
 #: (the reference: the whole branch to its snap, then the check).
 FOLLOW_MODES: tuple[str, ...] = ("actuator", "full")
+
+#: The actuator mode lands a subcritical branch of ``n_c >= 2`` that loses no stability outside its
+#: harmonics first on the axisymmetric inverted state at its bifurcation's volume, where that state
+#: is stable with every harmonic ``0..N`` (``False``: the branch traced and searched as the
+#: reference; a switch for measurements).
+AXISYM_FIRST_ALL = True
 
 #: Keys :func:`followed_metrics` adds to a design's metrics (SI units): the followed stage's keys
 #: of :data:`snapjump_cli.schema.FOLLOWED`, columns and diagnostics.
@@ -126,6 +132,8 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
     hn = default_harmonics(n, N)
     # (a branch of n_c >= 2 keeps only multiples of n_c: a state stable there may not be stable)
     landing = "axisymmetric first" if mode == "actuator" and len(hn) > 1 and int(hn[1]) == 1 else "search"
+    # a branch of n_c >= 2: the axisymmetric inverted state first too, checked with every harmonic
+    even_first = mode == "actuator" and secondary and AXISYM_FIRST_ALL and len(hn) > 1 and int(hn[1]) > 1
     vp = mode == "full"  # the actuator mode searches by the energy descent alone (section 10.8)
     # a subcritical secondary branch: the actuator mode descends from its bifurcation before tracing it
     # a jump off a branch of n_c >= 2: the actuator mode lands it by the sphere path first
@@ -139,7 +147,12 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
         # the actuator mode does not trace a branch of n_c >= 2 on past a micro-fold whose landing it
         # leaves at once (unstable outside the branch: the jump goes on, leave_at_secondary)
         settle = leaves_branch(u_axi=bif.u) if checked else None
-        fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp, settle=settle)
+        if even_first:
+            landing, check = "axisymmetric first", (lambda mh: full_model(mh, None, bif.u))
+        else:
+            check = None
+        fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp, settle=settle,
+                           landing_check=check)
         if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:
             fr, note_sec = leave_at_secondary(result, fr, **sec_kw)
     fm = fr.metrics

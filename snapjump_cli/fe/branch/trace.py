@@ -38,7 +38,7 @@ from snapjump_cli.fe.branch.bifurcation import Bifurcation, default_harmonics, h
 from snapjump_cli.fe.branch.coarse import descend_coarse_to_fine
 from snapjump_cli.fe.branch.landing import land_from_bifurcation
 from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, AXISYM_LOWER_LANDING, multiharmonic_snap_metrics
-from snapjump_cli.fe.branch.model import MultiHarmonicModel
+from snapjump_cli.fe.branch.model import MultiHarmonicModel, transfer
 from snapjump_cli.fe.continuation import ContinuationFailed, Path, PathPoint, Tracer, start_point, trace
 
 log = logging.getLogger(__name__)
@@ -46,7 +46,7 @@ log = logging.getLogger(__name__)
 __all__ = ["FoldJump", "FollowResult", "BranchTracker", "MICRO_FOLD_DE", "REJOIN_FRAC", "FOLLOW_STEP_GROW",
            "FIRST_STEP_HALVINGS", "PROBE_HALVINGS",
            "MAX_RESTARTS", "ThroughFolds", "trace_through_micro_folds", "tracker_bounds", "micro_energy",
-           "follow_branch", "trace_branch", "axisym_crossings", "UNSTABLE_OUTSIDE", "axisym_state_at", "axisym_landing", "axisym_lower_landing", "axisym_inverted_state", "AXISYM_BEFORE_DESCENT", "branch_metrics", "REJOINED",
+           "follow_branch", "trace_branch", "axisym_crossings", "UNSTABLE_OUTSIDE", "axisym_state_at", "axisym_landing", "axisym_lower_landing", "axisym_inverted_state", "stable_in", "AXISYM_BEFORE_DESCENT", "branch_metrics", "REJOINED",
            "LANDINGS"]
 
 
@@ -354,7 +354,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
                   step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False,
                   landing: str = "search", volume_path: bool = True,
                   watch: Callable[[MultiHarmonicModel], Callable[[Path], bool]] | None = None,
-                  settle: Callable[[MultiHarmonicModel], Callable[[PathPoint], bool]] | None = None) -> FollowResult:
+                  settle: Callable[[MultiHarmonicModel], Callable[[PathPoint], bool]] | None = None,
+                  landing_check: Callable[[MultiHarmonicModel], MultiHarmonicModel] | None = None) -> FollowResult:
     """Trace the branch of ``bif`` with the harmonics ``hn`` (default :func:`default_harmonics`)
     from the bifurcation through its volume limit to the lower state at that volume (with
     ``stop_at_upper``: only up to its first volume limit, :class:`BranchTracker`).
@@ -375,6 +376,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
         almost nothing lands on is one the actuator does not stay on (unstable outside the
         branch's harmonics: the jump goes on off the branch), the branch beyond it is not traced;
         the path then ends at that state, without a snap of its own (:func:`trace_through_micro_folds`)
+    landing_check : made from the branch's model: the model in which an axisymmetric landing must be
+        stable too (:func:`trace_branch`)
 
     Returns
     -------
@@ -389,7 +392,7 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     Phi = mh.embed(np.zeros(base.n), {bif.n: bif.mode})
     fr = trace_branch(result, bif, mh, U_c, bif.p, Phi, [int(n) for n in mh.hn[1:]], micro=micro,
                       max_steps=max_steps, step_grow=step_grow, stop_at_upper=stop_at_upper, landing=landing,
-                      volume_path=volume_path, watch=watch, settle=settle)
+                      volume_path=volume_path, watch=watch, settle=settle, landing_check=landing_check)
     fr.metrics["follow_wall_s"] = time.perf_counter() - t0
     return fr
 
@@ -399,7 +402,8 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
                  step_grow: float = FOLLOW_STEP_GROW, stop_at_upper: bool = False,
                  landing: str = "search", volume_path: bool = True,
                  watch: Callable[[MultiHarmonicModel], Callable[[Path], bool]] | None = None,
-                 settle: Callable[[MultiHarmonicModel], Callable[[PathPoint], bool]] | None = None) -> FollowResult:
+                 settle: Callable[[MultiHarmonicModel], Callable[[PathPoint], bool]] | None = None,
+                 landing_check: Callable[[MultiHarmonicModel], MultiHarmonicModel] | None = None) -> FollowResult:
     """Trace the branch of the model ``mh`` that leaves the equilibrium ``(U_c, p_c)`` along
     ``Phi`` (a bifurcation point and its critical mode, as free vectors of ``mh``) through its volume
     limit to the lower state at that volume (:func:`follow_branch` for a branch of the axisymmetric
@@ -430,7 +434,9 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     the sphere path, else the energy descent, the start the reference search tries first), before
     tracing the branch: where it lies below the bifurcation by at least the micro-fold energy, the
     branch beyond its first step is not needed; it traces and searches as the reference where it
-    does not.
+    does not. ``landing_check`` (made from ``mh``; a branch of ``n_c >= 2``): the model with every
+    harmonic in which an axisymmetric landing of ``"axisymmetric first"`` must also be stable; a
+    subcritical branch without one is then traced and searched as the reference (no sphere path).
     """
     if landing not in LANDINGS:
         raise ValueError(f"landing must be one of {LANDINGS}, got {landing!r}")
@@ -455,6 +461,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     }
 
     stays = settle(mh) if settle is not None else None
+    check = landing_check(mh) if landing_check is not None and landing == "axisymmetric first" else None
 
     def run(first: PathPoint, kind: str, stop: bool = stop_at_upper, steps: int | None = None, watch=None
             ) -> tuple[Path, BranchTracker, str]:
@@ -472,7 +479,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         up = tk.states.upper
         if landing == "axisymmetric first" and why == REJOINED and up is not None and tk.states.lower is None:
             alt = axisym_landing(result, mh, tr, up)
-            if alt is not None:
+            if alt is not None and (check is None or stable_in(check, mh, tr, alt)):
                 return LowerState(alt, "descent", "axisymmetric path", reason=why, message=AXISYM_LANDING)
         low = find_lower_state(tr, tk.states, pth.points, why, volume_path=volume_path)
         if up is not None and (low.state is None or (low.method == "descent"
@@ -507,7 +514,9 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         if tracker.kind == "subcritical" and st.upper is not None:
             if landing == "axisymmetric first":
                 alt, note = axisym_inverted_state(result, mh, tr, st.upper)
-                if alt is None:  # the state the sphere path reaches from the bifurcation, if any
+                if alt is not None and check is not None and not stable_in(check, mh, tr, alt):
+                    alt = None  # (a branch of n_c >= 2: unstable in a harmonic it does not keep)
+                if alt is None and check is None:  # the state the sphere path reaches from the bifurcation, if any
                     alt, note = land_from_bifurcation(tr, st.upper, descent=False)
             else:
                 alt, note = land_from_bifurcation(tr, st.upper, descent=False)
@@ -619,6 +628,15 @@ def axisym_inverted_state(result, mh: MultiHarmonicModel, tr: Tracer, upper: Pat
         return alt, AXISYM_LANDING
     alt = axisym_lower_landing(result, mh, tr, upper)
     return (alt, AXISYM_LOWER_LANDING) if alt is not None else (None, "")
+
+
+def stable_in(full: MultiHarmonicModel, mh: MultiHarmonicModel, tr: Tracer, pt: PathPoint) -> bool:
+    """Whether the equilibrium ``pt`` of ``mh`` (traced by ``tr``), lifted into ``full`` (whose
+    harmonics contain ``mh``'s), is stable there under volume control."""
+    lin = full.linearize(transfer(mh, full, pt.u), pt.p)
+    ok = lin is not None and constrained_instability(Tracer(full, tr.cfg), lin) == 0
+    full.release_buffers()
+    return ok
 
 
 #: Where the sphere path finds no landing of a secondary branch or of a jump off a branch (a branch of

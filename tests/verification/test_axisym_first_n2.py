@@ -1,0 +1,110 @@
+"""Landings of ``n = 2`` designs on the axisymmetric inverted state
+(snapjump_cli.fe.branch.trace.axisym_inverted_state).
+
+A jump off an ``n = 2`` branch, taken in ``secondary.jump_off_branch`` where the sphere path gives
+up, before the energy descent:
+
+``follow_strata_n2`` row 3 (bench/harmonics_sample/follow_strata_n2.csv: 8, 75, 10, 88, 5.8) at the
+sweep's mesh: its branch of harmonic 2 folds, the state the actuator jumps to on the branch is
+unstable in harmonic 1, and the sphere path from it turns back. The energy descent from that state
+(about a thousand iterations in the model with every harmonic 0-8) comes to rest on the
+axisymmetric path's inverted state at the fold's volume. Checked here:
+
+* the actuator mode takes that state directly: an equilibrium at the fold's volume, stable under
+  volume control with every harmonic 0-8, axisymmetric, below the fold by more than the
+  micro-fold energy.
+
+That the descent comes to rest on it (7e-16 apart, the same answer to 1e-14; ~80 CPU-s) is shown by
+``python -m bench.profile.follow --sample bench/harmonics_sample/follow_strata_n2.yaml --rows 3
+--compare-axisym-first``; the same mechanism is checked against the descent and the damped motion
+on the clamped cap in ``test_secondary_branch.py``.
+
+A subcritical ``n = 2`` branch that loses no stability outside its harmonics first (``follow_strata_n2``
+row 7: 8, 77.5, 15, 90, 5.8): the actuator snaps at the bifurcation's volume, and the actuator mode
+takes the axisymmetric inverted state there (here the axisymmetric lower state, found off the path,
+brought to that volume) when it is stable with every harmonic 0-8, after one step of the branch
+(``followed.AXISYM_FIRST_ALL``). Checked against the branch traced and searched as before (the
+energy descent in the branch's model, ~700 iterations): the same state and answer.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from snapjump_cli.fe.axisym.lower_state import constrained_instability
+from snapjump_cli.fe.branch.followed import followed_metrics
+from snapjump_cli.fe.branch import followed
+from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, AXISYM_LOWER_LANDING
+from snapjump_cli.fe.branch.secondary import full_model
+from snapjump_cli.fe.branch.trace import MICRO_FOLD_DE, stable_in
+from snapjump_cli.fe.solve import solve_scene
+from snapjump_cli.fe.stability.harmonics import check_harmonics
+from snapjump_cli.geometry.caps import Design
+from snapjump_cli.settings import MeshSettings, SolverSettings
+
+@pytest.fixture(scope="module")
+def design():
+    res = solve_scene(Design(8.0, 75.0, 10.0, 88.0, 5.8), MeshSettings(order=2, nt=2, aspect=3.0),
+                      SolverSettings(harmonics=4))
+    chk = check_harmonics(res, 4)
+    assert chk.asym_first and chk.asym_n == 2
+    return res, chk
+
+
+@pytest.fixture(scope="module")
+def jumped(design):
+    res, chk = design
+    return followed_metrics(res, chk, mode="actuator")
+
+
+def test_the_jump_lands_on_the_axisymmetric_inverted_state(design, jumped):
+    res, _ = design
+    fr = jumped.branch
+    assert jumped.values["followed"] and fr.kind == "jump" and fr.model.hn[-1] == 8 and len(fr.model.hn) == 9
+    assert AXISYM_LANDING in fr.lower_note and "sphere path: turned back" in fr.lower_note
+    assert "descent" not in fr.lower_note  # no descent was made
+    mh, tr, up, lo = fr.model, fr.tracer, fr.states.upper, fr.states.lower
+    lin = mh.linearize(lo.u, lo.p)
+    assert float(np.linalg.norm(lin.R)) / tr.residual_scale(lin, tr.zeta(lo.u, lo.p)[1], lo.p) < 1e-6
+    assert float(lo.zeta[0]) == pytest.approx(float(up.zeta[0]), rel=1e-9)  # at the fold's volume
+    assert constrained_instability(tr, lin) == 0  # stable with every harmonic 0..8
+    A = np.abs(mh.amplitudes(lo.u))
+    assert A[:, 2:].max() < 1e-9 * A[:, :2].max()  # axisymmetric
+    assert jumped.values["dE_J"] > MICRO_FOLD_DE * res.metrics["dE_J"]
+
+
+ANSWER = ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa", "h_imp_m")
+
+
+@pytest.fixture(scope="module")
+def subcritical():
+    res = solve_scene(Design(8.0, 77.5, 15.0, 90.0, 5.8), MeshSettings(order=2, nt=2, aspect=3.0),
+                      SolverSettings(harmonics=4))
+    chk = check_harmonics(res, 4)
+    assert chk.asym_first and chk.asym_n == 2
+    return res, chk, followed_metrics(res, chk, mode="actuator")
+
+
+def test_a_subcritical_n2_branch_lands_on_the_axisymmetric_state_stable_with_every_harmonic(subcritical):
+    res, _, ans = subcritical
+    fr = ans.branch
+    assert ans.values["followed"] and fr.kind == "subcritical" and ans.values.get("follow_sec_n") is None
+    assert [int(n) for n in fr.model.hn] == [0, 2, 4, 6, 8] and len(fr.path.points) == 2  # one step
+    assert fr.lower_note == AXISYM_LOWER_LANDING
+    mh, tr, up, lo = fr.model, fr.tracer, fr.states.upper, fr.states.lower
+    assert float(lo.zeta[0]) == pytest.approx(float(up.zeta[0]), rel=1e-9)
+    assert stable_in(full_model(mh, None, fr.bif.u), mh, tr, lo)  # stable with every harmonic 0..8
+    A = np.abs(mh.amplitudes(lo.u))
+    assert A[:, 2:].max() < 1e-9 * A[:, :2].max()
+    assert ans.values["dE_J"] > MICRO_FOLD_DE * res.metrics["dE_J"]
+
+
+def test_it_is_where_the_branch_traced_and_searched_lands(subcritical, monkeypatch):
+    res, chk, ans = subcritical
+    monkeypatch.setattr(followed, "AXISYM_FIRST_ALL", False)
+    before = followed_metrics(res, chk, mode="actuator")
+    assert "descent converged" in before.branch.lower_note and len(before.branch.path.points) > 20
+    lo, lo_b = ans.branch.states.lower, before.branch.states.lower
+    assert np.linalg.norm(lo_b.u - lo.u) < 1e-8 * np.linalg.norm(lo.u)
+    for k in ANSWER:
+        assert ans.values[k] == pytest.approx(before.values[k], rel=1e-7), k
