@@ -27,14 +27,14 @@ import pytest
 
 import snapjump_cli.fe.branch.trace as trace
 from snapjump_cli.fe.axisym.descent import descend_at_volume
-from snapjump_cli.fe.axisym.lower_state import constrained_instability
 from snapjump_cli.fe.branch.followed import followed_metrics
 from snapjump_cli.fe.branch.metrics import AXISYM_LOWER_LANDING
-from snapjump_cli.fe.branch.trace import MICRO_FOLD_DE, axisym_lower_landing
+from snapjump_cli.fe.branch.trace import axisym_lower_landing
 from snapjump_cli.fe.solve import solve_scene
 from snapjump_cli.fe.stability.harmonics import check_harmonics
 from snapjump_cli.geometry.caps import Design
 from snapjump_cli.settings import MeshSettings, SolverSettings
+from tests.landing import assert_axisymmetric_landing
 
 ANSWER = ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa", "h_imp_m")
 
@@ -60,15 +60,7 @@ def test_the_actuator_lands_on_the_axisymmetric_lower_state(design, landed):
     fr = landed.branch
     assert landed.values["followed"] and fr.kind == "subcritical"
     assert fr.lower_note == AXISYM_LOWER_LANDING and len(fr.path.points) == 2  # one step of the branch
-    mh, tr, up, lo = fr.model, fr.tracer, fr.states.upper, fr.states.lower
-    lin = mh.linearize(lo.u, lo.p)
-    assert float(np.linalg.norm(lin.R)) / tr.residual_scale(lin, tr.zeta(lo.u, lo.p)[1], lo.p) < 1e-6
-    assert float(lo.zeta[0]) == pytest.approx(float(up.zeta[0]), rel=1e-9)  # at the bifurcation's volume
-    assert constrained_instability(tr, lin) == 0  # stable with every harmonic 0..4
-    A = np.abs(mh.amplitudes(lo.u))
-    assert A[:, 2:].max() < 1e-9 * A[:, :2].max()  # axisymmetric
-    dE_axi = res.metrics["dE_J"]
-    assert landed.values["dE_J"] > MICRO_FOLD_DE * dE_axi
+    assert_axisymmetric_landing(landed, res.metrics["dE_J"])  # (stable with every harmonic 0..4)
 
 
 def test_it_is_where_the_descent_from_the_bifurcation_comes_to_rest(landed):

@@ -32,10 +32,10 @@ __all__ = ["FOLLOW_MODES", "AXISYM_FIRST_ALL", "first_secondary", "record_second
 #: (the reference: the whole branch to its snap, then the check).
 FOLLOW_MODES: tuple[str, ...] = ("actuator", "full")
 
-#: The actuator mode lands a subcritical branch of ``n_c >= 2`` that loses no stability outside its
-#: harmonics first on the axisymmetric inverted state at its bifurcation's volume, where that state
-#: is stable with every harmonic ``0..N`` (``False``: the branch traced and searched as the
-#: reference; a switch for measurements).
+#: The actuator mode lands a branch of ``n_c >= 2`` that loses no stability outside its harmonics
+#: first and loops back to the axisymmetric path without a lower state on the axisymmetric inverted
+#: state at its volume limit, where that state is stable with every harmonic ``0..N``, before the
+#: search at fixed volume (``False``: the search, as the reference; a switch for measurements).
 AXISYM_FIRST_ALL = True
 
 #: Keys :func:`followed_metrics` adds to a design's metrics (SI units): the followed stage's keys
@@ -132,7 +132,7 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
     hn = default_harmonics(n, N)
     # (a branch of n_c >= 2 keeps only multiples of n_c: a state stable there may not be stable)
     landing = "axisymmetric first" if mode == "actuator" and len(hn) > 1 and int(hn[1]) == 1 else "search"
-    # a branch of n_c >= 2: the axisymmetric inverted state first too, checked with every harmonic
+    # a branch of n_c >= 2 that loops back: the axisymmetric inverted state first, checked with every harmonic
     even_first = mode == "actuator" and secondary and AXISYM_FIRST_ALL and len(hn) > 1 and int(hn[1]) > 1
     vp = mode == "full"  # the actuator mode searches by the energy descent alone (section 10.8)
     # a subcritical secondary branch: the actuator mode descends from its bifurcation before tracing it
@@ -147,10 +147,7 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
         # the actuator mode does not trace a branch of n_c >= 2 on past a micro-fold whose landing it
         # leaves at once (unstable outside the branch: the jump goes on, leave_at_secondary)
         settle = leaves_branch(u_axi=bif.u) if checked else None
-        if even_first:
-            landing, check = "axisymmetric first", (lambda mh: full_model(mh, None, bif.u))
-        else:
-            check = None
+        check = (lambda mh: full_model(mh, None, bif.u)) if even_first else None
         fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp, settle=settle,
                            landing_check=check)
         if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:

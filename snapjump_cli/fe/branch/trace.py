@@ -376,8 +376,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
         almost nothing lands on is one the actuator does not stay on (unstable outside the
         branch's harmonics: the jump goes on off the branch), the branch beyond it is not traced;
         the path then ends at that state, without a snap of its own (:func:`trace_through_micro_folds`)
-    landing_check : made from the branch's model: the model in which an axisymmetric landing must be
-        stable too (:func:`trace_branch`)
+    landing_check : made from the branch's model: the model in which the axisymmetric inverted state
+        must be stable too for a branch that loops back to the axisymmetric path (:func:`trace_branch`)
 
     Returns
     -------
@@ -435,8 +435,10 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     tracing the branch: where it lies below the bifurcation by at least the micro-fold energy, the
     branch beyond its first step is not needed; it traces and searches as the reference where it
     does not. ``landing_check`` (made from ``mh``; a branch of ``n_c >= 2``): the model with every
-    harmonic in which an axisymmetric landing of ``"axisymmetric first"`` must also be stable; a
-    subcritical branch without one is then traced and searched as the reference (no sphere path).
+    harmonic in which the axisymmetric inverted state must also be stable; with it, a branch that
+    passed back through the axisymmetric path without a lower state (:data:`REJOINED`) takes that
+    state (:func:`axisym_inverted_state`) before the search at fixed volume, as ``"axisymmetric
+    first"`` does.
     """
     if landing not in LANDINGS:
         raise ValueError(f"landing must be one of {LANDINGS}, got {landing!r}")
@@ -461,7 +463,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     }
 
     stays = settle(mh) if settle is not None else None
-    check = landing_check(mh) if landing_check is not None and landing == "axisymmetric first" else None
+    check = landing_check(mh) if landing_check is not None else None
 
     def run(first: PathPoint, kind: str, stop: bool = stop_at_upper, steps: int | None = None, watch=None
             ) -> tuple[Path, BranchTracker, str]:
@@ -477,10 +479,11 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
 
     def lower_state(tk: BranchTracker, pth: Path, why: str):
         up = tk.states.upper
-        if landing == "axisymmetric first" and why == REJOINED and up is not None and tk.states.lower is None:
-            alt = axisym_landing(result, mh, tr, up)
+        if (landing == "axisymmetric first" or check is not None) and why == REJOINED and up is not None \
+                and tk.states.lower is None:
+            alt, note = axisym_inverted_state(result, mh, tr, up)
             if alt is not None and (check is None or stable_in(check, mh, tr, alt)):
-                return LowerState(alt, "descent", "axisymmetric path", reason=why, message=AXISYM_LANDING)
+                return LowerState(alt, "descent", "axisymmetric path", reason=why, message=note)
         low = find_lower_state(tr, tk.states, pth.points, why, volume_path=volume_path)
         if up is not None and (low.state is None or (low.method == "descent"
                                                       and mh.energy(up.u) - mh.energy(low.state.u) <= 0.0)):
@@ -514,9 +517,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         if tracker.kind == "subcritical" and st.upper is not None:
             if landing == "axisymmetric first":
                 alt, note = axisym_inverted_state(result, mh, tr, st.upper)
-                if alt is not None and check is not None and not stable_in(check, mh, tr, alt):
-                    alt = None  # (a branch of n_c >= 2: unstable in a harmonic it does not keep)
-                if alt is None and check is None:  # the state the sphere path reaches from the bifurcation, if any
+                if alt is None:  # the state the sphere path reaches from the bifurcation, if any
                     alt, note = land_from_bifurcation(tr, st.upper, descent=False)
             else:
                 alt, note = land_from_bifurcation(tr, st.upper, descent=False)

@@ -1,0 +1,26 @@
+"""Checks of a followed snap that lands on the axisymmetric inverted state (a fixture of the tests:
+``from tests.landing import assert_axisymmetric_landing``)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from snapjump_cli.fe.branch.trace import MICRO_FOLD_DE, stable_in
+
+__all__ = ["assert_axisymmetric_landing"]
+
+
+def assert_axisymmetric_landing(answer, dE_axi: float, full=None) -> None:
+    """The lower state of ``answer`` (a ``followed_metrics`` answer) is an equilibrium of its branch's
+    model at the upper state's volume, stable under volume control there (and, with ``full``, in
+    that model with every harmonic), axisymmetric, and below the upper state by more than the
+    micro-fold energy (``dE_axi``: the axisymmetric snap's energy, J)."""
+    fr = answer.branch
+    mh, tr, up, lo = fr.model, fr.tracer, fr.states.upper, fr.states.lower
+    lin = mh.linearize(lo.u, lo.p)
+    assert float(np.linalg.norm(lin.R)) / tr.residual_scale(lin, tr.zeta(lo.u, lo.p)[1], lo.p) < 1e-6
+    assert float(lo.zeta[0]) == pytest.approx(float(up.zeta[0]), rel=1e-9)  # at the snap's volume
+    assert stable_in(mh if full is None else full, mh, tr, lo)
+    A = np.abs(mh.amplitudes(lo.u))
+    assert A[:, 2:].max() < 1e-9 * A[:, :2].max()  # axisymmetric
+    assert answer.values["dE_J"] > MICRO_FOLD_DE * dE_axi
