@@ -7,7 +7,20 @@ import pytest
 
 from snapjump_cli.fe.branch.trace import MICRO_FOLD_DE, stable_in
 
-__all__ = ["assert_axisymmetric_landing"]
+__all__ = ["asymmetric_first", "assert_axisymmetric_landing"]
+
+
+def asymmetric_first(design, mesh, n: int):
+    """The axisymmetric solve (harmonic check ``n <= 4``) of ``design`` on ``mesh`` and its check,
+    which finds it asymmetric first in harmonic ``n``: ``(result, check)``."""
+    from snapjump_cli.fe.solve import solve_scene
+    from snapjump_cli.fe.stability.harmonics import check_harmonics
+    from snapjump_cli.settings import SolverSettings
+
+    res = solve_scene(design, mesh, SolverSettings(harmonics=4))
+    chk = check_harmonics(res, 4)
+    assert chk.asym_first and chk.asym_n == n
+    return res, chk
 
 
 def assert_axisymmetric_landing(answer, dE_axi: float, full=None) -> None:

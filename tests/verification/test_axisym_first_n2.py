@@ -37,19 +37,16 @@ from snapjump_cli.fe.branch import followed
 from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, AXISYM_LOWER_LANDING
 from snapjump_cli.fe.branch.secondary import full_model
 from snapjump_cli.fe.branch.trace import REJOINED
-from snapjump_cli.fe.solve import solve_scene
-from snapjump_cli.fe.stability.harmonics import check_harmonics
 from snapjump_cli.geometry.caps import Design
-from snapjump_cli.settings import MeshSettings, SolverSettings
-from tests.landing import assert_axisymmetric_landing
+from snapjump_cli.settings import MeshSettings
+from tests.landing import assert_axisymmetric_landing, asymmetric_first
+
+SWEEP_MESH = MeshSettings(order=2, nt=2, aspect=3.0)
+
 
 @pytest.fixture(scope="module")
 def design():
-    res = solve_scene(Design(8.0, 75.0, 10.0, 88.0, 5.8), MeshSettings(order=2, nt=2, aspect=3.0),
-                      SolverSettings(harmonics=4))
-    chk = check_harmonics(res, 4)
-    assert chk.asym_first and chk.asym_n == 2
-    return res, chk
+    return asymmetric_first(Design(8.0, 75.0, 10.0, 88.0, 5.8), SWEEP_MESH, 2)
 
 
 @pytest.fixture(scope="module")
@@ -72,10 +69,7 @@ ANSWER = ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa", "h_imp_m")
 
 @pytest.fixture(scope="module")
 def subcritical():
-    res = solve_scene(Design(8.0, 77.5, 15.0, 90.0, 5.8), MeshSettings(order=2, nt=2, aspect=3.0),
-                      SolverSettings(harmonics=4))
-    chk = check_harmonics(res, 4)
-    assert chk.asym_first and chk.asym_n == 2
+    res, chk = asymmetric_first(Design(8.0, 77.5, 15.0, 90.0, 5.8), SWEEP_MESH, 2)
     return res, chk, followed_metrics(res, chk, mode="actuator")
 
 
