@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from snapjump_cli.fe.branch.bifurcation import default_harmonics, first_bifurcation, locate_bifurcation
-from snapjump_cli.fe.branch.secondary import follow_secondary, full_model, leaves_branch, stability_watch
+from snapjump_cli.fe.branch.secondary import follow_secondary, leaves_branch, stability_watch, stable_outside
 from snapjump_cli.fe.branch.trace import MICRO_FOLD_DE, UNSTABLE_OUTSIDE, FollowResult, follow_branch
 from snapjump_cli.fe.limits import TimeLimitExceeded
 from snapjump_cli.schema import FOLLOWED, keys
@@ -147,7 +147,7 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
         # the actuator mode does not trace a branch of n_c >= 2 on past a micro-fold whose landing it
         # leaves at once (unstable outside the branch: the jump goes on, leave_at_secondary)
         settle = leaves_branch(u_axi=bif.u) if checked else None
-        check = (lambda mh: full_model(mh, None, bif.u)) if even_first else None
+        check = stable_outside(u_axi=bif.u) if even_first else None
         fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp, settle=settle,
                            landing_check=check)
         if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:

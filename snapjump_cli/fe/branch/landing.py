@@ -5,6 +5,8 @@ the energy descent started in coarser models
 (:func:`snapjump_cli.fe.branch.coarse.descend_coarse_to_fine`) where it finds nothing."""
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from snapjump_cli.fe.axisym.sphere_path import descend_on_spheres
@@ -25,11 +27,17 @@ def kick_along(model: MultiHarmonicModel, u: np.ndarray, mode: np.ndarray, frac:
     return mode * (frac * float(np.abs(model.amplitudes(u)).max()) / float(np.abs(model.amplitudes(mode)).max()))
 
 
-def land_from_bifurcation(tracer: Tracer, upper: PathPoint, descent: bool = True) -> tuple[PathPoint | None, str]:
+def land_from_bifurcation(tracer: Tracer, upper: PathPoint, descent: bool = True,
+                          before_descent: Callable[[], tuple[PathPoint | None, str]] | None = None
+                          ) -> tuple[PathPoint | None, str]:
     """The stable state at ``upper``'s volume reached from it (a bifurcation whose branch lowers the
-    volume) along its tangent ``du_ds``: by the sphere path, else (with ``descent``) by the energy
-    descent started in coarser models. Returns ``(state or None, message)``."""
+    volume) along its tangent ``du_ds``: by the sphere path, else ``before_descent()`` (a known
+    state, ``(state or None, message)``), else (with ``descent``) by the energy descent started in
+    coarser models. Returns ``(state or None, message)``, the messages of each way tried joined."""
     low, msg = descend_on_spheres(tracer, upper, upper, kick_along(tracer.pb, upper.u, upper.du_ds))
+    if low is None and before_descent is not None:
+        low, msg_b = before_descent()
+        msg = "; ".join(x for x in (msg, msg_b) if x)
     if low is not None or not descent:
         return low, msg
     low, msg_d = descend_coarse_to_fine(tracer, upper)

@@ -41,7 +41,8 @@ log = logging.getLogger(__name__)
 __all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
            "locate_secondary", "follow_secondary", "visited_points",
            "first_extra", "jump_off_branch", "reached_along", "jump_before", "landing_jump", "mode_counts",
-           "more_outside", "extra_harmonics", "leaves_branch", "LeavesBranch", "StabilityWatch", "stability_watch", "rotation_signs", "rotated"]
+           "more_outside", "extra_harmonics", "leaves_branch", "LeavesBranch", "StabilityWatch", "stability_watch", "rotation_signs", "rotated",
+           "stable_outside"]
 
 
 def full_model(mh: MultiHarmonicModel, N: int | None = None, u_axi: np.ndarray | None = None) -> MultiHarmonicModel:
@@ -263,6 +264,24 @@ def stability_watch(N: int | None = None, stride: int = 5, u_axi: np.ndarray | N
     model): :class:`StabilityWatch` against :func:`full_model` ``(mh, N, u_axi)``, as
     :func:`follow_secondary` with the same ``N`` and ``stride`` checks the branch."""
     return lambda mh: StabilityWatch(mh, full_model(mh, N, u_axi), int(stride))
+
+
+def stable_outside(N: int | None = None, u_axi: np.ndarray | None = None):
+    """A ``landing_check`` for :func:`snapjump_cli.fe.branch.trace.follow_branch` (made from the branch's
+    model ``mh``): whether a state of ``mh`` is stable under volume control in :func:`full_model`
+    ``(mh, N, u_axi)`` (:func:`unstable_modes` of it lifted there is 0)."""
+
+    def make(mh: MultiHarmonicModel):
+        full = full_model(mh, N, u_axi)
+
+        def stable(pt) -> bool:
+            n = unstable_modes(full, lift(mh, full, pt.u), pt.p)
+            full.release_buffers()
+            return n == 0
+
+        return stable
+
+    return make
 
 
 def leaves_branch(N: int | None = None, u_axi: np.ndarray | None = None):

@@ -35,10 +35,9 @@ import numpy as np
 from snapjump_cli.fe.axisym.lower_state import LowerState, constrained_instability, find_lower_state
 from snapjump_cli.fe.axisym.snap import SnapStates, SnapTracker
 from snapjump_cli.fe.branch.bifurcation import Bifurcation, default_harmonics, harmonic1_gauge
-from snapjump_cli.fe.branch.coarse import descend_coarse_to_fine
 from snapjump_cli.fe.branch.landing import land_from_bifurcation
 from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, AXISYM_LOWER_LANDING, multiharmonic_snap_metrics
-from snapjump_cli.fe.branch.model import MultiHarmonicModel, transfer
+from snapjump_cli.fe.branch.model import MultiHarmonicModel
 from snapjump_cli.fe.continuation import ContinuationFailed, Path, PathPoint, Tracer, start_point, trace
 
 log = logging.getLogger(__name__)
@@ -46,7 +45,7 @@ log = logging.getLogger(__name__)
 __all__ = ["FoldJump", "FollowResult", "BranchTracker", "MICRO_FOLD_DE", "REJOIN_FRAC", "FOLLOW_STEP_GROW",
            "FIRST_STEP_HALVINGS", "PROBE_HALVINGS",
            "MAX_RESTARTS", "ThroughFolds", "trace_through_micro_folds", "tracker_bounds", "micro_energy",
-           "follow_branch", "trace_branch", "axisym_crossings", "UNSTABLE_OUTSIDE", "axisym_state_at", "axisym_landing", "axisym_lower_landing", "axisym_inverted_state", "stable_in", "AXISYM_BEFORE_DESCENT", "branch_metrics", "REJOINED",
+           "follow_branch", "trace_branch", "axisym_crossings", "UNSTABLE_OUTSIDE", "axisym_state_at", "axisym_landing", "axisym_lower_landing", "axisym_inverted_state", "AXISYM_BEFORE_DESCENT", "branch_metrics", "REJOINED",
            "LANDINGS"]
 
 
@@ -355,7 +354,8 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
                   landing: str = "search", volume_path: bool = True,
                   watch: Callable[[MultiHarmonicModel], Callable[[Path], bool]] | None = None,
                   settle: Callable[[MultiHarmonicModel], Callable[[PathPoint], bool]] | None = None,
-                  landing_check: Callable[[MultiHarmonicModel], MultiHarmonicModel] | None = None) -> FollowResult:
+                  landing_check: Callable[[MultiHarmonicModel], Callable[[PathPoint], bool]] | None = None
+                  ) -> FollowResult:
     """Trace the branch of ``bif`` with the harmonics ``hn`` (default :func:`default_harmonics`)
     from the bifurcation through its volume limit to the lower state at that volume (with
     ``stop_at_upper``: only up to its first volume limit, :class:`BranchTracker`).
@@ -376,8 +376,9 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
         almost nothing lands on is one the actuator does not stay on (unstable outside the
         branch's harmonics: the jump goes on off the branch), the branch beyond it is not traced;
         the path then ends at that state, without a snap of its own (:func:`trace_through_micro_folds`)
-    landing_check : made from the branch's model: the model in which the axisymmetric inverted state
-        must be stable too for a branch that loops back to the axisymmetric path (:func:`trace_branch`)
+    landing_check : made from the branch's model: whether a state of it is stable with every harmonic,
+        which the axisymmetric inverted state must be for a branch that loops back to the axisymmetric
+        path (:func:`trace_branch`)
 
     Returns
     -------
@@ -403,7 +404,8 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
                  landing: str = "search", volume_path: bool = True,
                  watch: Callable[[MultiHarmonicModel], Callable[[Path], bool]] | None = None,
                  settle: Callable[[MultiHarmonicModel], Callable[[PathPoint], bool]] | None = None,
-                 landing_check: Callable[[MultiHarmonicModel], MultiHarmonicModel] | None = None) -> FollowResult:
+                 landing_check: Callable[[MultiHarmonicModel], Callable[[PathPoint], bool]] | None = None
+                 ) -> FollowResult:
     """Trace the branch of the model ``mh`` that leaves the equilibrium ``(U_c, p_c)`` along
     ``Phi`` (a bifurcation point and its critical mode, as free vectors of ``mh``) through its volume
     limit to the lower state at that volume (:func:`follow_branch` for a branch of the axisymmetric
@@ -434,8 +436,8 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     the sphere path, else the energy descent, the start the reference search tries first), before
     tracing the branch: where it lies below the bifurcation by at least the micro-fold energy, the
     branch beyond its first step is not needed; it traces and searches as the reference where it
-    does not. ``landing_check`` (made from ``mh``; a branch of ``n_c >= 2``): the model with every
-    harmonic in which the axisymmetric inverted state must also be stable; with it, a branch that
+    does not. ``landing_check`` (made from ``mh``; a branch of ``n_c >= 2``): whether a state of ``mh``
+    is also stable with every harmonic (:func:`snapjump_cli.fe.branch.secondary.stable_outside`); with it, a branch that
     passed back through the axisymmetric path without a lower state (:data:`REJOINED`) takes that
     state (:func:`axisym_inverted_state`) before the search at fixed volume, as ``"axisymmetric
     first"`` does.
@@ -482,7 +484,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         if (landing == "axisymmetric first" or check is not None) and why == REJOINED and up is not None \
                 and tk.states.lower is None:
             alt, note = axisym_inverted_state(result, mh, tr, up)
-            if alt is not None and (check is None or stable_in(check, mh, tr, alt)):
+            if alt is not None and (check is None or check(alt)):
                 return LowerState(alt, "descent", "axisymmetric path", reason=why, message=note)
         low = find_lower_state(tr, tk.states, pth.points, why, volume_path=volume_path)
         if up is not None and (low.state is None or (low.method == "descent"
@@ -519,14 +521,9 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
                 alt, note = axisym_inverted_state(result, mh, tr, st.upper)
                 if alt is None:  # the state the sphere path reaches from the bifurcation, if any
                     alt, note = land_from_bifurcation(tr, st.upper, descent=False)
-            else:
-                alt, note = land_from_bifurcation(tr, st.upper, descent=False)
-                if alt is None and AXISYM_BEFORE_DESCENT:  # the axisymmetric inverted state, if stable
-                    alt, note_a = axisym_inverted_state(result, mh, tr, st.upper)
-                    note = "; ".join(x for x in (note, note_a) if x)
-                if alt is None:
-                    alt, note_d = descend_coarse_to_fine(tr, st.upper)
-                    note = "; ".join(x for x in (note, note_d) if x)
+            else:  # (where the sphere path gives up, the axisymmetric inverted state if stable, then the descent)
+                known = (lambda: axisym_inverted_state(result, mh, tr, st.upper)) if AXISYM_BEFORE_DESCENT else None
+                alt, note = land_from_bifurcation(tr, st.upper, before_descent=known)
             if alt is not None and mh.energy(st.upper.u) - mh.energy(alt.u) >= micro_dE:
                 st.lower, st.lower_method = alt, "descent"
                 fr = FollowResult(bif, mh, path, st, tr, "subcritical", "subcritical", lower_method="descent",
@@ -631,15 +628,6 @@ def axisym_inverted_state(result, mh: MultiHarmonicModel, tr: Tracer, upper: Pat
     return (alt, AXISYM_LOWER_LANDING) if alt is not None else (None, "")
 
 
-def stable_in(full: MultiHarmonicModel, mh: MultiHarmonicModel, tr: Tracer, pt: PathPoint) -> bool:
-    """Whether the equilibrium ``pt`` of ``mh`` (traced by ``tr``), lifted into ``full`` (whose
-    harmonics contain ``mh``'s), is stable there under volume control."""
-    lin = full.linearize(transfer(mh, full, pt.u), pt.p)
-    ok = lin is not None and constrained_instability(Tracer(full, tr.cfg), lin) == 0
-    full.release_buffers()
-    return ok
-
-
 #: Where the sphere path finds no landing of a secondary branch or of a jump off a branch (a branch of
 #: ``n_c >= 2``), take :func:`axisym_inverted_state` before the energy descent (``False``: the descent,
 #: as before; a switch for measurements).
@@ -657,9 +645,10 @@ def axisym_lower_landing(result, mh: MultiHarmonicModel, tr: Tracer, upper: Path
     has no crossing to polish), brought to the volume of ``upper`` by Newton at fixed volume in the
     axisymmetric model (:data:`LOWER_STATE_SUBSTEPS`), polished in ``mh`` and returned if it is
     stable under volume control with every harmonic of ``mh`` and below ``upper``'s energy; else
-    ``None``. It is the axisymmetric inverted state at that volume, as :func:`axisym_landing`'s;
-    on the designs whose bifurcation lies within 0.3 % of the axisymmetric volume limit it is the
-    state the energy descent from the bifurcation comes to rest on (docs/harmonics.md, section 10.8)."""
+    ``None``. It is the axisymmetric inverted state at that volume, as :func:`axisym_landing`'s; on
+    the paper grid's designs that take it (bifurcation within 1.4 % of the axisymmetric volume limit)
+    it is the state the energy descent from the bifurcation comes to rest on (docs/harmonics.md,
+    section 10.8)."""
     st0 = result.states
     if st0 is None or st0.lower is None or st0.lower_method != "descent":
         return None
