@@ -152,6 +152,10 @@ def compare_axisym_first(res, chk, N: int, mode: str, out: dict, fr) -> dict[str
     return answer_diff(f"{mode} without the axisymmetric state first", time.process_time() - t0, out, fr, ans)
 
 
+#: The answers whose relative differences ``answer_diff`` reports one by one.
+ANSWER_KEYS = ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa")
+
+
 def answer_diff(other: str, cpu: float, out: dict, fr, ans) -> dict[str, Any]:
     """The answer values of ``ans`` (a ``followed_metrics`` answer, computed in ``cpu`` CPU-s) that
     differ from ``out`` and the distance between the two lower states (relative to ``fr``'s)."""
@@ -165,6 +169,9 @@ def answer_diff(other: str, cpu: float, out: dict, fr, ans) -> dict[str, Any]:
     rel = [abs(out[k] - ans.values[k]) / max(abs(out[k]), abs(ans.values[k]), 1e-300) for k in differ
            if isinstance(out.get(k), float) and isinstance(ans.values.get(k), float)]
     row = {"mode": other, "cpu_s": cpu, "values": len(keys), "differ": differ, "largest_rel_diff": max(rel, default=0.0)}
+    # the answers the jump model takes, each one's relative difference
+    row["answers_rel_diff"] = {k: abs(out[k] - ans.values[k]) / max(abs(out[k]), abs(ans.values[k]), 1e-300)
+                               for k in ANSWER_KEYS if isinstance(out.get(k), float) and isinstance(ans.values.get(k), float)}
     lo, lo2 = (fr.states.lower if fr is not None else None), (ans.branch.states.lower if ans.branch is not None else None)
     if lo is not None and lo2 is not None and lo.u.shape == lo2.u.shape:
         row["landing_distance"] = float(np.linalg.norm(lo2.u - lo.u) / np.linalg.norm(lo.u))
@@ -284,7 +291,8 @@ def main(argv: list[str] | None = None) -> int:
             c = r[key]
             print(f"{r['design']}: --mode {c['mode']} {c['cpu_s']:.3g} CPU-s ({c['cpu_s'] / r['cpu_followed_s']:.2f}x this "
                   f"solve's); {len(c['differ'])} of {c['values']} answer values differ {c['differ'] or ''} "
-                  f"(largest relative difference {c['largest_rel_diff']:.2g}); "
+                  f"(largest relative difference {c['largest_rel_diff']:.2g}; "
+                  f"{', '.join(f'{k} {v:.2g}' for k, v in c.get('answers_rel_diff', {}).items())}); "
                   f"lower states' distance {c.get('landing_distance', float('nan')):.2g}")
     for r in rows:
         cp = r.get("cprofile")

@@ -63,3 +63,16 @@ def test_followed_grid_time_leaves_the_re_solved_rows_out_of_the_class_means(tmp
     assert "design wall at those class means: 67 s" in out  # 2 x 3 + 3 x 20 + 1 (+ 0)
     assert "REF_FOLLOW[1]: share 2 / 6, mean wall 3.00 s" in out
     assert "REF_FOLLOW[2]: share 3 / 6, mean wall 20.00 s" in out
+
+
+def test_ratios_summarises_the_followed_rows() -> None:
+    """The median and 90th percentile of the followed rows' ratios (rows that stay axisymmetric have
+    none), and the designs at the per-design limit."""
+    from bench.profile.ratios import summary
+
+    rows = [{"design": f"d{i}", "ratio": float(i), "cpu_followed_s": 10.0 * i} for i in range(1, 11)]
+    rows.append({"design": "axisymmetric", "cpu_axisym_check_s": 0.1})
+    rows.append({"design": "slow", "ratio": 3000.0, "cpu_followed_s": 300.0})
+    s = summary(rows, 300.0)
+    assert s["designs"] == 11 and s["median"] == 6.0 and s["largest"] == 3000.0
+    assert s["p90"] == 10.0 and s["at_limit"] == ["slow"]
