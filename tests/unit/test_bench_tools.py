@@ -76,3 +76,20 @@ def test_ratios_summarises_the_followed_rows() -> None:
     s = summary(rows, 300.0)
     assert s["designs"] == 11 and s["median"] == 6.0 and s["largest"] == 3000.0
     assert s["p90"] == 10.0 and s["at_limit"] == ["slow"]
+
+
+def test_answers_compares_the_designs_followed_in_both_runs() -> None:
+    """Designs matched by their row, relative differences against the second run, and whether
+    both landed the same way; a design not followed in one run is left out."""
+    from bench.profile.answers import compare
+
+    def row(i, dE, kind="jump", note="sphere path: stable state"):
+        return {"design": f"s#{i}", "dE_J": dE, "dy_pole_m": 1.0, "V_star_m3": 2.0, "p_star_Pa": 3.0,
+                "follow_kind": kind, "branches": [{"lower_note": note}]}
+
+    a = [row(0, 1.01), row(1, 2.0, "subcritical"), {"design": "s#2", "dE_J": None}]
+    b = [row(0, 1.0), row(1, 2.0), row(2, 5.0)]
+    out = compare(a, b)
+    assert [r["design"] for r in out] == ["0", "1"]
+    assert out[0]["dE_J"] == pytest.approx(0.01) and out[0]["dy_pole_m"] == 0.0 and out[0]["same_way"]
+    assert not out[1]["same_way"]
