@@ -1,5 +1,6 @@
 """The cubic Hermite interpolation shared by the continuation, the snap location and the metrics."""
 import numpy as np
+import pytest
 
 from snapjump_cli.fe.continuation import hermite
 
@@ -44,3 +45,19 @@ def test_segment_maxima_against_dense_sampling():
     assert got[5] == 0.25 and got[6] == 2.0
     assert np.all(got >= dense - 1e-14)  # never below a sampled value
     np.testing.assert_allclose(got, dense, atol=1e-8)  # and the sampling's own error is ~1e-9
+
+
+def test_interpolate_and_first_root_on_a_known_cubic():
+    """``y(t) = t^3 - t / 4`` on [0, 1] (``y(0) = 0``, ``y'(0) = -1/4``, ``y(1) = 3/4``, ``y'(1) = 11/4``):
+    the interpolation reproduces it (arrays alike, with the derivatives given per unit ``s`` of a
+    step ``h``), its zero inside the step is ``t = 1/2``, its minimum ``t = 1/sqrt(12)``, and a value
+    it takes nowhere inside gives ``None``."""
+    y0, d0, y1, d1 = 0.0, -0.25, 0.75, 2.75
+    for t in (0.0, 0.3, 0.5, 1.0):
+        assert hermite.interpolate(t, y0, d0, y1, d1) == pytest.approx(t**3 - t / 4, abs=1e-15)
+        assert hermite.interpolate(t, y0, d0 / 2.0, y1, d1 / 2.0, h=2.0) == pytest.approx(t**3 - t / 4, abs=1e-15)
+    v = hermite.interpolate(0.3, np.array([y0, 1.0]), np.array([d0, 0.0]), np.array([y1, 1.0]), np.array([d1, 0.0]))
+    np.testing.assert_allclose(v, [0.3**3 - 0.075, 1.0], atol=1e-15)
+    assert hermite.first_root(y0, d0, y1, d1) == pytest.approx(0.5, abs=1e-12)
+    assert hermite.first_root(y0, d0, y1, d1, value=None) == pytest.approx(12 ** -0.5, abs=1e-12)
+    assert hermite.first_root(y0, d0, y1, d1, value=2.0) is None

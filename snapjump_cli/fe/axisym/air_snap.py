@@ -138,11 +138,8 @@ class AirSnap:
         """Arc length from ``a`` where the cubic Hermite ``V_d(s)`` takes ``value`` (``None``: where
         its derivative vanishes); ``None`` if nowhere inside the step."""
         h = b.s - a.s
-        c = hermite.power_coefficients(self.vd(a), self.rate(a) * h, self.vd(b), self.rate(b) * h)
-        coef = np.array([c[1], 2 * c[2], 3 * c[3]]) if value is None else c - np.array([value, 0.0, 0.0, 0.0])
-        roots = np.roots(coef[::-1]) if np.any(coef[1:] != 0) else np.zeros(0)
-        inside = [r.real for r in roots if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0]
-        return float(min(inside)) * h if inside else None
+        t = hermite.first_root(self.vd(a), self.rate(a) * h, self.vd(b), self.rate(b) * h, value)
+        return None if t is None else t * h
 
     # ---- the stop criterion -------------------------------------------------------------------
     def watch(self, water: SnapTracker):

@@ -95,17 +95,8 @@ def _hermite_root(a: PathPoint, b: PathPoint, value: float, derivative: bool = F
     where its derivative ``dV/ds`` does); ``None`` if it has no such point inside the step.
     A first estimate for :func:`root_on_step`, exact to the interpolation's error."""
     h = b.s - a.s
-    V0, V1, d0, d1 = a.zeta[0], b.zeta[0], a.tangent[0] * h, b.tangent[0] * h
-    c = hermite.power_coefficients(V0, d0, V1, d1)  # V(t) on t in [0, 1], power form
-    if derivative:
-        coef = np.array([c[1], 2 * c[2], 3 * c[3]])
-    else:
-        coef = c - np.array([value, 0.0, 0.0, 0.0])
-    roots = np.roots(coef[::-1]) if np.any(coef[1:] != 0) else np.zeros(0)
-    inside = [r.real for r in roots if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0]
-    if not inside:
-        return None
-    return float(min(inside)) * h
+    t = hermite.first_root(a.zeta[0], a.tangent[0] * h, b.zeta[0], b.tangent[0] * h, None if derivative else value)
+    return None if t is None else t * h
 
 
 @dataclass

@@ -205,13 +205,8 @@ def _zero_guess(a: PathPoint, b: PathPoint) -> np.ndarray | None:
     the cubic Hermite interpolation of the step (``F`` and the state alike); ``None`` if the cubic
     of ``F`` has no root inside the step."""
     h = b.s - a.s
-    c = hermite.power_coefficients(a.p, a.dp_ds * h, b.p, b.dp_ds * h)
-    roots = [r.real for r in np.roots(c[::-1]) if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0]
-    if not (h > 0.0 and roots):
-        return None
-    t = min(roots)
-    h00, h10, h01, h11 = hermite.basis(t)
-    return h00 * a.u + (h10 * h) * a.du_ds + h01 * b.u + (h11 * h) * b.du_ds
+    t = hermite.first_root(a.p, a.dp_ds * h, b.p, b.dp_ds * h) if h > 0.0 else None
+    return None if t is None else hermite.interpolate(t, a.u, a.du_ds, b.u, b.du_ds, h)
 
 
 def _kicks(model, c: np.ndarray, p_c: float, m: np.ndarray, kick: np.ndarray):

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["basis", "power_coefficients", "segment_maxima"]
+__all__ = ["basis", "interpolate", "power_coefficients", "first_root", "segment_maxima"]
 
 
 def basis(t):
@@ -27,10 +27,28 @@ def basis(t):
     return 2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + t, -2 * t3 + 3 * t2, t3 - t2
 
 
+def interpolate(t: float, y0, d0, y1, d1, h: float = 1.0):
+    """The cubic at ``t`` in [0, 1] from its end values ``y0``, ``y1`` and end derivatives ``d0``,
+    ``d1`` in ``d/ds`` over a step of length ``h`` (scalars or arrays alike)."""
+    h00, h10, h01, h11 = basis(t)
+    return h00 * y0 + (h10 * h) * d0 + h01 * y1 + (h11 * h) * d1
+
+
 def power_coefficients(y0: float, d0: float, y1: float, d1: float) -> np.ndarray:
     """The same cubic in power form: ``c`` with ``y(t) = c[0] + c[1] t + c[2] t^2 + c[3] t^3``
     for end values ``y0``, ``y1`` and end derivatives ``d0``, ``d1`` (in ``d/dt``)."""
     return np.array([y0, d0, -3 * y0 - 2 * d0 + 3 * y1 - d1, 2 * y0 + d0 - 2 * y1 + d1])
+
+
+def first_root(y0: float, d0: float, y1: float, d1: float, value: float | None = 0.0) -> float | None:
+    """The smallest ``t`` inside (0, 1) where the cubic (end values ``y0``, ``y1``, end derivatives
+    ``d0``, ``d1`` in ``d/dt``) takes ``value`` (``None``: where its derivative vanishes); ``None`` if
+    nowhere inside."""
+    c = power_coefficients(y0, d0, y1, d1)
+    coef = np.array([c[1], 2 * c[2], 3 * c[3]]) if value is None else c - np.array([value, 0.0, 0.0, 0.0])
+    roots = np.roots(coef[::-1]) if np.any(coef[1:] != 0) else np.zeros(0)
+    inside = [r.real for r in roots if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0]
+    return float(min(inside)) if inside else None
 
 
 def segment_maxima(y0: np.ndarray, d0: np.ndarray, y1: np.ndarray, d1: np.ndarray) -> np.ndarray:

@@ -253,13 +253,12 @@ class Tracer:
         h = end.s - pt.s
         ds = 0.5 * h if ds is None else ds
         t = ds / h
-        h00, h10, h01, h11 = hermite.basis(t)
-        u0 = h00 * pt.u + (h10 * h) * pt.du_ds + h01 * end.u + (h11 * h) * end.du_ds
-        p0 = h00 * pt.p + h10 * h * pt.dp_ds + h01 * end.p + h11 * h * end.dp_ds
+        u0 = hermite.interpolate(t, pt.u, pt.du_ds, end.u, end.du_ds, h)
+        p0 = hermite.interpolate(t, pt.p, pt.dp_ds, end.p, end.dp_ds, h)
         aux0 = None
         if pt.aux is not None and end.aux is not None and self.cfg.mixed_tangent:
             if pt.daux_ds is not None and end.daux_ds is not None:
-                aux0 = h00 * pt.aux + (h10 * h) * pt.daux_ds + h01 * end.aux + (h11 * h) * end.daux_ds
+                aux0 = hermite.interpolate(t, pt.aux, pt.daux_ds, end.aux, end.daux_ds, h)
             else:
                 aux0 = (1 - t) * pt.aux + t * end.aux
         return self._point(pt, u0, p0, aux0, ds, tol, error_test)
