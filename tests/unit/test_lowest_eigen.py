@@ -68,3 +68,35 @@ def test_where_arpack_does_not_converge_with_few_vectors_the_default_is_used(sta
     lam, _ = eigen.lowest_eigen(op, pt.u, pt.p)
     assert calls == [eigen.LOWEST_NCV, None]
     assert lam == expected[0] / float(np.min(op.model.mu))
+
+
+
+
+def test_the_bifurcation_is_located_with_each_bracket_end_solved_once(monkeypatch):
+    """The root finding is handed the bracket's eigenvalues (``root_on_step``'s ``f_ends``): every
+    state's eigenproblem is solved once, and the bifurcation is the one located when the root
+    finding solves the ends again, bit for bit."""
+    from snapjump_cli.fe.branch import bifurcation
+
+    res = solve_scene(CapScene(theta_deg=30.0, eta=50.0, bc="clamped"), MeshSettings(nt=1, aspect=2.0),
+                      SolverSettings())
+    seen = []
+    real = bifurcation.lowest_eigen
+
+    def counted(op, u, p, **kw):
+        seen.append(u.tobytes())
+        return real(op, u, p, **kw)
+
+    monkeypatch.setattr(bifurcation, "lowest_eigen", counted)
+    bif = locate_bifurcation(res, 2)
+    assert len(seen) == len(set(seen)) == bif.iterations
+    real_root = bifurcation.root_on_step
+
+    def ends_again(*args, f_ends=None, **kw):
+        return real_root(*args, **kw)
+
+    monkeypatch.setattr(bifurcation, "root_on_step", ends_again)
+    seen.clear()
+    ref = locate_bifurcation(res, 2)
+    assert len(seen) == len(set(seen)) + 2
+    assert np.array_equal(bif.u, ref.u) and bif.eig == ref.eig and np.array_equal(bif.mode, ref.mode)

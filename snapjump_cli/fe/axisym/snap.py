@@ -36,7 +36,8 @@ POST_SNAP_SKIPPED = "upper state located; post-snap path not traced"
 
 
 def root_on_step(tr: Tracer, a: PathPoint, b: PathPoint, a_prev: PathPoint | None,
-                 f: Callable[[PathPoint], float], tol: float, max_iter: int, s0: float | None = None) -> PathPoint:
+                 f: Callable[[PathPoint], float], tol: float, max_iter: int, s0: float | None = None,
+                 f_ends: tuple[float, float] | None = None) -> PathPoint:
     """A root of ``f`` (a function of a path point; ``f(a)`` and ``f(b)`` have opposite signs) on
     the length of a re-solved step from ``a``: the secant through the last two trial points while
     it stays inside the bracket, else Illinois regula falsi on the bracket; the first trial at
@@ -44,9 +45,10 @@ def root_on_step(tr: Tracer, a: PathPoint, b: PathPoint, a_prev: PathPoint | Non
     where ``|f| < tol``, else the last one found on ``b``'s side of the root (``b`` if none).
     Each trial point is predicted by the cubic Hermite interpolation between ``a`` and ``b``
     (:meth:`~snapjump_cli.fe.continuation.Tracer.step_between`; an extrapolation from ``a`` if that
-    fails)."""
-    lo, flo = 0.0, f(a)
-    hi, fhi, best = b.s - a.s, f(b), b
+    fails). ``f_ends``: ``(f(a), f(b))`` where the caller has them (an eigen-solve each)."""
+    fa, fb = (f(a), f(b)) if f_ends is None else f_ends
+    lo, flo = 0.0, fa
+    hi, fhi, best = b.s - a.s, fb, b
     b_positive = fhi > 0
     side = 0
     trials: list[tuple[float, float]] = []

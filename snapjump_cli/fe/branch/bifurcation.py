@@ -73,23 +73,24 @@ def locate_bifurcation(result, n: int, tol_eig: float = 1e-9, max_iter: int = 30
     a, b = prev, pt
     k = next(i for i, q in enumerate(states) if q is a)
     a_prev = states[k - 1] if k > 0 else None
-    cache: dict = {}
+    solved: dict = {}  # id -> (point, eigenpair): the points kept, so that no id is reused
 
     def f(q: PathPoint) -> float:
         ev = lowest_eigen(op, q.u, q.p)
         if ev is None:
             return math.nan
-        cache[id(q)] = ev
+        solved[id(q)] = (q, ev)
         return ev[0]
 
-    if not (f(a) > 0.0 > f(b)):
+    fa, fb = f(a), f(b)
+    if not (fa > 0.0 > fb):
         return None
-    root = root_on_step(tracer, a, b, a_prev, f, tol_eig, max_iter)
-    if id(root) not in cache:
+    root = root_on_step(tracer, a, b, a_prev, f, tol_eig, max_iter, f_ends=(fa, fb))
+    if id(root) not in solved:
         f(root)
-    eig, mode = cache[id(root)]
+    eig, mode = solved[id(root)][1]
     log.debug("bifurcation of harmonic %d at V = %.9g (scaled), eigenvalue %.2g", n, root.zeta[0], eig)
-    return Bifurcation(n, np.array(root.u), float(root.p), np.array(root.zeta), mode, eig, len(cache), float(root.s))
+    return Bifurcation(n, np.array(root.u), float(root.p), np.array(root.zeta), mode, eig, len(solved), float(root.s))
 
 
 def first_bifurcation(result, harmonics: list[int]) -> Bifurcation | None:

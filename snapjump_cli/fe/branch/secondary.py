@@ -441,21 +441,22 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
     if ea is None or not ea[0] > 0.0:
         return None
     scale = ea[0]
-    cache: dict = {}
+    solved: dict = {id(a): (a, (ea[0] / scale, ea[1]))}  # id -> (point, eigenpair): the points kept
 
     def f(q) -> float:
         e = extra_eigen(full, lift(mh, full, q.u), q.p, dofs, scale, smallest=False)
         if e is None:
             return math.nan
-        cache[id(q)] = e
+        solved[id(q)] = (q, e)
         return e[0]
 
-    if not f(b) < 0.0:
+    fb = f(b)
+    if not fb < 0.0:
         return None
-    root = root_on_step(fr.tracer, a, b, a_prev, f, tol, max_iter)
-    if id(root) not in cache:
+    root = root_on_step(fr.tracer, a, b, a_prev, f, tol, max_iter, f_ends=(ea[0] / scale, fb))
+    if id(root) not in solved:
         f(root)
-    eig, mode = cache[id(root)]
+    eig, mode = solved[id(root)][1]
     if not abs(eig) < 100.0 * tol:  # root_on_step returns its last point on b's side if it does not converge
         log.warning("secondary bifurcation of the branch of harmonic %d not converged (relative eigenvalue "
                     "%.2e between path points %d and %d): not located", fr.bif.n, eig, j1 - 1, j1)
