@@ -110,6 +110,34 @@ def test_an_asymmetric_landing_is_not_replaced():
     assert axisym_landing(res, head.model, head.tracer, head.states.upper) is None
 
 
+def test_the_harmonic_inertia_gives_up_only_candidates_the_polish_rejects(monkeypatch):
+    """Design B's axisymmetric states beyond the snap at the bifurcation's volume are unstable in a
+    harmonic >= 1: the harmonic check's inertia gives each up before any polish in the
+    multi-harmonic model, and polished there (the inertia test switched off) each fails its test
+    too. The design of the fixture lands on such a state: its candidate passes the inertia."""
+    import snapjump_cli.fe.branch.trace as trace_mod
+    from snapjump_cli.geometry.designs import get_design
+
+    res = solve_scene(get_design("B"), MeshSettings(), SolverSettings(harmonics=4))
+    bif = locate_bifurcation(res, 1)
+    head = follow_branch(res, bif, default_harmonics(1), max_steps=1, stop_at_upper=True)
+    V = float(head.states.upper.zeta[0])
+    assert len([q for _, q in axisym_crossings(res, V, beyond_snap=True) if q is not None]) >= 1
+    polished = []
+    real = head.tracer.correct
+
+    def counted(*args, **kw):
+        polished.append(1)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(head.tracer, "correct", counted)
+    assert axisym_landing(res, head.model, head.tracer, head.states.upper) is None
+    assert polished == []  # every candidate given up by the inertia
+    monkeypatch.setattr(trace_mod, "harmonic_inertia", lambda *a, **k: 0)
+    assert axisym_landing(res, head.model, head.tracer, head.states.upper) is None
+    assert len(polished) >= 1  # polished, and rejected by the test after the polish
+
+
 def test_the_search_without_the_fixed_volume_path_is_the_references_descent(answers, monkeypatch):
     """``volume_path=False`` goes straight to the descent the reference falls back on (the same
     call: so the same state wherever the fixed-volume path fails, as it does here)."""

@@ -214,9 +214,9 @@ def _kicks(model, c: np.ndarray, p_c: float, m: np.ndarray, kick: np.ndarray):
     the load ``F = d^T R / d^T M d`` there (the Rayleigh quotient of the unstable mode)."""
     d0 = kick
     for _ in range(4):
-        lin_k = model.linearize(c + d0, p_c)
-        if lin_k is not None:
-            yield d0, p_c, float(d0 @ lin_k.R) / float(d0 @ (m * d0))
+        R = model.residual(c + d0, p_c)  # (the residual alone: the tangent is not needed here)
+        if R is not None:
+            yield d0, p_c, float(d0 @ R) / float(d0 @ (m * d0))
         d0 = 0.1 * d0
 
 
@@ -279,7 +279,7 @@ def _follow(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: floa
         return None
 
     try:
-        start = start_point(ftr, lin_s.u, lin_s.p, t_prev=np.array([1.0, 0.0]))
+        start = start_point(ftr, lin_s.u, lin_s.p, t_prev=np.array([1.0, 0.0]), lin=lin_s)
         path = trace(pb, ftr.cfg, stop, u0=lin_s.u, tracer=ftr, start=start)
     except ContinuationFailed as exc:
         return None, (f"failed ({exc})", 0)

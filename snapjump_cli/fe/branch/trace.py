@@ -39,6 +39,7 @@ from snapjump_cli.fe.branch.landing import land_from_bifurcation
 from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, AXISYM_LOWER_LANDING, multiharmonic_snap_metrics
 from snapjump_cli.fe.branch.model import MultiHarmonicModel
 from snapjump_cli.fe.continuation import ContinuationFailed, Path, PathPoint, Tracer, start_point, trace
+from snapjump_cli.fe.stability.eigen import harmonic_inertia
 
 log = logging.getLogger(__name__)
 
@@ -586,7 +587,7 @@ def axisym_state_at(result, mh: MultiHarmonicModel, tr: Tracer, V: float) -> Pat
         if lin is None or constrained_instability(tr, lin) != 0:
             return None
         try:
-            return start_point(tr, U, q.p)
+            return start_point(tr, U, q.p, lin=lin)
         except ContinuationFailed:
             return None
     return None
@@ -671,7 +672,16 @@ def _stable_below(mh: MultiHarmonicModel, tr: Tracer, upper: PathPoint, u_axi: n
                   E_max: float) -> tuple[PathPoint | None, float]:
     """The axisymmetric state ``(u_axi, p)`` polished at ``upper``'s volume in ``mh`` (by ``tr``), as a
     point oriented by ``upper``'s tangent, with its energy, if that is below ``E_max`` and the state
-    is stable under volume control with every harmonic of ``mh``; else ``(None, nan)``."""
+    is stable under volume control with every harmonic of ``mh``; else ``(None, nan)``.
+
+    An axisymmetric state stays axisymmetric under the polish, and there ``mh``'s tangent is the
+    harmonics' operators side by side: one that the harmonic check's inertia finds clearly unstable
+    (an eigenvalue below ``-ZERO_TOL mu_min``) fails the test after the polish too, and is given up
+    before it (a band factorisation of a few hundred dofs per harmonic instead of the polish's
+    assemblies of ``mh``)."""
+    for n in mh.hn[1:]:
+        if harmonic_inertia(mh.base, u_axi, p, int(n), free_body=mh.free_body) > 0:
+            return None, math.nan
     res = tr.correct(mh.embed(u_axi), p, None, None, 0.0, target=(0, float(upper.zeta[0])))
     if res is None:
         return None, math.nan

@@ -288,13 +288,16 @@ def _det_sign(n_neg: int, schur: float | None) -> int:
     return (-1) ** int(n_neg) * (1 if schur > 0 else -1)
 
 
-def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0, t_prev: np.ndarray | None = None) -> PathPoint:
+def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0, t_prev: np.ndarray | None = None,
+                lin=None) -> PathPoint:
     """The first path point (a converged state, e.g. the stress-free reference), oriented along
-    ``t_prev`` in measure space (default: the first measure, the cavity volume, increases)."""
+    ``t_prev`` in measure space (default: the first measure, the cavity volume, increases).
+    ``lin``: the problem's linearisation at ``(u0, p0)`` where the caller has it (not formed again)."""
     if t_prev is None:
         t_prev = np.zeros(len(tracer.sc))
         t_prev[0] = 1.0
-    lin = tracer.pb.linearize(u0, p0)
+    if lin is None:
+        lin = tracer.pb.linearize(u0, p0)
     if lin is None:
         raise ContinuationFailed("the initial state lies outside the material domain")
     t, v, q, z = tracer.tangent(lin, (t_prev, np.zeros(tracer.pb.n)))
