@@ -43,3 +43,21 @@ def test_the_sphere_path_lands_the_subcritical_secondary_branch_where_the_descen
     assert ref is not None, msg
     assert np.linalg.norm(low.u - ref.u) < 1e-7 * np.linalg.norm(ref.u)
     assert full.energy(up.u) - full.energy(low.u) == pytest.approx(full.energy(up.u) - full.energy(ref.u), rel=1e-8)
+
+
+def test_the_polish_with_the_mixed_newton_matrix_lands_on_the_same_state(landed, monkeypatch):
+    """The zero of the sphere path's load is polished with the mixed Newton matrix (the element
+    pressures interpolated along the step): the same state as the polish with the condensed
+    tangent, to the Newton tolerance."""
+    import snapjump_cli.fe.axisym.sphere_path as sp
+
+    res = solve_scene(Design(7.4, 75.0, 5.0, 82.0, 1.0), MeshSettings(order=2, nt=1, aspect=3.0),
+                      SolverSettings(harmonics=4))
+    chk = check_harmonics(res, 4)
+    monkeypatch.setattr(sp, "SPHERE_POLISH_MIXED", False)
+    condensed = followed_metrics(res, chk, mode="actuator")
+    a, b = landed.branch.states.lower.u, condensed.branch.states.lower.u
+    assert condensed.branch.lower_note.startswith("sphere path: stable state")
+    assert np.linalg.norm(a - b) < 1e-8 * np.linalg.norm(b)
+    for key in ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa"):
+        assert landed.values[key] == pytest.approx(condensed.values[key], rel=1e-8)

@@ -76,6 +76,11 @@ SPHERE_TOL_PATH = 1e-4
 SPHERE_ZERO_GUESS = True
 
 
+#: The polish of a zero of the load takes the mixed Newton matrix, with the element pressures
+#: interpolated along the step as the state is (as the path's own corrector does).
+SPHERE_POLISH_MIXED = True
+
+
 #: The load's scale in the path's arc length, relative to the first state's load: large, so that
 #: the arc length is the distance travelled (near the centre the load can go as ``1 / w``).
 SPHERE_LOAD_SCALE = 1e6
@@ -191,7 +196,8 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
         return None, f"sphere path: {why} after {n_steps} steps"
     lin, it = found
     if V_c != float(upper.zeta[0]) * sV:
-        res = tracer.correct(lin.u.copy(), float(lin.p), None, None, 0.0, target=(0, float(upper.zeta[0])))
+        res = tracer.correct(lin.u.copy(), float(lin.p), None, None, 0.0, target=(0, float(upper.zeta[0])),
+                             aux=getattr(lin, "aux", None) if SPHERE_POLISH_MIXED else None)
         if res is None or constrained_instability(tracer, res[0]) != 0 or not res[0].E < model.energy(upper.u):
             return None, f"sphere path: the stable state at the centre's volume does not reach V* ({n_steps} steps)"
         lin, it = res[0], it + res[1]
@@ -200,13 +206,22 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
             f"sphere path: stable state in {n_steps} steps ({ftr.n_newton} Newton iterations)")
 
 
-def _zero_guess(a: PathPoint, b: PathPoint) -> np.ndarray | None:
+def _zero_guess(a: PathPoint, b: PathPoint) -> tuple[np.ndarray | None, np.ndarray | None]:
     """The state where the load ``F`` vanishes on the step from ``a`` to ``b`` (opposite signs), by
-    the cubic Hermite interpolation of the step (``F`` and the state alike); ``None`` if the cubic
-    of ``F`` has no root inside the step."""
+    the cubic Hermite interpolation of the step (``F`` and the state alike), with the points'
+    auxiliary field (the element pressures) interpolated there too (``None`` if they carry none);
+    ``(None, None)`` if the cubic of ``F`` has no root inside the step."""
     h = b.s - a.s
     t = hermite.first_root(a.p, a.dp_ds * h, b.p, b.dp_ds * h) if h > 0.0 else None
-    return None if t is None else hermite.interpolate(t, a.u, a.du_ds, b.u, b.du_ds, h)
+    if t is None:
+        return None, None
+    aux = None
+    if a.aux is not None and b.aux is not None:
+        if a.daux_ds is not None and b.daux_ds is not None:
+            aux = hermite.interpolate(t, a.aux, a.daux_ds, b.aux, b.daux_ds, h)
+        else:
+            aux = (1 - t) * a.aux + t * b.aux
+    return hermite.interpolate(t, a.u, a.du_ds, b.u, b.du_ds, h), aux
 
 
 def _kicks(model, c: np.ndarray, p_c: float, m: np.ndarray, kick: np.ndarray):
@@ -255,15 +270,17 @@ def _follow(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: floa
         if not (a.p * b.p < 0.0 or (b.p == 0.0 and a.p != 0.0)):
             return None
         state["zeros"] += 1
-        guess = _zero_guess(a, b) if SPHERE_ZERO_GUESS else None
+        guess, aux = _zero_guess(a, b) if SPHERE_ZERO_GUESS else (None, None)
         if guess is not None:  # polished at V* from the step's interpolation: the root is not located first
-            res = tracer.correct(guess[:-1].copy(), float(guess[-1]), None, None, 0.0, target=(0, V_target))
+            res = tracer.correct(guess[:-1].copy(), float(guess[-1]), None, None, 0.0, target=(0, V_target),
+                                 aux=aux if SPHERE_POLISH_MIXED else None)
             if res is not None and constrained_instability(tracer, res[0]) == 0 and res[0].E < W_c:
                 log.debug("sphere path: F = 0 at w = %.6g, polished from the step's interpolation", a.zeta[0])
                 state["found"] = res
                 return "stable state at V*"
         root = root_on_step(ftr, a, b, pts[-3] if len(pts) > 2 else None, lambda pt: pt.p, 1e-8 * s_F, 40)
-        res = tracer.correct(root.u[:-1].copy(), float(root.u[-1]), None, None, 0.0, target=(0, V_target))
+        res = tracer.correct(root.u[:-1].copy(), float(root.u[-1]), None, None, 0.0, target=(0, V_target),
+                             aux=root.aux if SPHERE_POLISH_MIXED else None)
         if res is not None:
             lin, it = res
             n_unstable = constrained_instability(tracer, lin)
