@@ -13,27 +13,13 @@ from numba import njit
 
 from snapjump_kernels.cavity import edge_shape
 from snapjump_kernels.mh_basis import dof_offset
-from snapjump_kernels.mh_cavity import _cavity_point
-
-_GP = np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
-_GW = np.array([5.0 / 9.0, 8.0 / 9.0, 5.0 / 9.0])
+from snapjump_kernels.mh_cavity import _GP, _GW, _cavity_point
 
 
 @njit(cache=True)
-def mh_cavity_reference(X: np.ndarray, A: np.ndarray, edges: np.ndarray, hn: np.ndarray, phis: np.ndarray,
-              wphi: np.ndarray, want: int):
-    """The cavity volume of the multi-harmonic surface (the 3D flux, without the offset) with its
-    gradient and Hessian per edge in the edge dofs ``(node, component)`` of the layout.
-
-    Parameters
-    ----------
-    X : (nn, 2) reference positions (scaled); A : (nn, nc) amplitudes; edges : (m, 2|3) oriented
-        cavity edges as in :mod:`snapjump_kernels.cavity`; hn, phis, wphi : as in :func:`snapjump_kernels.mh_element.mh_elements`
-
-    Returns
-    -------
-    (V, ge, He) : the volume, (m, nen nc) gradients, (m, nen nc, nen nc) Hessians (``want``: 0, 1, 2)
-    """
+def mh_cavity_reference(X, A, edges, hn, phis, wphi, want):
+    """:func:`snapjump_kernels.mh_cavity.mh_cavity` (the same arguments and results) as it was formed
+    before: every phi point's dense ``L^T (d2v L)``."""
     m, nen = edges.shape
     K = hn.shape[0]
     nc = 2 + 3 * (K - 1)
