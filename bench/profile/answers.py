@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-#: The answers compared.
-KEYS = ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa")
+#: The answers compared (the four the jump model takes; ``bench.profile.follow --compare`` reports them too).
+ANSWER_KEYS = ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa")
 
 
 def _how(row: dict) -> str:
@@ -29,7 +29,7 @@ def _how(row: dict) -> str:
 
 def compare(a: list[dict], b: list[dict]) -> list[dict]:
     """Per design followed in both runs (matched by position in the design list, the label's
-    ``#row``): the relative differences of :data:`KEYS` and whether both landed the same way."""
+    ``#row``): the relative differences of :data:`ANSWER_KEYS` and whether both landed the same way."""
     def key(r: dict) -> str:
         return r["design"].rsplit("#", 1)[-1]
 
@@ -39,7 +39,7 @@ def compare(a: list[dict], b: list[dict]) -> list[dict]:
         s = fine.get(key(r))
         if r.get("dE_J") is None or s is None:
             continue
-        d = {k: abs(r[k] - s[k]) / max(abs(s[k]), 1e-300) for k in KEYS if r.get(k) is not None and s.get(k) is not None}
+        d = {k: abs(r[k] - s[k]) / max(abs(s[k]), 1e-300) for k in ANSWER_KEYS if r.get(k) is not None and s.get(k) is not None}
         out.append({"design": key(r), "same_way": _how(r) == _how(s), "how": _how(r), "how_other": _how(s), **d})
     return out
 
@@ -50,15 +50,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("second", type=Path, help="--json output of the same designs (the reference: e.g. one mesh finer)")
     a = ap.parse_args(argv)
     rows = compare(json.loads(a.first.read_text()), json.loads(a.second.read_text()))
-    print("| row | " + " | ".join(KEYS) + " | landed the same way |\n|---|" + "---|" * (len(KEYS) + 1))
+    print("| row | " + " | ".join(ANSWER_KEYS) + " | landed the same way |\n|---|" + "---|" * (len(ANSWER_KEYS) + 1))
     for r in rows:
-        print(f"| {r['design']} | " + " | ".join(f"{r.get(k, float('nan')):.2g}" for k in KEYS)
+        print(f"| {r['design']} | " + " | ".join(f"{r.get(k, float('nan')):.2g}" for k in ANSWER_KEYS)
               + f" | {'yes' if r['same_way'] else 'no: ' + r['how'] + ' vs ' + r['how_other']} |")
     for name, sel in (("landed the same way", [r for r in rows if r["same_way"]]), ("all", rows)):
         if not sel:
             continue
         stats = ", ".join(f"{k} median {np.median([r[k] for r in sel]):.2g} largest {max(r[k] for r in sel):.2g}"
-                          for k in KEYS)
+                          for k in ANSWER_KEYS)
         print(f"\n{name} ({len(sel)} designs): {stats}")
     return 0
 

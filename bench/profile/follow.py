@@ -51,6 +51,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from bench.profile.answers import ANSWER_KEYS  # the answers whose differences answer_diff reports one by one
 from snapjump_cli.fe.axisym.lower_state import find_lower_state
 from snapjump_cli.fe.branch.bifurcation import default_harmonics, locate_bifurcation
 from snapjump_cli.fe.branch.followed import followed_metrics
@@ -152,10 +153,6 @@ def compare_axisym_first(res, chk, N: int, mode: str, out: dict, fr) -> dict[str
     return answer_diff(f"{mode} without the axisymmetric state first", time.process_time() - t0, out, fr, ans)
 
 
-#: The answers whose relative differences ``answer_diff`` reports one by one.
-ANSWER_KEYS = ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa")
-
-
 def answer_diff(other: str, cpu: float, out: dict, fr, ans) -> dict[str, Any]:
     """The answer values of ``ans`` (a ``followed_metrics`` answer, computed in ``cpu`` CPU-s) that
     differ from ``out`` and the distance between the two lower states (relative to ``fr``'s)."""
@@ -166,12 +163,12 @@ def answer_diff(other: str, cpu: float, out: dict, fr, ans) -> dict[str, Any]:
         isinstance(out.get(k), float) and isinstance(ans.values.get(k), float)
         and np.isnan(out[k]) and np.isnan(ans.values[k]))]
     differ = sorted(set(keys) - set(same))
-    rel = [abs(out[k] - ans.values[k]) / max(abs(out[k]), abs(ans.values[k]), 1e-300) for k in differ
-           if isinstance(out.get(k), float) and isinstance(ans.values.get(k), float)]
-    row = {"mode": other, "cpu_s": cpu, "values": len(keys), "differ": differ, "largest_rel_diff": max(rel, default=0.0)}
-    # the answers the jump model takes, each one's relative difference
-    row["answers_rel_diff"] = {k: abs(out[k] - ans.values[k]) / max(abs(out[k]), abs(ans.values[k]), 1e-300)
-                               for k in ANSWER_KEYS if isinstance(out.get(k), float) and isinstance(ans.values.get(k), float)}
+    # each float value's relative difference (to the larger of the two)
+    rel = {k: abs(out[k] - ans.values[k]) / max(abs(out[k]), abs(ans.values[k]), 1e-300) for k in keys
+           if isinstance(out.get(k), float) and isinstance(ans.values.get(k), float)}
+    row = {"mode": other, "cpu_s": cpu, "values": len(keys), "differ": differ,
+           "largest_rel_diff": max((rel[k] for k in differ if k in rel), default=0.0),
+           "answers_rel_diff": {k: rel[k] for k in ANSWER_KEYS if k in rel}}  # the answers the jump model takes
     lo, lo2 = (fr.states.lower if fr is not None else None), (ans.branch.states.lower if ans.branch is not None else None)
     if lo is not None and lo2 is not None and lo.u.shape == lo2.u.shape:
         row["landing_distance"] = float(np.linalg.norm(lo2.u - lo.u) / np.linalg.norm(lo.u))

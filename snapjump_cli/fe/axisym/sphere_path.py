@@ -43,7 +43,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from snapjump_cli.fe.continuation import ContinuationFailed, PathPoint, Tracer, hermite, start_point, trace
+from snapjump_cli.fe.continuation import ContinuationFailed, PathPoint, Tracer, hermite, point_between, start_point, trace
 from snapjump_cli.fe.axisym.lower_state import FixedVolumeLinearization, constrained_instability
 from snapjump_cli.fe.axisym.snap import root_on_step
 
@@ -209,19 +209,14 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
 def _zero_guess(a: PathPoint, b: PathPoint) -> tuple[np.ndarray | None, np.ndarray | None]:
     """The state where the load ``F`` vanishes on the step from ``a`` to ``b`` (opposite signs), by
     the cubic Hermite interpolation of the step (``F`` and the state alike), with the points'
-    auxiliary field (the element pressures) interpolated there too (``None`` if they carry none);
+    auxiliary field (the element pressures) there (:func:`~snapjump_cli.fe.continuation.point_between`);
     ``(None, None)`` if the cubic of ``F`` has no root inside the step."""
     h = b.s - a.s
     t = hermite.first_root(a.p, a.dp_ds * h, b.p, b.dp_ds * h) if h > 0.0 else None
     if t is None:
         return None, None
-    aux = None
-    if a.aux is not None and b.aux is not None:
-        if a.daux_ds is not None and b.daux_ds is not None:
-            aux = hermite.interpolate(t, a.aux, a.daux_ds, b.aux, b.daux_ds, h)
-        else:
-            aux = (1 - t) * a.aux + t * b.aux
-    return hermite.interpolate(t, a.u, a.du_ds, b.u, b.du_ds, h), aux
+    u, _, aux = point_between(a, b, t)
+    return u, aux
 
 
 def _kicks(model, c: np.ndarray, p_c: float, m: np.ndarray, kick: np.ndarray):

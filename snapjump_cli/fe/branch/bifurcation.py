@@ -86,9 +86,7 @@ def locate_bifurcation(result, n: int, tol_eig: float = 1e-9, max_iter: int = 30
     if not (fa > 0.0 > fb):
         return None
     root = root_on_step(tracer, a, b, a_prev, f, tol_eig, max_iter, f_ends=(fa, fb))
-    if id(root) not in solved:
-        f(root)
-    eig, mode = solved[id(root)][1]
+    eig, mode = solved[id(root)][1]  # (root_on_step returns a point it evaluated)
     log.debug("bifurcation of harmonic %d at V = %.9g (scaled), eigenvalue %.2g", n, root.zeta[0], eig)
     return Bifurcation(n, np.array(root.u), float(root.p), np.array(root.zeta), mode, eig, len(solved), float(root.s))
 

@@ -454,9 +454,7 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
     if not fb < 0.0:
         return None
     root = root_on_step(fr.tracer, a, b, a_prev, f, tol, max_iter, f_ends=(ea[0] / scale, fb))
-    if id(root) not in solved:
-        f(root)
-    eig, mode = solved[id(root)][1]
+    eig, mode = solved[id(root)][1]  # (root_on_step returns a point it evaluated)
     if not abs(eig) < 100.0 * tol:  # root_on_step returns its last point on b's side if it does not converge
         log.warning("secondary bifurcation of the branch of harmonic %d not converged (relative eigenvalue "
                     "%.2e between path points %d and %d): not located", fr.bif.n, eig, j1 - 1, j1)

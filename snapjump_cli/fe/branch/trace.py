@@ -39,7 +39,7 @@ from snapjump_cli.fe.branch.landing import land_from_bifurcation
 from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, AXISYM_LOWER_LANDING, multiharmonic_snap_metrics
 from snapjump_cli.fe.branch.model import MultiHarmonicModel
 from snapjump_cli.fe.continuation import ContinuationFailed, Path, PathPoint, Tracer, start_point, trace
-from snapjump_cli.fe.stability.eigen import harmonic_inertia
+from snapjump_cli.fe.stability.harmonics import unstable_harmonics
 
 log = logging.getLogger(__name__)
 
@@ -675,13 +675,12 @@ def _stable_below(mh: MultiHarmonicModel, tr: Tracer, upper: PathPoint, u_axi: n
     is stable under volume control with every harmonic of ``mh``; else ``(None, nan)``.
 
     An axisymmetric state stays axisymmetric under the polish, and there ``mh``'s tangent is the
-    harmonics' operators side by side: one that the harmonic check's inertia finds clearly unstable
-    (an eigenvalue below ``-ZERO_TOL mu_min``) fails the test after the polish too, and is given up
-    before it (a band factorisation of a few hundred dofs per harmonic instead of the polish's
-    assemblies of ``mh``)."""
-    for n in mh.hn[1:]:
-        if harmonic_inertia(mh.base, u_axi, p, int(n), free_body=mh.free_body) > 0:
-            return None, math.nan
+    harmonics' operators side by side: one that the harmonic check finds unstable in a harmonic
+    ``>= 1`` (an eigenvalue below ``-ZERO_TOL mu_min``, :func:`~snapjump_cli.fe.stability.harmonics.unstable_harmonics`)
+    fails the test after the polish too, and is given up before it (a band factorisation of a few
+    hundred dofs per harmonic instead of the polish's assemblies of ``mh``)."""
+    if unstable_harmonics(mh.base, u_axi, p, mh.hn[1:], free_body=mh.free_body, first_only=True):
+        return None, math.nan
     res = tr.correct(mh.embed(u_axi), p, None, None, 0.0, target=(0, float(upper.zeta[0])))
     if res is None:
         return None, math.nan

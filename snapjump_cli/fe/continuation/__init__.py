@@ -7,7 +7,7 @@
 """
 from snapjump_cli.fe.continuation.path import ContinuationFailed, ContinuationSettings, Path, PathPoint, Problem
 from snapjump_cli.fe.continuation.stepping import trace
-from snapjump_cli.fe.continuation.tracer import Tracer, start_point
+from snapjump_cli.fe.continuation.tracer import Tracer, point_between, start_point
 
 __all__ = ["trace", "Tracer", "Path", "PathPoint", "ContinuationSettings", "ContinuationFailed", "start_point",
-           "Problem"]
+           "point_between", "Problem"]

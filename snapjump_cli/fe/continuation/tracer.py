@@ -13,7 +13,7 @@ import numpy as np
 from snapjump_cli.fe.continuation import hermite
 from snapjump_cli.fe.continuation.path import ContinuationFailed, ContinuationSettings, PathPoint, Problem
 
-__all__ = ["Tracer", "start_point"]
+__all__ = ["Tracer", "start_point", "point_between"]
 
 
 @dataclass
@@ -252,16 +252,8 @@ class Tracer:
         a step that turned too far, and by the root finding inside a step."""
         h = end.s - pt.s
         ds = 0.5 * h if ds is None else ds
-        t = ds / h
-        u0 = hermite.interpolate(t, pt.u, pt.du_ds, end.u, end.du_ds, h)
-        p0 = hermite.interpolate(t, pt.p, pt.dp_ds, end.p, end.dp_ds, h)
-        aux0 = None
-        if pt.aux is not None and end.aux is not None and self.cfg.mixed_tangent:
-            if pt.daux_ds is not None and end.daux_ds is not None:
-                aux0 = hermite.interpolate(t, pt.aux, pt.daux_ds, end.aux, end.daux_ds, h)
-            else:
-                aux0 = (1 - t) * pt.aux + t * end.aux
-        return self._point(pt, u0, p0, aux0, ds, tol, error_test)
+        u0, p0, aux0 = point_between(pt, end, ds / h)
+        return self._point(pt, u0, p0, aux0 if self.cfg.mixed_tangent else None, ds, tol, error_test)
 
     def _point(self, pt: PathPoint, u0: np.ndarray, p0: float, aux0, ds: float, tol: float | None,
                error_test: bool):
@@ -286,6 +278,22 @@ def _det_sign(n_neg: int, schur: float | None) -> int:
     if n_neg < 0 or schur is None:
         return 0
     return (-1) ** int(n_neg) * (1 if schur > 0 else -1)
+
+
+def point_between(a: PathPoint, b: PathPoint, t: float):
+    """``(u, p, aux)`` at the fraction ``t`` of the step from the path point ``a`` to ``b``: the
+    cubic Hermite interpolation of the state and the load, and of the auxiliary field where both
+    points carry one (linear if they carry no derivative of it; ``None`` if either carries none)."""
+    h = b.s - a.s
+    u = hermite.interpolate(t, a.u, a.du_ds, b.u, b.du_ds, h)
+    p = hermite.interpolate(t, a.p, a.dp_ds, b.p, b.dp_ds, h)
+    aux = None
+    if a.aux is not None and b.aux is not None:
+        if a.daux_ds is not None and b.daux_ds is not None:
+            aux = hermite.interpolate(t, a.aux, a.daux_ds, b.aux, b.daux_ds, h)
+        else:
+            aux = (1 - t) * a.aux + t * b.aux
+    return u, p, aux
 
 
 def start_point(tracer: Tracer, u0: np.ndarray, p0: float = 0.0, t_prev: np.ndarray | None = None,

@@ -65,6 +65,7 @@ __all__ = [
     "ZERO_TOL",
     "HarmonicOperator",
     "harmonic_operator",
+    "unstable_harmonics",
     "rigid_modes",
     "check_harmonics",
     "HARMONIC_KEYS",
@@ -539,6 +540,16 @@ def _unstable_harmonics(ops, u, p, tol, first_only: bool) -> list[int]:
             if first_only:
                 break
     return out
+
+
+def unstable_harmonics(model, u: np.ndarray, p: float, harmonics, tol: float = ZERO_TOL,
+                       free_body: bool | None = None, first_only: bool = False) -> list[int]:
+    """The harmonics of ``harmonics`` (each ``>= 1``) unstable at the axisymmetric equilibrium
+    ``(u, p)`` of ``model`` (the first only, with ``first_only``), as the harmonic check counts them:
+    eigenvalues below ``-tol mu_min``, a state outside the material domain counted as unstable; the
+    element pass at ``u`` made once for all of them."""
+    ops = [harmonic_operator(model, int(n), free_body) for n in harmonics]
+    return _unstable_harmonics(ops, u, p, tol, first_only)
 
 
 def _refine(tracer, ops, a, b, bad, tol, steps):
