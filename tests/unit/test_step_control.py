@@ -114,3 +114,45 @@ def test_snap_states_are_located_to_their_tolerances(design_D):
     st = new.states
     assert abs(st.upper.tangent[0]) < 1e-7  # the volume limit: dV/ds = 0
     assert st.lower.zeta[0] == pytest.approx(st.upper.zeta[0], rel=1e-12)  # the lower state at V*
+
+
+def test_easy_steps_grow_faster_and_a_failed_step_caps_the_next(monkeypatch):
+    """``grow_easy``: after a step that converged in one Newton iteration and hardly turned, the next
+    is ``grow_easy`` times longer (unless the turn aim or ``ds_max`` holds it); ``fail_cap``: after a
+    failed corrector at ``ds_f``, the first step tried after the next accepted one is at most
+    ``fail_cap ds_f`` (or the step just accepted). The answers stay those of the default control."""
+    from snapjump_cli.fe.continuation import Tracer
+    from snapjump_cli.fe.continuation.stepping import TURN_AIM
+
+    tried = []
+    orig_step = Tracer.step
+
+    def step(self, pt, ds, prev=None, tol=None, error_test=False):
+        new = orig_step(self, pt, ds, prev, tol, error_test)
+        tried.append((pt, ds, new))
+        return new
+
+    ref = _solve(monkeypatch, "A")
+    monkeypatch.setattr(Tracer, "step", step)
+    res = _solve(monkeypatch, "A", grow_easy=8.0, fail_cap=0.8)
+    cfg = res.tracer.cfg
+    for k in ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa"):
+        assert res.metrics[k] == pytest.approx(ref.metrics[k], rel=1e-6), k
+    easy = failed = 0
+    for (pt, ds, new), (nxt_pt, nxt_ds, _) in zip(tried[:-1], tried[1:]):
+        if new is None or nxt_pt is not new:
+            continue
+        ang = step_turn(pt, new, res.tracer.alpha)
+        if new.newton == 1 and 0.0 < ang < 0.1 * cfg.max_turn_deg:
+            expect = min(cfg.ds_max, ds * min(8.0, TURN_AIM * cfg.max_turn_deg / ang))
+            assert nxt_ds <= expect * (1 + 1e-12)
+            easy += nxt_ds == pytest.approx(expect, rel=1e-12)
+    for i, (pt, ds_f, new) in enumerate(tried):
+        if new is not None:
+            continue
+        acc = next((j for j in range(i + 1, len(tried) - 1) if tried[j][2] is not None
+                    and tried[j + 1][0] is tried[j][2]), None)
+        if acc is not None:
+            failed += 1
+            assert tried[acc + 1][1] <= max(0.8 * ds_f, tried[acc][1]) * (1 + 1e-12)
+    assert easy >= 1 and failed >= 1  # design A: both rules act (2 failed correctors)

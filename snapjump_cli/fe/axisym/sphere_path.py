@@ -67,6 +67,18 @@ SPHERE_TURN_DEG = 30.0
 SPHERE_TOL_PATH = 1e-4
 
 
+#: The sphere path's step after a step that converged in one Newton iteration and hardly turned
+#: (``ContinuationSettings.grow_easy``): the path leaves the saddle along its unstable mode with the
+#: load nearly constant, and took 4-5 such steps at a growth of 4. And after a step whose Newton
+#: failed, the steps that follow are kept below 0.8 of it (``fail_cap``): the steps had grown past
+#: Newton's basin and been cut back in turn (``follow_strata_n2`` row 5: 5 refused steps). On the
+#: 13 sphere-path rows of ``follow_strata`` and 10 of ``follow_strata_n2``: 659 -> 624 and 570 -> 515
+#: assemblies of the model with every harmonic, the answers within 6e-14 (``bench.profile.follow
+#: --json`` before and after, compared with ``bench.profile.answers``).
+SPHERE_GROW_EASY = 16.0
+SPHERE_FAIL_CAP = 0.8
+
+
 #: A zero of the load ``F`` is polished at ``V*`` from the cubic Hermite interpolation of its step
 #: (the state and ``F``), without first locating the zero on the path (the path's points are not
 #: an answer; Newton at fixed volume lands on the same equilibrium: ``follow_strata`` rows 0, 2, 5
@@ -79,6 +91,11 @@ SPHERE_ZERO_GUESS = True
 #: The polish of a zero of the load takes the mixed Newton matrix, with the element pressures
 #: interpolated along the step as the state is (as the path's own corrector does).
 SPHERE_POLISH_MIXED = True
+
+
+#: Volumes closer than this (relative) are the same: the centre's volume and ``V*`` that differ only
+#: by round-off (the centre's volume evaluated anew) need no correction at the end.
+SAME_VOLUME = 1e-12
 
 
 #: The load's scale in the path's arc length, relative to the first state's load: large, so that
@@ -195,7 +212,7 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
     if found is None:
         return None, f"sphere path: {why} after {n_steps} steps"
     lin, it = found
-    if V_c != float(upper.zeta[0]) * sV:
+    if abs(V_c - float(upper.zeta[0]) * sV) > SAME_VOLUME * abs(V_c):
         res = tracer.correct(lin.u.copy(), float(lin.p), None, None, 0.0, target=(0, float(upper.zeta[0])),
                              aux=getattr(lin, "aux", None) if SPHERE_POLISH_MIXED else None)
         if res is None or constrained_instability(tracer, res[0]) != 0 or not res[0].E < model.energy(upper.u):
@@ -240,7 +257,8 @@ def _first_state(pb: SpherePathProblem, cfg, s_w: float, starts):
         if not (w0 > 0.0 and math.isfinite(F0)):
             continue
         fcfg = replace(cfg, scales=(s_w, SPHERE_LOAD_SCALE * max(abs(F0), 1e-300)), step_grow=SPHERE_STEP_GROW,
-                       max_turn_deg=SPHERE_TURN_DEG, tol_path=SPHERE_TOL_PATH, ds0=min(cfg.ds0, w0 / s_w))
+                       max_turn_deg=SPHERE_TURN_DEG, tol_path=SPHERE_TOL_PATH, ds0=min(cfg.ds0, w0 / s_w),
+                       fail_cap=SPHERE_FAIL_CAP, grow_easy=SPHERE_GROW_EASY)
         ftr = Tracer(pb, fcfg)
         res = ftr.correct(np.concatenate([c + d0, [p0]]), F0, None, None, 0.0, target=(0, w0 / s_w))
         if res is not None:

@@ -87,11 +87,17 @@ class ContinuationSettings:
         per failed step (``lab/newton_study.py@51d9ff8 contraction``)
     mixed_tangent : linearise with the auxiliary field carried along the path, if the problem has one
     step_grow : growth of the next step after a step whose Newton took at most ``n_opt`` iterations
-        (:data:`snapjump_cli.fe.continuation.stepping.STEP_GROW` by default; a followed branch grows more
-        slowly, :data:`snapjump_cli.fe.branch.trace.FOLLOW_STEP_GROW`)
+        (:data:`snapjump_cli.fe.continuation.stepping.STEP_GROW` by default; a followed branch's:
+        :data:`snapjump_cli.fe.branch.trace.FOLLOW_STEP_GROW`, the sphere path's: its own)
     split_steps : a step that turned more than ``max_turn_deg`` is kept, with its half-way point
         added, when each half turns less (else it is rejected and the step halved); the converged
         end point is not thrown away
+    fail_cap : after a step whose corrector failed, the steps that follow are kept below
+        ``fail_cap`` times the failed step's length, a bound that grows by ``step_grow`` with every
+        accepted step (0: no bound; a path whose steps alternate between growing past Newton's
+        basin and being cut back)
+    grow_easy : growth of the next step after a step that converged in one Newton iteration and
+        turned less than a tenth of ``max_turn_deg`` (0: ``step_grow``)
     """
 
     scales: tuple[float, float, float]
@@ -113,6 +119,8 @@ class ContinuationSettings:
     split_steps: bool = True
     mixed_tangent: bool = True
     step_grow: float = 1.6
+    fail_cap: float = 0.0
+    grow_easy: float = 0.0
 
     @classmethod
     def from_solver(cls, solver: SolverSettings, scales: tuple[float, float, float], u_unit: float = 1.0,

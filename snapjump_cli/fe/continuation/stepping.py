@@ -145,6 +145,7 @@ def trace(
     path = Path()
     path.points.append(start if start is not None else start_point(tr, u0))
     ds = cfg.ds0
+    ds_cap = math.inf  # the bound on the step after a failed corrector (cfg.fail_cap)
     while True:
         if len(path.points) > cfg.max_steps:
             path.stop_reason = "max_steps"
@@ -181,12 +182,20 @@ def trace(
                 # its basin: grow while it converges in <= n_opt iterations, shrink beyond
                 its = max(new.newton, 1)
                 grow = cfg.step_grow if its <= cfg.n_opt else (STEP_KEEP if its <= cfg.n_opt + 2 else STEP_SHRINK)
+                if cfg.grow_easy > 0.0 and its == 1 and ang < 0.1 * cfg.max_turn_deg:
+                    grow = cfg.grow_easy
                 if ang > 0:
                     grow = min(grow, TURN_AIM * cfg.max_turn_deg / ang)
+                ds_done = ds
                 ds = min(cfg.ds_max, ds * max(STEP_FACTOR_MIN, grow))
+                if cfg.fail_cap > 0.0:  # not past a step that failed, but not below the one just taken
+                    ds = min(ds, max(ds_cap, ds_done))
+                    ds_cap *= cfg.step_grow
                 continue
         else:
             cause = "corrector did not converge"
+            if cfg.fail_cap > 0.0:
+                ds_cap = cfg.fail_cap * ds
         path.n_rejected += 1
         ds *= STEP_CUT
         log.debug("step rejected (%s); ds -> %.3g", cause, ds)
