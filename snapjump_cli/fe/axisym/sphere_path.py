@@ -167,7 +167,8 @@ class SpherePathProblem:
 
 
 def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick: np.ndarray,
-                       max_steps: int = 400, max_zeros: int = 6) -> tuple[PathPoint | None, str]:
+                       max_steps: int = 400, max_zeros: int = 6, climb: float | None = None
+                       ) -> tuple[PathPoint | None, str]:
     """The stable state at the volume of ``upper`` reached from the saddle ``centre`` along ``kick``.
 
     Parameters
@@ -178,6 +179,10 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
     kick : the first displacement from ``centre`` (a small multiple of its unstable mode)
     max_steps : continuation steps
     max_zeros : zeros of ``F`` examined before giving up
+    climb : how far (scaled energy) the path may rise above the centre's energy before it gives up
+        (default ``1e-9 max(1, |W_c|)``: round-off; a centre that is a degenerate saddle, a
+        bifurcation barely subcritical, needs more: the energy on the first spheres rises by the
+        error of its located eigenvalue's zero before it falls)
 
     Returns
     -------
@@ -202,11 +207,13 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
     s_w = math.sqrt(model.n) * sw
     c, p_c = centre.u.copy(), float(centre.p)
     pb = SpherePathProblem(model, V_c, c, m, ref / sV, p_floor)
-    first = _first_state(pb, cfg, s_w, _kicks(model, c, p_c, m, np.asarray(kick, float)))
+    first = _first_state(pb, replace(cfg, max_steps=min(cfg.max_steps, int(max_steps))), s_w,
+                         _kicks(model, c, p_c, m, np.asarray(kick, float)))
     if first is None:
         return None, "sphere path: no first state"
     ftr, lin_s = first
-    found, (why, n_steps) = _follow(tracer, ftr, pb, lin_s, W_c, V_c / sV, max_zeros)
+    climb = 1e-9 * max(1.0, abs(W_c)) if climb is None else float(climb)
+    found, (why, n_steps) = _follow(tracer, ftr, pb, lin_s, W_c, V_c / sV, max_zeros, climb)
     log.debug("sphere path: %s after %d steps (first state w %.3g, F %.3g)", why, n_steps,
               float(pb.measures(lin_s.u, lin_s.p)[0][0]), lin_s.p)
     if found is None:
@@ -266,7 +273,8 @@ def _first_state(pb: SpherePathProblem, cfg, s_w: float, starts):
     return None
 
 
-def _follow(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: float, V_target: float, max_zeros: int):
+def _follow(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: float, V_target: float, max_zeros: int,
+            climb: float):
     """Follow the path from its first state ``lin_s``. Returns ``(found, (reason, steps))``:
     ``found`` ``(linearisation, iterations)`` of the stable state (``None``: none)."""
     model = tracer.pb
@@ -276,7 +284,7 @@ def _follow(tracer: Tracer, ftr: Tracer, pb: SpherePathProblem, lin_s, W_c: floa
     def stop(path) -> str | None:
         pts = path.points
         a, b = pts[-2], pts[-1]
-        if not model.energy(b.u[:-1]) <= W_c + 1e-9 * max(1.0, abs(W_c)):
+        if not model.energy(b.u[:-1]) <= W_c + climb:
             return "climbed above the saddle's energy"
         if b.zeta[0] < a.zeta[0]:
             return "turned back"

@@ -28,13 +28,15 @@ def kick_along(model: MultiHarmonicModel, u: np.ndarray, mode: np.ndarray, frac:
 
 
 def land_from_bifurcation(tracer: Tracer, upper: PathPoint, descent: bool = True,
-                          before_descent: Callable[[], tuple[PathPoint | None, str]] | None = None
-                          ) -> tuple[PathPoint | None, str]:
+                          before_descent: Callable[[], tuple[PathPoint | None, str]] | None = None,
+                          climb: float | None = None, max_steps: int = 400) -> tuple[PathPoint | None, str]:
     """The stable state at ``upper``'s volume reached from it (a bifurcation whose branch lowers the
     volume) along its tangent ``du_ds``: by the sphere path, else ``before_descent()`` (a known
     state, ``(state or None, message)``), else (with ``descent``) by the energy descent started in
-    coarser models. Returns ``(state or None, message)``, the messages of each way tried joined."""
-    low, msg = descend_on_spheres(tracer, upper, upper, kick_along(tracer.pb, upper.u, upper.du_ds))
+    coarser models. Returns ``(state or None, message)``, the messages of each way tried joined.
+    ``climb``, ``max_steps``: as :func:`~snapjump_cli.fe.axisym.sphere_path.descend_on_spheres`'s."""
+    low, msg = descend_on_spheres(tracer, upper, upper, kick_along(tracer.pb, upper.u, upper.du_ds), climb=climb,
+                                  max_steps=max_steps)
     if low is None and before_descent is not None:
         low, msg_b = before_descent()
         msg = "; ".join(x for x in (msg, msg_b) if x)

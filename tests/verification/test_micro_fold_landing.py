@@ -1,0 +1,61 @@
+"""A branch of ``n_c = 2`` that leaves its bifurcation with a micro-fold (snapjump_cli.fe.branch.trace).
+
+A paper-grid design (eta_i 7.4, theta_i 80, eta_o 8.33, theta_o 82, mu_i/mu_o 1; ``follow_strata_n2``
+row 4, on the sample's mesh): its ``n = 2`` branch lowers the volume at once, loops below the
+bifurcation's volume and comes back to it on a state that releases almost nothing and is unstable
+in harmonic 1, where the jump goes on. The actuator mode finds that state by the sphere path from
+the bifurcation in the branch's model, without tracing the loop; the slow reference is the trace
+through the loop (``MICRO_FOLD_LANDING_FIRST = False``), which must come back to the same state and
+give the same answer.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from snapjump_cli.fe.branch import trace as branch_trace
+from snapjump_cli.fe.branch.followed import followed_metrics
+from snapjump_cli.fe.solve import solve_scene
+from snapjump_cli.fe.stability.harmonics import check_harmonics
+from snapjump_cli.geometry.caps import Design
+from snapjump_cli.settings import MeshSettings, SolverSettings
+
+_DESIGN = Design(7.4, 80.0, 25.0 / 3.0, 82.0, 1.0)
+
+
+@pytest.fixture(scope="module")
+def both():
+    res = solve_scene(_DESIGN, MeshSettings(order=2, nt=2, aspect=3.0), SolverSettings(harmonics=4))
+    chk = check_harmonics(res, 4)
+    assert chk.asym_first and chk.asym_n == 2
+    fast = followed_metrics(res, chk, mode="actuator")
+    mp = pytest.MonkeyPatch()
+    try:
+        mp.setattr(branch_trace, "MICRO_FOLD_LANDING_FIRST", False)
+        traced = followed_metrics(res, chk, mode="actuator")
+    finally:
+        mp.undo()
+    return fast, traced
+
+
+def test_the_micro_fold_is_landed_off_the_path_on_the_state_the_trace_comes_back_to(both):
+    fast, traced = both
+    fb, tb = fast.branch.parent, traced.branch.parent
+    assert fast.branch.kind == traced.branch.kind == "jump"
+    assert fb.path.stop_reason == tb.path.stop_reason == branch_trace.LEFT_AT_LANDING
+    assert len(fb.path.points) == 3 and len(tb.path.points) > 10  # the loop is not traced
+    (ff,), (tf,) = fb.folds, tb.folds
+    assert ff.k == tf.k == 0 and ff.landing_index == 2 and tf.landing_index is None
+    mh = fb.model
+    assert mh.volume(ff.landing.u) == pytest.approx(mh.volume(ff.upper.u), rel=1e-8)  # at the bifurcation's volume
+    assert np.linalg.norm(ff.landing.u - tf.landing.u) < 1e-7 * np.linalg.norm(tf.landing.u)
+    dE_f = mh.energy(ff.upper.u) - mh.energy(ff.landing.u)
+    dE_t = tb.model.energy(tf.upper.u) - tb.model.energy(tf.landing.u)
+    assert 0.0 < dE_f == pytest.approx(dE_t, rel=1e-6)
+
+
+def test_the_jump_goes_on_to_the_same_answer(both):
+    fast, traced = both
+    for key in ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa"):
+        assert fast.values[key] == pytest.approx(traced.values[key], rel=1e-8), key
+    assert fast.values["followed"] and fast.values["follow_sec_n"] == traced.values["follow_sec_n"] == 1
