@@ -222,13 +222,16 @@ MICRO_FOLD_DE = 1e-2
 REJOIN_FRAC = 0.25
 
 
-#: Step growth of the followed branch's continuation, that of the axisymmetric trace. (With the
-#: condensed Newton matrix a third of the branch's corrections failed at 1.6, and 1.2 took 16-18 %
-#: fewer assemblies on design B and the Fig. S16 cap; with the mixed one, 1.6 takes fewer: the whole
-#: branch in ``follow_mode: full`` 122 -> 109 and 98 -> 94, the branch-model assemblies of 21
-#: ``follow_strata_n2`` rows 1901 -> 1720, answers within 3e-10 (a secondary point located anew);
-#: scratch runs with this constant changed.)
-FOLLOW_STEP_GROW = 1.6
+#: Step growth of the followed branch's continuation (the axisymmetric trace's is 1.6): on design B
+#: and the Fig. S16 cap a third of the branch's Riks corrections failed at 1.6 and were cut back;
+#: at 1.2 the branch takes 16-18 % fewer assemblies, with answers equal to 1.5e-13
+#: (``bench/follow_profile.py@51d9ff8 B --step-grow 1.6 1.2``). With the mixed Newton matrix 1.6 takes
+#: fewer on the branch itself (design B's whole branch 122 -> 109 assemblies in ``follow_mode:
+#: full``), but a secondary point then lies on a longer step and its root finding takes more
+#: eigen-solves of the model with every harmonic (``follow_strata`` rows 8 and 9: 8-12 % more CPU),
+#: and the branches the actuator mode still traces on ``follow_strata_n2`` gain ~3 %: kept at 1.2
+#: (scratch runs with this constant changed).
+FOLLOW_STEP_GROW = 1.2
 
 #: A branch's first step off its bifurcation starts at ``ds0`` halved this many times: from ``ds0``
 #: Newton failed 6 to 9 times before that step converged on each of the 48 branches of the
