@@ -6,7 +6,8 @@ bifurcation's volume and comes back to it on a state that releases almost nothin
 in harmonic 1, where the jump goes on. The actuator mode finds that state by the sphere path from
 the bifurcation in the branch's model, without tracing the loop; the slow reference is the trace
 through the loop (``MICRO_FOLD_LANDING_FIRST = False``), which must come back to the same state and
-give the same answer.
+give the same answer. And on row 18's design, whose fold at the bifurcation releases more, the
+state found is the branch's snap's lower state, the one the trace comes back to.
 """
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ from snapjump_cli.geometry.caps import Design
 from snapjump_cli.settings import MeshSettings, SolverSettings
 
 _DESIGN = Design(7.4, 80.0, 25.0 / 3.0, 82.0, 1.0)
+_ROW18 = (8.0, 80.0, 5.0, 82.0, 1.0)  # follow_strata_n2 row 18
 
 
 @pytest.fixture(scope="module")
@@ -59,3 +61,27 @@ def test_the_jump_goes_on_to_the_same_answer(both):
     for key in ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa"):
         assert fast.values[key] == pytest.approx(traced.values[key], rel=1e-8), key
     assert fast.values["followed"] and fast.values["follow_sec_n"] == traced.values["follow_sec_n"] == 1
+
+
+def test_a_fold_that_releases_more_is_the_branch_snap_landed_where_the_trace_lands_it():
+    """``follow_strata_n2`` row 18's design: the branch's first step lowers the volume and the state
+    the sphere path reaches releases more than the micro-fold energy: that is the branch's snap at
+    its bifurcation, and its lower state the one the trace through the fold comes back to."""
+    r = _ROW18
+    res = solve_scene(Design(*r), MeshSettings(order=2, nt=2, aspect=3.0), SolverSettings(harmonics=4))
+    chk = check_harmonics(res, 4)
+    assert chk.asym_first and chk.asym_n == 2
+    fast = followed_metrics(res, chk, mode="actuator")
+    mp = pytest.MonkeyPatch()
+    try:
+        mp.setattr(branch_trace, "MICRO_FOLD_LANDING_FIRST", False)
+        traced = followed_metrics(res, chk, mode="actuator")
+    finally:
+        mp.undo()
+    fb, tb = fast.branch, traced.branch
+    assert fb.kind == tb.kind == "subcritical" and len(fb.path.points) == 2 and len(tb.path.points) > 10
+    assert fb.lower_note.startswith("sphere path: stable state") and tb.states.lower_method == "path"
+    lo_f, lo_t, mh = fb.states.lower, tb.states.lower, fb.model
+    assert np.linalg.norm(lo_f.u - lo_t.u) < 1e-8 * np.linalg.norm(lo_t.u)
+    dE = mh.energy(fb.states.upper.u) - mh.energy(lo_f.u)
+    assert dE >= branch_trace.micro_energy(res, branch_trace.MICRO_FOLD_DE) > 0.0

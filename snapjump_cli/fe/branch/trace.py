@@ -576,7 +576,9 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
 #: ``follow_strata_n2`` designs whose branch leaves the bifurcation this way, the sphere path lands
 #: on the state the trace comes back to (4-5 steps), and the answers are those of the trace to
 #: 1.2e-13 (``bench.profile.follow --json`` with this constant False and True, compared with
-#: ``bench.profile.answers``); on rows 7 and 18, whose branches do not, it costs 24-53 assemblies.
+#: ``bench.profile.answers``). Where the state releases more (row 18: the branch's own snap at its
+#: bifurcation) it is the snap's lower state, the trace's to 1.5e-14; where none is found (row 7: a
+#: branch that loops back to the axisymmetric path) the branch is traced, after 6 steps of the path.
 MICRO_FOLD_LANDING_FIRST = True
 
 #: The sphere path of :data:`MICRO_FOLD_LANDING_FIRST` gives up after this many steps. It is not
@@ -584,7 +586,7 @@ MICRO_FOLD_LANDING_FIRST = True
 #: fold releases 1e-6 of the axisymmetric snap's energy) is a nearly degenerate saddle, and on 4 of
 #: those designs the path first rises by more than the micro-fold energy, then lands on the trace's
 #: state.
-MICRO_FOLD_STEPS = 8
+MICRO_FOLD_STEPS = 6
 
 
 def _micro_fold_left_at_once(run: Callable, start: PathPoint, tr: Tracer, mh: MultiHarmonicModel, stays: Callable,
@@ -594,8 +596,10 @@ def _micro_fold_left_at_once(run: Callable, start: PathPoint, tr: Tracer, mh: Mu
     bifurcation, the one-step probe that shows the volume falling, and the landing state (the sphere
     path from the bifurcation at its volume, :func:`~snapjump_cli.fe.branch.landing.land_from_bifurcation`),
     recorded as the fold's landing (:class:`FoldJump` with its path index, as a restart's first point).
-    ``None`` (trace the branch) where the first step raises the volume, no such state is found,
-    it releases no energy or more than ``micro_dE``, or ``stays`` says the actuator stays on it."""
+    Where that state releases ``micro_dE`` or more, the fold is the branch's snap and the state its
+    lower state (a subcritical branch landed from its bifurcation, as ``landing="descent first"``
+    lands one). ``None`` (trace the branch) where the first step raises the volume, no such state
+    is found, it releases no energy, or ``stays`` says the actuator stays on it."""
     probe, tk, failure = run(start, "", stop=True, steps=1)
     up = tk.states.upper
     if failure or tk.kind != "subcritical" or up is None or micro_dE <= 0.0:
@@ -604,8 +608,16 @@ def _micro_fold_left_at_once(run: Callable, start: PathPoint, tr: Tracer, mh: Mu
     if alt is None:
         return None
     dE = mh.energy(up.u) - mh.energy(alt.u)
-    if not 0.0 < dE < micro_dE:
+    if not dE > 0.0:
         return None
+    if dE >= micro_dE:  # not a micro-fold: the branch's snap, landed as the reference's trace lands it
+        st = tk.states
+        st.lower, st.lower_method = alt, "descent"
+        fr = FollowResult(bif, mh, probe, st, tr, "subcritical", "subcritical", lower_method="descent",
+                          lower_note=note)
+        fr.metrics = branch_metrics(fr, sc)
+        mh.release_buffers()
+        return fr
     try:
         first = start_point(tr, alt.u, alt.p)
     except ContinuationFailed:
