@@ -25,9 +25,10 @@ _DESIGN = Design(7.4, 80.0, 25.0 / 3.0, 82.0, 1.0)
 _ROW18 = (8.0, 80.0, 5.0, 82.0, 1.0)  # follow_strata_n2 row 18
 
 
-@pytest.fixture(scope="module")
-def both():
-    res = solve_scene(_DESIGN, MeshSettings(order=2, nt=2, aspect=3.0), SolverSettings(harmonics=4))
+def _fast_and_traced(design: Design):
+    """The design's followed answer (actuator mode) with the micro-fold landed off the path, and
+    with the branch traced through it (the reference), and the axisymmetric solve."""
+    res = solve_scene(design, MeshSettings(order=2, nt=2, aspect=3.0), SolverSettings(harmonics=4))
     chk = check_harmonics(res, 4)
     assert chk.asym_first and chk.asym_n == 2
     fast = followed_metrics(res, chk, mode="actuator")
@@ -37,7 +38,12 @@ def both():
         traced = followed_metrics(res, chk, mode="actuator")
     finally:
         mp.undo()
-    return fast, traced
+    return fast, traced, res
+
+
+@pytest.fixture(scope="module")
+def both():
+    return _fast_and_traced(_DESIGN)[:2]
 
 
 def test_the_micro_fold_is_landed_off_the_path_on_the_state_the_trace_comes_back_to(both):
@@ -67,17 +73,7 @@ def test_a_fold_that_releases_more_is_the_branch_snap_landed_where_the_trace_lan
     """``follow_strata_n2`` row 18's design: the branch's first step lowers the volume and the state
     the sphere path reaches releases more than the micro-fold energy: that is the branch's snap at
     its bifurcation, and its lower state the one the trace through the fold comes back to."""
-    r = _ROW18
-    res = solve_scene(Design(*r), MeshSettings(order=2, nt=2, aspect=3.0), SolverSettings(harmonics=4))
-    chk = check_harmonics(res, 4)
-    assert chk.asym_first and chk.asym_n == 2
-    fast = followed_metrics(res, chk, mode="actuator")
-    mp = pytest.MonkeyPatch()
-    try:
-        mp.setattr(branch_trace, "MICRO_FOLD_LANDING_FIRST", False)
-        traced = followed_metrics(res, chk, mode="actuator")
-    finally:
-        mp.undo()
+    fast, traced, res = _fast_and_traced(Design(*_ROW18))
     fb, tb = fast.branch, traced.branch
     assert fb.kind == tb.kind == "subcritical" and len(fb.path.points) == 2 and len(tb.path.points) > 10
     assert fb.lower_note.startswith("sphere path: stable state") and tb.states.lower_method == "path"

@@ -531,12 +531,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
                 known = (lambda: axisym_inverted_state(result, mh, tr, st.upper)) if AXISYM_BEFORE_DESCENT else None
                 alt, note = land_from_bifurcation(tr, st.upper, before_descent=known)
             if alt is not None and mh.energy(st.upper.u) - mh.energy(alt.u) >= micro_dE:
-                st.lower, st.lower_method = alt, "descent"
-                fr = FollowResult(bif, mh, path, st, tr, "subcritical", "subcritical", lower_method="descent",
-                                  lower_note=note)
-                fr.metrics = branch_metrics(fr, sc)
-                mh.release_buffers()
-                return fr
+                return _landed_at_bifurcation(bif, mh, path, st, tr, alt, note, sc)
     if stays is not None and MICRO_FOLD_LANDING_FIRST:
         fr = _micro_fold_left_at_once(run, start, tr, mh, stays, micro_dE, bif, sc)
         if fr is not None:
@@ -589,6 +584,17 @@ MICRO_FOLD_LANDING_FIRST = True
 MICRO_FOLD_STEPS = 6
 
 
+def _landed_at_bifurcation(bif: Bifurcation, mh: MultiHarmonicModel, path: Path, st: SnapStates, tr: Tracer,
+                           low: PathPoint, note: str, sc) -> FollowResult:
+    """A subcritical branch whose snap at its bifurcation (``st.upper``) lands on ``low``, found off
+    the path from the bifurcation (``note``: how); ``path`` the branch's first step."""
+    st.lower, st.lower_method = low, "descent"
+    fr = FollowResult(bif, mh, path, st, tr, "subcritical", "subcritical", lower_method="descent", lower_note=note)
+    fr.metrics = branch_metrics(fr, sc)
+    mh.release_buffers()
+    return fr
+
+
 def _micro_fold_left_at_once(run: Callable, start: PathPoint, tr: Tracer, mh: MultiHarmonicModel, stays: Callable,
                              micro_dE: float, bif: Bifurcation, sc) -> FollowResult | None:
     """The branch of ``trace_branch`` as its trace through a micro-fold at the bifurcation would end
@@ -611,13 +617,7 @@ def _micro_fold_left_at_once(run: Callable, start: PathPoint, tr: Tracer, mh: Mu
     if not dE > 0.0:
         return None
     if dE >= micro_dE:  # not a micro-fold: the branch's snap, landed as the reference's trace lands it
-        st = tk.states
-        st.lower, st.lower_method = alt, "descent"
-        fr = FollowResult(bif, mh, probe, st, tr, "subcritical", "subcritical", lower_method="descent",
-                          lower_note=note)
-        fr.metrics = branch_metrics(fr, sc)
-        mh.release_buffers()
-        return fr
+        return _landed_at_bifurcation(bif, mh, probe, tk.states, tr, alt, note, sc)
     try:
         first = start_point(tr, alt.u, alt.p)
     except ContinuationFailed:
