@@ -180,9 +180,9 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
     max_steps : continuation steps
     max_zeros : zeros of ``F`` examined before giving up
     climb : how far (scaled energy) the path may rise above the centre's energy before it gives up
-        (default ``1e-9 max(1, |W_c|)``: round-off; a centre that is a degenerate saddle, a
-        bifurcation barely subcritical, needs more: the energy on the first spheres rises by the
-        error of its located eigenvalue's zero before it falls)
+        (default ``1e-9 max(1, |W_c|)``: round-off). From a nearly degenerate saddle, a barely
+        subcritical bifurcation, the path can rise above it and come down to the state the branch
+        comes back to (docs/harmonics.md section 10.7)
 
     Returns
     -------
