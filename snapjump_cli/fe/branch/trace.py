@@ -578,7 +578,7 @@ MICRO_FOLD_LANDING_FIRST = True
 
 #: The sphere path of :data:`MICRO_FOLD_LANDING_FIRST` gives up after this many steps. It is not
 #: stopped where its energy rises above the bifurcation's: a barely subcritical bifurcation (the
-#: fold releases 1e-6 of the axisymmetric snap's energy) is a nearly degenerate saddle, and on 4 of
+#: fold releases ~1e-4 of the axisymmetric snap's energy) is a nearly degenerate saddle, and on 4 of
 #: those designs the path first rises by more than the micro-fold energy, then lands on the trace's
 #: state.
 MICRO_FOLD_STEPS = 6
