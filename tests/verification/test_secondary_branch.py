@@ -352,15 +352,17 @@ def test_the_actuator_mode_does_not_trace_past_a_landing_the_jump_leaves(jumped_
 
 def test_where_the_sphere_path_turns_back_the_jump_lands_where_the_descent_and_the_damped_motion_do(jumped_even,
                                                                                                    monkeypatch):
-    """The actuator mode lands the ``n_c = 2`` jump by the sphere path first
-    (:func:`snapjump_cli.fe.axisym.sphere_path.descend_on_spheres`); here the minima on the spheres
-    around the landing state turn back before any is an equilibrium, and the axisymmetric inverted
-    state at the fold's volume is stable with every harmonic: the jump lands there
-    (:func:`snapjump_cli.fe.branch.trace.axisym_inverted_state`), an equilibrium at the fold's
-    volume, stable with every harmonic and below the landing state; the energy descent from the
-    landing state kicked along its unstable mode (as before, ``AXISYM_BEFORE_DESCENT = False``)
-    comes to rest on the same state, and so does the damped motion at that volume (the arbiter)
-    from the same kick."""
+    """The actuator mode lands the ``n_c = 2`` jump on the axisymmetric inverted state at the
+    fold's volume where that is stable with every harmonic
+    (:func:`snapjump_cli.fe.branch.trace.axisym_inverted_state`, ``JUMP_AXISYM_FIRST``), as here:
+    an equilibrium at the fold's volume, stable with every harmonic and below the landing state.
+    The sphere path (:func:`snapjump_cli.fe.axisym.sphere_path.descend_on_spheres`) tried first
+    instead finds no state (its minima on the spheres around the landing state turn back before any
+    is an equilibrium) and the same state is taken after it; the energy descent from the landing
+    state kicked along its unstable mode (as before, ``AXISYM_BEFORE_DESCENT = False``) comes to
+    rest on the same state, and so does the damped motion at that volume (the arbiter) from the
+    same kick."""
+    import snapjump_cli.fe.branch.secondary as secondary
     import snapjump_cli.fe.branch.trace as trace
     from snapjump_cli.fe.branch.dynamics import damped_snap, lowest_frequency
     from snapjump_cli.fe.branch.metrics import AXISYM_LANDING
@@ -368,8 +370,12 @@ def test_where_the_sphere_path_turns_back_the_jump_lands_where_the_descent_and_t
 
     res, out, fs = jumped_even
     assert fs.kind == "jump" and fs.lower_solver == "axisymmetric path", fs.lower_note
-    assert fs.lower_note.startswith("sphere path: turned back") and fs.lower_note.endswith(AXISYM_LANDING)
+    assert fs.lower_note.endswith(AXISYM_LANDING) and "sphere path" not in fs.lower_note  # (taken first)
     assert "to the axisymmetric inverted state" in out["follow_note"]
+    monkeypatch.setattr(secondary, "JUMP_AXISYM_FIRST", False)
+    sph = followed_metrics(res, check_harmonics(res, 4), N=8).branch
+    assert sph.lower_note.startswith("sphere path: turned back") and sph.lower_note.endswith(AXISYM_LANDING)
+    assert np.linalg.norm(sph.states.lower.u - fs.states.lower.u) <= 1e-12 * np.linalg.norm(fs.states.lower.u)
     monkeypatch.setattr(trace, "AXISYM_BEFORE_DESCENT", False)
     desc = followed_metrics(res, check_harmonics(res, 4), N=8).branch
     assert desc.lower_solver == "energy-descent" and "descent converged" in desc.lower_note

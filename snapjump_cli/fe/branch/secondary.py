@@ -547,6 +547,25 @@ def first_extra(fr, chk: SecondaryCheck, full: MultiHarmonicModel) -> int:
     return j1
 
 
+#: A jump's landing is first sought on the axisymmetric inverted state at the fold's volume (where
+#: it is stable with every harmonic and lies below the fold by the micro-fold energy), then by the
+#: sphere path: on the 16 jumps of ``follow_strata_n2`` that the sphere path lands, that state is
+#: not such a state (given up by the harmonic check's inertia in 0.006-0.06 CPU-s), so they land as
+#: before; on row 3 it is, and the sphere path turned back after 20 steps (5.2 CPU-s) before it was
+#: taken (the state the descent comes to rest on, docs/harmonics.md section 10.7).
+JUMP_AXISYM_FIRST = True
+
+
+def _axisym_landing(result, full: MultiHarmonicModel, tr: Tracer, upper: PathPoint) -> tuple[PathPoint | None, str]:
+    """The axisymmetric inverted state at the volume of ``upper`` as a jump's landing
+    (:func:`snapjump_cli.fe.branch.trace.axisym_inverted_state`), where it is stable with every
+    harmonic of ``full`` and releases at least the micro-fold energy; ``(None, "")`` otherwise."""
+    alt, note = axisym_inverted_state(result, full, tr, upper)
+    if alt is not None and full.energy(upper.u) - full.energy(alt.u) >= micro_energy(result, MICRO_FOLD_DE):
+        return alt, note
+    return None, ""
+
+
 def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, landing: int, jump=None,
                     eigen=None, volume_path: bool = False):
     """The snap of an actuator that jumps past a fold of the followed branch onto a state of the
@@ -596,14 +615,18 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     eig, mode = e
     low, msg, solver = None, "", "sphere-path"
     mode = kick_along(full, L, mode)  # (the branch's subspace is invariant: without it the jump stays on it)
-    if volume_path and fr.bif.n % 2 == 0:
+    axisym_tried = False
+    if branch_trace.AXISYM_BEFORE_DESCENT and (JUMP_AXISYM_FIRST or not (volume_path and fr.bif.n % 2 == 0)):
+        low, msg = _axisym_landing(result, full, tr, upper)
+        axisym_tried = True
+        if low is not None:
+            solver = "axisymmetric path"
+    if low is None and volume_path and fr.bif.n % 2 == 0:
         at_L = PathPoint(L, land.p, tr.zeta(L, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)
         low, msg = descend_on_spheres(tr, upper, at_L, mode)  # (the other way: its mirror image)
-    if low is None and branch_trace.AXISYM_BEFORE_DESCENT:
-        # the axisymmetric inverted state at the fold's volume, if it is stable with every harmonic
-        # (where the sphere path gives up: on follow_strata_n2 row 3 the descent comes to rest there)
-        alt, note = axisym_inverted_state(result, full, tr, upper)
-        if alt is not None and full.energy(upper.u) - full.energy(alt.u) >= micro_energy(result, MICRO_FOLD_DE):
+    if low is None and branch_trace.AXISYM_BEFORE_DESCENT and not axisym_tried:
+        alt, note = _axisym_landing(result, full, tr, upper)
+        if alt is not None:
             low, solver = alt, "axisymmetric path"
             msg = "; ".join(x for x in (msg, note) if x)
     if low is None:
