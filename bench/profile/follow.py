@@ -241,6 +241,20 @@ def _fmt(v: Any, nd: int = 3) -> str:
     return str(v)
 
 
+def set_constant(item: str) -> None:
+    """``MODULE.NAME=VALUE``: set the constant ``NAME`` of module ``MODULE`` to the literal ``VALUE``
+    (it must exist already)."""
+    import ast
+    import importlib
+
+    target, _, value = item.partition("=")
+    module, _, name = target.rpartition(".")
+    mod = importlib.import_module(module)
+    if not hasattr(mod, name):
+        raise SystemExit(f"--set: {module} has no constant {name!r}")
+    setattr(mod, name, ast.literal_eval(value))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.profile.follow", description=__doc__.split("\n\n")[0])
     ap.add_argument("scenes", nargs="*", default=["B"], help="named designs A..D or caps of CAPS (default B)")
@@ -262,8 +276,14 @@ def main(argv: list[str] | None = None) -> int:
                          "(snapjump_cli.fe.branch.trace.MIXED_TANGENT = False), as before the mixed one")
     ap.add_argument("--repeat", type=int, default=3,
                     help="warm axisymmetric solves and checks timed; the least is the ratio's denominator (default 3)")
+    ap.add_argument("--set", action="append", default=[], metavar="MODULE.NAME=VALUE",
+                    help="set a module constant first (a Python literal), e.g. "
+                         "snapjump_cli.fe.branch.trace.MICRO_FOLD_LANDING_FIRST=False: the run with one way "
+                         "of the solver switched off, for --json runs compared by bench.profile.answers")
     ap.add_argument("--json", type=Path, default=None, help="also write the numbers here")
     a = ap.parse_args(argv)
+    for item in a.set:
+        set_constant(item)
     if a.condensed:
         from snapjump_cli.fe.branch import trace
 

@@ -74,7 +74,9 @@ SPHERE_TOL_PATH = 1e-4
 #: Newton's basin and been cut back in turn (``follow_strata_n2`` row 5: 5 refused steps). On the
 #: 13 sphere-path rows of ``follow_strata`` and 10 of ``follow_strata_n2``: 659 -> 624 and 570 -> 515
 #: assemblies of the model with every harmonic, the answers within 6e-14 (``bench.profile.follow
-#: --json`` before and after, compared with ``bench.profile.answers``).
+#: --json`` as it is and with ``--set snapjump_cli.fe.axisym.sphere_path.SPHERE_GROW_EASY=0.0 --set
+#: snapjump_cli.fe.axisym.sphere_path.SPHERE_FAIL_CAP=0.0``, compared with ``bench.profile.answers``;
+#: the counts of the model with every harmonic from a scratch counter).
 SPHERE_GROW_EASY = 16.0
 SPHERE_FAIL_CAP = 0.8
 

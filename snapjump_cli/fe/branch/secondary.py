@@ -550,9 +550,12 @@ def first_extra(fr, chk: SecondaryCheck, full: MultiHarmonicModel) -> int:
 #: A jump's landing is first sought on the axisymmetric inverted state at the fold's volume (where
 #: it is stable with every harmonic and lies below the fold by the micro-fold energy), then by the
 #: sphere path: on the 16 jumps of ``follow_strata_n2`` that the sphere path lands, that state is
-#: not such a state (given up by the harmonic check's inertia in 0.006-0.06 CPU-s), so they land as
-#: before; on row 3 it is, and the sphere path turned back after 20 steps (5.2 CPU-s) before it was
-#: taken (the state the descent comes to rest on, docs/harmonics.md section 10.7).
+#: not such a state (given up by the harmonic check's inertia in 0.006-0.06 CPU-s, a scratch
+#: timing), so they land as before, bit for bit; on row 3 it is, and the sphere path turned back
+#: after 20 steps before it was taken (the state the descent comes to rest on, docs/harmonics.md
+#: section 10.7): 8.4 -> 3.3 CPU-s, the same answer (``python -m bench.profile.follow --sample
+#: bench/harmonics_sample/follow_strata_n2.yaml --rows 3 --json B.json``, again with ``--set
+#: snapjump_cli.fe.branch.secondary.JUMP_AXISYM_FIRST=False``, compared by ``bench.profile.answers``).
 JUMP_AXISYM_FIRST = True
 
 
@@ -613,22 +616,25 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
         full.release_buffers()
         return None, chk, None
     eig, mode = e
-    low, msg, solver = None, "", "sphere-path"
     mode = kick_along(full, L, mode)  # (the branch's subspace is invariant: without it the jump stays on it)
-    axisym_tried = False
-    if branch_trace.AXISYM_BEFORE_DESCENT and (JUMP_AXISYM_FIRST or not (volume_path and fr.bif.n % 2 == 0)):
-        low, msg = _axisym_landing(result, full, tr, upper)
-        axisym_tried = True
-        if low is not None:
-            solver = "axisymmetric path"
-    if low is None and volume_path and fr.bif.n % 2 == 0:
+
+    def on_spheres():
         at_L = PathPoint(L, land.p, tr.zeta(L, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)
-        low, msg = descend_on_spheres(tr, upper, at_L, mode)  # (the other way: its mirror image)
-    if low is None and branch_trace.AXISYM_BEFORE_DESCENT and not axisym_tried:
-        alt, note = _axisym_landing(result, full, tr, upper)
-        if alt is not None:
-            low, solver = alt, "axisymmetric path"
-            msg = "; ".join(x for x in (msg, note) if x)
+        return descend_on_spheres(tr, upper, at_L, mode)  # (the other way: its mirror image)
+
+    # the ways tried before the descent, in order: the sphere path (an even n_c) and the axisymmetric
+    # inverted state (first with JUMP_AXISYM_FIRST, else where the sphere path finds nothing)
+    ways = [("sphere-path", on_spheres)] if volume_path and fr.bif.n % 2 == 0 else []
+    if branch_trace.AXISYM_BEFORE_DESCENT:
+        ways.insert(0 if JUMP_AXISYM_FIRST else len(ways),
+                    ("axisymmetric path", lambda: _axisym_landing(result, full, tr, upper)))
+    low, solver, notes = None, "sphere-path", []
+    for solver, way in ways:
+        low, note = way()
+        notes.append(note)
+        if low is not None:
+            break
+    msg = "; ".join(x for x in notes if x)
     if low is None:
         solver = "energy-descent"
         start = PathPoint(L + mode, land.p, tr.zeta(L + mode, land.p)[0], up_b.tangent.copy(), upper.du_ds, 0.0, 0.0)

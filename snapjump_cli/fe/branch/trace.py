@@ -570,8 +570,9 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
 #: is not traced. Else the branch is traced through the micro-fold as before. On the 16
 #: ``follow_strata_n2`` designs whose branch leaves the bifurcation this way, the sphere path lands
 #: on the state the trace comes back to (4-5 steps), and the answers are those of the trace to
-#: 1.2e-13 (``bench.profile.follow --json`` with this constant False and True, compared with
-#: ``bench.profile.answers``). Where the state releases more (row 18: the branch's own snap at its
+#: 1.2e-13 (``python -m bench.profile.follow --sample bench/harmonics_sample/follow_strata_n2.yaml
+#: --rows 0 1 ... 23 --json A.json``, again with ``--set
+#: snapjump_cli.fe.branch.trace.MICRO_FOLD_LANDING_FIRST=False``, compared by ``bench.profile.answers``). Where the state releases more (row 18: the branch's own snap at its
 #: bifurcation) it is the snap's lower state, the trace's to 1.5e-14; where none is found (row 7: a
 #: branch that loops back to the axisymmetric path) the branch is traced, after 6 steps of the path.
 MICRO_FOLD_LANDING_FIRST = True
