@@ -61,7 +61,7 @@ def _pair_weights(t: np.ndarray, wphi: np.ndarray, K: int) -> np.ndarray:
 
 @njit(cache=True, error_model="numpy")
 def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.ndarray, bnq: np.ndarray,
-                     hn: np.ndarray, Dtp: np.ndarray, DB: np.ndarray, Kh: np.ndarray) -> None:
+                     hn: np.ndarray, Dtp: np.ndarray, DB: np.ndarray, Kh: np.ndarray, sel: np.ndarray) -> None:
     """The elastic tangent ``sum_q B_k^T Dt_kl B_l`` of one element, harmonic pair by pair
     (``k <= l``), into ``Kh`` in the *harmonic-major* element order: dof ``(k, i, a)`` (harmonic,
     component a/b/c, node) at ``nen offset(k) + i nen + a``, so that the columns of every harmonic
@@ -79,15 +79,17 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
 
     ``Dq (nq, nphi, 9, 9)`` the pointwise ``W (d2psi + p d2J)``; ``bxq, byq, bnq (nq, nen)`` the
     node values ``dN/dR, dN/dZ, N / R`` at each point; ``Dtp (npair, nq, 81)``, ``DB (9, nen nc)``
-    work arrays.
+    work arrays. ``sel (K,)``: the harmonics whose rows and columns are wanted; the pairs with an
+    unselected harmonic are not formed (their rows stay zero, their columns hold anything finite).
     """
     nq, nphi = Dq.shape[0], Dq.shape[1]
     nen = bxq.shape[1]
     K = hn.shape[0]
     nd = Kh.shape[0]
     Df = Dq.reshape(nq, nphi, 81)
-    npair = K * (K + 1) // 2
-    for p in range(npair):
+    for p in range(K * (K + 1) // 2):
+        if not (sel[_pair_k(p, K)] and sel[_pair_l(p, K)]):
+            continue
         for q in range(nq):
             acc = Dtp[p, q]
             for x in range(81):
@@ -99,6 +101,8 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
                     acc[x] += w[x] * dq[x]
     Kh[:, :] = 0.0
     for k in range(K):
+        if not sel[k]:
+            continue
         nk = harmonic_ndof(k)
         fk = float(hn[k])
         r0 = nen * dof_offset(k)
@@ -108,6 +112,8 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
             by = byq[q]
             bn = bnq[q]
             for l in range(k, K):
+                if not sel[l]:
+                    continue
                 p = _pair_index(k, l, K)
                 nl = harmonic_ndof(l)
                 fl = float(hn[l])
@@ -159,6 +165,26 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
                         row[x] += nbna * D4[x] - bna * D5[x] + bxa * D6[x] + bya * D7[x]
 
 
+@njit(cache=True)
+def _pair_k(p: int, K: int) -> int:
+    """The harmonic ``k`` of the pair index ``p`` (:func:`_pair_index`)."""
+    k = 0
+    while p >= K - k:
+        p -= K - k
+        k += 1
+    return k
+
+
+@njit(cache=True)
+def _pair_l(p: int, K: int) -> int:
+    """The harmonic ``l`` of the pair index ``p`` (:func:`_pair_index`)."""
+    k = 0
+    while p >= K - k:
+        p -= K - k
+        k += 1
+    return k + p
+
+
 @njit(cache=True, inline="always")
 def _pair_index(k: int, l: int, K: int) -> int:
     """Index of the harmonic pair ``(k, l)``, ``k <= l``, in the order ``k`` outer, ``l`` inner."""
@@ -169,7 +195,7 @@ def _pair_index(k: int, l: int, K: int) -> int:
 def _volumetric_tangent(e: int, dJq: np.ndarray, t: np.ndarray, Wq: np.ndarray, Np: np.ndarray, Minv: np.ndarray,
                         Minvp: np.ndarray, imperfect: bool, wphi: np.ndarray, ka: float, bxq: np.ndarray,
                         byq: np.ndarray, bnq: np.ndarray, hn: np.ndarray, Gv: np.ndarray, Hv: np.ndarray,
-                        KL: np.ndarray, tmp: np.ndarray, Ke: np.ndarray) -> None:
+                        KL: np.ndarray, tmp: np.ndarray, Ke: np.ndarray, sel: np.ndarray, dsel: np.ndarray) -> None:
     """Add the volumetric-constraint stiffness ``sum_j w_j kappa G_j^T M^-1 G_j`` of element ``e``
     to its node-major tangent ``Ke`` (both triangles, each entry's terms in the order of the
     element pass of 2026-11-27, ``tests/unit/mh_reference.py``). ``G_j`` is formed from
@@ -178,7 +204,9 @@ def _volumetric_tangent(e: int, dJq: np.ndarray, t: np.ndarray, Wq: np.ndarray, 
     every point in turn (``j`` in order, each summed over the pressure dofs from 0), the row
     staying in the L1 cache (it was one pass over the whole element matrix per phi point). The
     lower triangle is accumulated transposed in ``KL`` (rows contiguous) and written back at the
-    end. ``Gv, Hv (nphi, npr, nd)``, ``KL (nd, nd)``, ``tmp (nd,)`` are work arrays."""
+    end. ``Gv, Hv (nphi, npr, nd)``, ``KL (nd, nd)``, ``tmp (nd,)`` are work arrays. ``sel (K,)``
+    the harmonics wanted and ``dsel (nd,)`` the element dofs of them: the rows of the others are
+    not formed (rows and columns of unselected dofs hold anything finite)."""
     nd = Ke.shape[0]
     nq, nphi = dJq.shape[0], dJq.shape[1]
     npr = Np.shape[1]
@@ -194,6 +222,8 @@ def _volumetric_tangent(e: int, dJq: np.ndarray, t: np.ndarray, Wq: np.ndarray, 
         for q in range(nq):
             W = Wq[e, q]
             for k in range(K):
+                if not sel[k]:
+                    continue
                 n = float(hn[k])
                 y0 = dJq[q, j, 0] * t[j, k, 0]
                 y1 = dJq[q, j, 1] * t[j, k, 1]
@@ -230,6 +260,8 @@ def _volumetric_tangent(e: int, dJq: np.ndarray, t: np.ndarray, Wq: np.ndarray, 
     # row by row, every phi point's rank-npr term in turn (the row stays in the L1 cache); each
     # entry receives the terms of the points in the order of j, each summed over k2 from 0
     for i in range(nd):
+        if not dsel[i]:
+            continue
         ru = Ke[i, i:]
         rl = KL[i, i:]  # KL[i, i] is not written back
         w = nd - i
@@ -298,7 +330,8 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
     nphi = phis.shape[0]
     return _mh_pass(A, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, hn, phis, wphi, want, Fi, Jimp,
                     Minvp, False, np.zeros((0, 0), np.int64), np.zeros((0, 0)), np.zeros((0, 0)),
-                    np.zeros((0, nphi, npr)), np.zeros((0, nphi, npr)), np.zeros((0, nphi, npr, 0)))
+                    np.zeros((0, nphi, npr)), np.zeros((0, nphi, npr)), np.zeros((0, nphi, npr, 0)),
+                    np.ones(hn.shape[0], np.bool_))
 
 
 @njit(cache=True)
@@ -307,12 +340,14 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
              Np: np.ndarray, Minv: np.ndarray, hn: np.ndarray, phis: np.ndarray, wphi: np.ndarray,
              want: int, Fi: np.ndarray, Jimp: np.ndarray, Minvp: np.ndarray, fused: bool,
              edofs: np.ndarray, ecoef: np.ndarray, ab: np.ndarray, p_geo: np.ndarray, pb_out: np.ndarray,
-             H_out: np.ndarray):
+             H_out: np.ndarray, sel: np.ndarray):
     """The element pass of :func:`mh_elements`; with ``fused`` (and ``want >= 2``) each
     element's tangent is scattered into the band ``ab`` as soon as it is formed (as
     :func:`snapjump_kernels.harmonics.scatter_band` with factor 1 would, element by element) and
     not kept: the returned ``Ke`` is then one element's work array. ``p_geo``, ``pb_out``,
-    ``H_out``: the mixed linearisation of :func:`mh_assemble_band` (arrays of length 0: none)."""
+    ``H_out``: the mixed linearisation of :func:`mh_assemble_band` (arrays of length 0: none).
+    ``sel (K,)``: the harmonics whose tangent rows and columns are formed (the others' entries of
+    ``Ke`` hold anything finite; all selected: the whole tangent)."""
     ne, nen = conn.shape
     nq = Wq.shape[1]
     npr = Np.shape[1]
@@ -356,7 +391,7 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
     npair = K * (K + 1) // 2
     WT = _pair_weights(t, wphi, K) if want >= 2 else np.empty((0, nphi, 81))
     Dtp = np.empty((npair, nq, 81))
-    DB = np.empty((9, nd))
+    DB = np.zeros((9, nd))  # (zero: the columns of unselected harmonics are read, not written)
     Kh = np.zeros((nd, nd))
     KL = np.empty((nd, nd))
     tmp = np.empty(nd)
@@ -381,6 +416,9 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
         for k in range(K):
             for dof in range(harmonic_ndof(k)):
                 hk[a * nc + dof_offset(k) + dof] = k
+    dsel = np.empty(nd, np.bool_)  # the element dofs of the selected harmonics
+    for i in range(nd):
+        dsel[i] = sel[hk[i]]
     for e in range(ne):
         m_ = mat[e]
         mu_e = mu[m_]
@@ -485,7 +523,7 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
                         Dq[q, j, c, d] += pw * d2Jq[q, j, c, d]
         if want < 2:
             continue
-        _elastic_tangent(Dq, WT, bxq, byq, bnq, hn, Dtp, DB, Kh)
+        _elastic_tangent(Dq, WT, bxq, byq, bnq, hn, Dtp, DB, Kh, sel)
         # harmonic-major blocks -> node-major Ke; the blocks of harmonics k < l were formed once:
         # their transposes are the (l, k) blocks (as the element dofs' harmonics say)
         Ke_e = Ke[0] if fuse else Ke[e]
@@ -501,7 +539,7 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
                 if hk[i] < hk[jj]:
                     Ke_e[jj, i] = Ke_e[i, jj]
         _volumetric_tangent(e, dJq, t, Wq, Np, Minv, Minvp, imperfect, wphi, ka, bxq, byq, bnq, hn, Gv, Hv, KL,
-                            tmp, Ke_e)
+                            tmp, Ke_e, sel, dsel)
         if keep_H:  # kappa M^-1 G_j: the element pressures' derivative at every phi point
             for j in range(nphi):
                 Mi = Minvp[e, j] if imperfect else Minv[e]
@@ -539,7 +577,8 @@ def mh_assemble_band(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.nd
                      kappa: np.ndarray, dNdX: np.ndarray, N_ref: np.ndarray, Rq: np.ndarray, Wq: np.ndarray,
                      Np: np.ndarray, Minv: np.ndarray, hn: np.ndarray, phis: np.ndarray, wphi: np.ndarray,
                      Fi: np.ndarray, Jimp: np.ndarray, Minvp: np.ndarray, edofs: np.ndarray, ecoef: np.ndarray,
-                     ext: np.ndarray, ab: np.ndarray, p_geo: np.ndarray, pb_out: np.ndarray, H_out: np.ndarray):
+                     ext: np.ndarray, ab: np.ndarray, p_geo: np.ndarray, pb_out: np.ndarray, H_out: np.ndarray,
+                     sel: np.ndarray):
     """Energy, element residuals and the tangent scattered into the lower band ``ab`` in one pass.
 
     ``ab``'s envelope (``ab[j, :ext[j] + 1]``) is zeroed first (entries outside it are neither
@@ -557,6 +596,12 @@ def mh_assemble_band(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.nd
     condensed pressures and ``H_out (ne, nphi, np, nd)`` their derivative ``kappa M^-1 G_j`` with
     respect to the element dofs (node-major, as ``edofs``); arrays of length 0: not used / not wanted.
 
+    A block of the tangent (``sel (K,)`` bool: the harmonics kept; all True: the whole tangent):
+    the rows and columns of the other harmonics are not formed, and ``edofs`` must map their dofs
+    to -1 (a band of the block alone, numbered as ``edofs`` says). At a state whose harmonics the
+    block's do not couple with the others' (the multiples of ``n_c`` against the rest), this is
+    that diagonal block of the whole tangent, entry for entry the same sums.
+
     Returns
     -------
     (E, ok, re) : as :func:`mh_elements`; ``ab`` holds the elements' tangent (undefined if not ``ok``)
@@ -567,7 +612,7 @@ def mh_assemble_band(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.nd
         for x in range(col.size):
             col[x] = 0.0
     E, ok, re, _ = _mh_pass(A, conn, mat, mu, jm, kappa, dNdX, N_ref, Rq, Wq, Np, Minv, hn, phis, wphi, 2, Fi,
-                            Jimp, Minvp, True, edofs, ecoef, ab, p_geo, pb_out, H_out)
+                            Jimp, Minvp, True, edofs, ecoef, ab, p_geo, pb_out, H_out, sel)
     return E, ok, re
 
 

@@ -71,7 +71,7 @@ CAPS = {
 #: the stages whose cumulative time ``--cprofile`` reports, by function name
 STAGES = ("locate_bifurcation", "follow_branch", "trace_branch", "follow_secondary", "branch_stability",
           "locate_secondary", "jump_off_branch", "find_lower_state", "snap_at_fixed_volume", "descend_at_volume",
-          "linearize", "residual", "energy", "lowest_eigen", "extra_eigen")
+          "linearize", "residual", "energy", "lowest_eigen", "extra_eigen", "block_band", "outside_modes")
 
 
 def scenes(names: list[str], sample: Path | None, rows: list[int]) -> list[tuple[str, Any, Any, Any]]:
@@ -209,6 +209,8 @@ def profile_one(label: str, scene, mesh, solver, N: int, mode: str, top: int | N
     row["ratio"] = row["cpu_followed_s"] / t_axi
     row["steps"] = len(fr.path.points) - 1 if fr is not None else None
     row["assemblies"] = getattr(fr.model, "n_assemblies", None) if fr is not None else None
+    # (the diagonal blocks outside a branch formed for its stability checks, MultiHarmonicModel.block_band)
+    row["block_assemblies"] = getattr(fr.model, "n_block_assemblies", None) if fr is not None else None
     row["branches"] = branches(fr)
     row.update({k: out.get(k) for k in ("followed", "follow_kind", "follow_sec_n", "dE_J", "dy_pole_m", "V_star_m3",
                                         "p_star_Pa", "follow_note")})
@@ -231,6 +233,12 @@ def profile_one(label: str, scene, mesh, solver, N: int, mode: str, top: int | N
     if compare_axisym and fr is not None:
         row["compare_axisym_first"] = compare_axisym_first(res, chk, N, mode, out, fr)
     return row
+
+
+def _blocks(r: dict) -> str:
+    """`` + N blocks`` for a row whose model formed diagonal blocks of its tangent (else empty)."""
+    b = r.get("block_assemblies")
+    return f" + {b} blocks" if b else ""
 
 
 def _fmt(v: Any, nd: int = 3) -> str:
@@ -298,7 +306,7 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(r)
         print(f"| {label} | {_fmt(r.get('asym_n'))} | {r['cpu_axisym_check_first_s']:.3f} / "
               f"{r['cpu_axisym_check_s']:.3f} | {_fmt(r.get('cpu_followed_s'))} | {_fmt(r.get('ratio'))} "
-              f"| {_fmt(r.get('steps'))} | {_fmt(r.get('assemblies'))} | {_fmt(r.get('follow_kind'))} "
+              f"| {_fmt(r.get('steps'))} | {_fmt(r.get('assemblies'))}{_blocks(r)} | {_fmt(r.get('follow_kind'))} "
               f"| {_fmt(r.get('dE_J'), 4)} | {r.get('follow_note') or ('stays axisymmetric' if not r['asym_first'] else '')} |",
               flush=True)
     for r in rows:

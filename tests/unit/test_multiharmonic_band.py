@@ -199,3 +199,21 @@ def test_band_buffers_in_use_are_not_handed_out_again():
     assert np.array_equal(lin4.data, ref.data)
     # the band outside the envelope is zero (a reused buffer included): the stiffness is exact
     assert (abs(lin4.stiffness() - ref.stiffness())).max() == 0.0
+
+
+@pytest.mark.parametrize("order", [1, 2])
+@pytest.mark.parametrize("hn, block", [([0, 1, 2, 3, 4], [1, 3]), ([0, 1, 2, 3, 4], [0, 2, 4]), ([0, 2, 4, 6], [2, 6])])
+@pytest.mark.parametrize("imperfect", [False, True])
+def test_a_block_of_the_tangent_is_that_block_of_the_whole_bit_for_bit(order, hn, block, imperfect):
+    """``block_band`` forms only the rows of some harmonics (``mh_assemble_band`` with ``sel``):
+    at any state, coupled or not, its entries are those of the whole tangent's block, the same
+    sums in the same order."""
+    from snapjump_cli.fe.axisym.model import band_csr
+
+    mh, U = _mh_state(order, hn, imperfect)
+    p = 0.37
+    whole = mh.linearize(U, p).stiffness().tocsr()
+    ab, blk = mh.block_band(U, p, block)
+    assert 0 < blk.n < mh.n and blk.kl < mh.kl
+    B, W = band_csr(ab), whole[blk.dofs][:, blk.dofs]
+    assert (B != W).nnz == 0 and abs(W).max() > 0

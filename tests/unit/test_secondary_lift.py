@@ -15,8 +15,9 @@ import pytest
 from snapjump_cli.fe.stability.harmonics import harmonic_operator
 from snapjump_cli.fe.axisym.lower_state import constrained_instability
 from snapjump_cli.fe.branch.model import MultiHarmonicModel
-from snapjump_cli.fe.branch.secondary import extra_dofs, extra_harmonics, full_model, lift, unstable_modes
-from snapjump_cli.fe.stability.eigen import extra_eigen
+from snapjump_cli.fe.branch.secondary import (extra_dofs, extra_harmonics, full_model, lift, outside_modes,
+                                              unstable_modes)
+from snapjump_cli.fe.stability.eigen import band_smallest_eigen, extra_eigen
 from snapjump_cli.fe.solve import solve_scene
 from snapjump_cli.geometry.caps import CapScene
 from snapjump_cli.settings import MeshSettings, SolverSettings
@@ -69,6 +70,7 @@ def test_the_unstable_count_is_the_harmonic_checks_inertias_at_an_axisymmetric_s
         U = mh.embed(pt.u)
         assert unstable_modes(mh, U, pt.p) == c0 + inert[2] + inert[4]
         assert unstable_modes(full, lift(mh, full, U), pt.p) == c0 + sum(inert.values())
+        assert outside_modes(mh, full, U, pt.p) == inert[1] + inert[3]  # the block of the others alone
         seen_odd |= inert[1] + inert[3] > 0
     assert seen_odd  # the comparison covered unstable harmonics outside the branch
 
@@ -83,8 +85,9 @@ def test_the_extra_eigenvalue_changes_sign_where_the_odd_harmonics_lose_stabilit
     for pt in pts[:: max(1, len(pts) // 6)]:
         odd = harmonic_operator(M, 1).inertia(pt.u, pt.p) + harmonic_operator(M, 3).inertia(pt.u, pt.p)
         U = lift(mh, full, mh.embed(pt.u))
-        eig, mode = extra_eigen(full, U, pt.p, ex)
+        eig, mode = extra_eigen(full, U, pt.p, extra_harmonics(mh, full))
         assert (eig < 0) == (odd > 0)
+        assert outside_modes(mh, full, mh.embed(pt.u), pt.p) == odd  # the block's inertia
         assert np.all(mode[np.setdiff1d(np.arange(full.n), ex)] == 0.0)
         # the smallest eigenvalue of the block, not only one near zero: against the dense spectrum
         K = full.linearize(U, pt.p).stiffness().toarray()[np.ix_(ex, ex)]
@@ -99,20 +102,6 @@ def test_the_extra_eigenvalue_is_the_smallest_even_far_below_zero():
     the others (-5 against 1..3) the inertia sends the shift down to it."""
     import scipy.sparse as sp
 
-    class Lin:
-        def __init__(self, K):
-            self.K = K
-
-        def stiffness(self):
-            return self.K
-
-    class Block:  # the model interface extra_eigen uses: linearize(u, p).stiffness() and n
-        def __init__(self, K):
-            self.K, self.n = K, K.shape[0]
-
-        def linearize(self, u, p):
-            return Lin(self.K)
-
     rng = np.random.default_rng(3)
     Q, _ = np.linalg.qr(rng.standard_normal((40, 40)))
     for spectrum in ([-5.0, *np.linspace(1.0, 3.0, 39)], [-5.0, -4.0, -3.0, -2.0, -0.01, *np.linspace(1e-3, 3.0, 35)],
@@ -120,7 +109,9 @@ def test_the_extra_eigenvalue_is_the_smallest_even_far_below_zero():
                      # wide ranges, as a stiffness has: five negative ones against a largest of 1e8, and
                      # one at -1e4 beside one near zero
                      [-1.0, -0.9, -0.8, -0.7, -0.6, *np.logspace(-2, 8, 35)], [-1e4, -1e-3, *np.logspace(-3, 2, 38)]):
-        K = sp.csc_matrix((Q * np.array(spectrum)) @ Q.T)
-        eig, mode = extra_eigen(Block(K), None, 0.0, np.arange(40))
+        Kd = (Q * np.array(spectrum)) @ Q.T
+        K = sp.csc_matrix(Kd)
+        ab = np.array([[Kd[j + k, j] if j + k < 40 else 0.0 for k in range(40)] for j in range(40)])  # dense band
+        eig, mode = band_smallest_eigen(ab, 39 - np.arange(40))
         assert eig == pytest.approx(min(spectrum), rel=1e-8)
         assert abs(mode @ K @ mode - eig * (mode @ mode)) < 1e-7 * np.abs(spectrum).max() * (mode @ mode)

@@ -27,7 +27,6 @@ from snapjump_cli.fe.branch.trace import follow_branch
 from snapjump_cli.fe.branch.followed import followed_metrics
 from snapjump_cli.fe.stability.harmonics import check_harmonics
 from snapjump_cli.fe.branch.secondary import (
-    extra_dofs,
     extra_harmonics,
     follow_secondary,
     jump_before,
@@ -89,7 +88,7 @@ def test_the_secondary_bifurcation_is_bracketed_and_located(located):
     # the actuator passes through both points of the bracket, the first stable outside the branch
     assert {sec.index, sec.index + 1} <= set(visited_points(fr, sec.index + 1)) | {0}
     assert extra(pts[sec.index]) == 0 and extra(pts[sec.index + 1]) > 0
-    ex = extra_dofs(fr.model, full)
+    ex = extra_harmonics(fr.model, full)
     e_a = extra_eigen(full, lift(fr.model, full, pts[sec.index].u), pts[sec.index].p, ex)[0]
     e_c = extra_eigen(full, lift(fr.model, full, sec.point.u), sec.point.p, ex)[0]
     assert e_a > 0 and abs(e_c) < 1e-6 * e_a
@@ -106,7 +105,7 @@ def test_a_bracket_started_inside_the_step_finds_the_same_point(located):
     full = fs.model
     pts = fr.path.points
     a, b = pts[sec.index], pts[sec.index + 1]
-    ex = extra_dofs(fr.model, full)
+    ex = extra_harmonics(fr.model, full)
     for frac in (0.5, 0.25, 0.1, 0.02):  # a state of the step before the point (stable outside)
         start = fr.tracer.step_between(a, b, frac * (b.s - a.s))
         if start is not None and extra_eigen(full, lift(fr.model, full, start.u), start.p, ex)[0] > 0:
@@ -291,7 +290,7 @@ def test_the_fixed_volume_path_from_the_jumps_landing_ends_where_the_damped_moti
     res, out, fs = jumped
     fr, sec, full, tr = fs.parent, fs.secondary, fs.model, fs.tracer
     L, p = lift(fr.model, full, sec.point.u), sec.point.p
-    eig, mode = extra_eigen(full, L, p, extra_dofs(fr.model, full))
+    eig, mode = extra_eigen(full, L, p, extra_harmonics(fr.model, full))
     assert eig < 0.0
     unit = mode / np.linalg.norm(mode)
     at_L = PathPoint(L, p, tr.zeta(L, p)[0], fs.states.upper.tangent, unit / tr.alpha, 0.0, 0.0)
@@ -384,7 +383,7 @@ def test_where_the_sphere_path_turns_back_the_jump_lands_where_the_descent_and_t
     low, up = fs.states.lower, fs.states.upper
     L, p = lift(fr.model, full, sec.point.u), sec.point.p
     assert full.volume(L) == pytest.approx(full.volume(up.u), rel=1e-12)  # (the landing is at the fold's volume)
-    eig, mode = extra_eigen(full, L, p, extra_dofs(fr.model, full))
+    eig, mode = extra_eigen(full, L, p, extra_harmonics(fr.model, full))
     assert eig < 0.0
     assert full.volume(low.u) == pytest.approx(full.volume(up.u), rel=1e-8)
     assert unstable_modes(full, low.u, low.p) == 0

@@ -83,17 +83,22 @@ class Linearization:
 
     def stiffness(self) -> "scipy.sparse.csr_matrix":
         """``K_T`` alone (n x n, CSR)."""
-        import scipy.sparse as sp
-
-        m, n = self.model, self.model.n
-        ab = self.data.reshape(n, m.kl + 1)
-        L = sp.diags([ab[: n - k, k] for k in range(m.kl + 1)], [-k for k in range(m.kl + 1)],
-                     shape=(n, n), format="csr")
-        return (L + sp.triu(L.T, 1)).tocsr()
+        m = self.model
+        return band_csr(self.data.reshape(m.n, m.kl + 1))
 
     def diag_abs(self) -> np.ndarray:
         """``|diag K_T|`` per dof (a Jacobi metric for ``shift``)."""
         return np.abs(self.data[self.model.diag_pos])
+
+
+def band_csr(ab: np.ndarray) -> "scipy.sparse.csr_matrix":
+    """The symmetric matrix whose lower band is ``ab (n, kl + 1)`` (``A[j + k, j] = ab[j, k]``) as
+    scipy CSR."""
+    import scipy.sparse as sp
+
+    n, w = ab.shape
+    L = sp.diags([ab[: n - k, k] for k in range(w)], [-k for k in range(w)], shape=(n, n), format="csr")
+    return (L + sp.triu(L.T, 1)).tocsr()
 
 
 class BorderedSolver:

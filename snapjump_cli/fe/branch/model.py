@@ -35,6 +35,8 @@ import numpy as np
 from snapjump_cli.fe.limits import check_time
 from snapjump_cli.mesh.data import number_dofs
 from snapjump_cli.fe.axisym.model import BorderedSolver, Linearization
+from snapjump_cli.fe.branch.block import HarmonicBlock, harmonic_block
+from snapjump_cli.fe.branch.layout import component_index
 from snapjump_kernels.calls import (
     bordered_factor_into,
     envelope_extents,
@@ -75,16 +77,6 @@ def transfer(src: "MultiHarmonicModel", dst: "MultiHarmonicModel", u: np.ndarray
         w = 2 if n == 0 else 3
         B[:, component_index(kd, 0):component_index(kd, 0) + w] = A[:, component_index(k, 0):component_index(k, 0) + w]
     return dst.free_vector(B)
-
-
-def component_index(k: int, comp: int) -> int:
-    """Column of harmonic index ``k`` (0-based in ``hn``) and component ``comp`` (0 a, 1 b, 2 c)
-    in the nodal amplitude array ``(nn, nc)``."""
-    if k == 0:
-        if comp > 1:
-            raise ValueError("harmonic 0 has no c (torsion) amplitude")
-        return comp
-    return 2 + 3 * (k - 1) + comp
 
 
 class _MixedLinearization(Linearization):
@@ -217,9 +209,11 @@ class MultiHarmonicModel:
             # the imperfect body's pressure mass per element and phi point: sum_q W_q Jimp Np Np^T
             Mp = np.einsum("eq,eqj,qk,ql->ejkl", model.Wq, self.Jimp, model.Np, model.Np)
             self.Minvp = np.ascontiguousarray(np.linalg.inv(Mp))
-        self.n_assemblies = self.n_residuals = self.n_factorizations = 0
+        self.n_assemblies = self.n_residuals = self.n_factorizations = self.n_block_assemblies = 0
         self.t_assembly = self.t_factor = 0.0
         self._pool: list[np.ndarray] = []
+        self._sel_all = np.ones(K, dtype=np.bool_)
+        self._blocks: dict = {}
 
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
@@ -331,7 +325,8 @@ class MultiHarmonicModel:
             p_geo, pb_out, H_out = aux_arrays if aux_arrays is not None else self._no_aux()
             E, ok, re = mh_assemble_band(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
                                          M.Minv, self.hn, self.phis, self.wphi, self.Fi, self.Jimp, self.Minvp,
-                                         self.edofs, self.ecoef, self.band_ext, ab, p_geo, pb_out, H_out)
+                                         self.edofs, self.ecoef, self.band_ext, ab, p_geo, pb_out, H_out,
+                                         self._sel_all)
         else:
             E, ok, re, _ = mh_elements(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
                                         M.Minv, self.hn, self.phis, self.wphi, max(want, 0), self.Fi, self.Jimp,
@@ -435,6 +430,31 @@ class MultiHarmonicModel:
             self.t_factor += time.perf_counter() - t0
         self.n_factorizations += 1
         return s
+
+    def block_band(self, u: np.ndarray, p: float, harmonics) -> tuple[np.ndarray, HarmonicBlock] | None:
+        """The diagonal block of the tangent at ``(u, p)`` of the harmonics ``harmonics`` (a
+        :class:`~snapjump_cli.fe.branch.block.HarmonicBlock`, made once per set and kept), as its
+        lower band ``(block.n, block.kl + 1)``: only that block's rows are formed. It is the block
+        of :meth:`linearize`'s tangent (the condensed element pressures), entry for entry; where
+        ``u`` couples the harmonics to the others it is not the whole story. ``None`` outside the
+        material domain. Counted in ``n_block_assemblies``."""
+        key = tuple(sorted(int(n) for n in harmonics))
+        block = self._blocks.get(key)
+        if block is None:
+            block = self._blocks[key] = harmonic_block(self, key)
+        check_time()
+        M = self.base
+        A = np.ascontiguousarray(self.total_amplitudes(u))
+        ab = np.zeros((block.n, block.kl + 1))
+        E, ok, re = mh_assemble_band(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
+                                     M.Minv, self.hn, self.phis, self.wphi, self.Fi, self.Jimp, self.Minvp,
+                                     block.edofs, block.ecoef, block.ext, ab, *self._no_aux(), block.sel)
+        if not ok:
+            return None
+        _, _, He = mh_cavity(M.X, A, M.edges, self.hn, self.phis, self.wphi, 2)
+        scatter_band(He, block.gdofs, block.gcoef, -float(p), ab)
+        self.n_block_assemblies += 1
+        return ab, block
 
     def stiffness_matrix(self, u: np.ndarray, p: float):
         """The tangent alone (scipy CSR), for tests and eigenvalues."""

@@ -34,11 +34,11 @@ from snapjump_cli.fe.branch import trace as branch_trace
 from snapjump_cli.fe.branch.trace import (MICRO_FOLD_DE, FollowResult, axisym_inverted_state, branch_metrics,
                                           micro_energy, trace_branch)
 from snapjump_cli.fe.continuation import Path, PathPoint, Tracer
-from snapjump_cli.fe.stability.eigen import extra_eigen
+from snapjump_cli.fe.stability.eigen import band_negatives, extra_eigen
 
 log = logging.getLogger(__name__)
 
-__all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "branch_stability", "extra_dofs",
+__all__ = ["SecondaryCheck", "Secondary", "full_model", "lift", "unstable_modes", "outside_modes", "branch_stability", "extra_dofs",
            "locate_secondary", "follow_secondary", "visited_points",
            "first_extra", "jump_off_branch", "reached_along", "jump_before", "landing_jump", "mode_counts",
            "more_outside", "extra_harmonics", "leaves_branch", "LeavesBranch", "StabilityWatch", "stability_watch", "rotation_signs", "rotated",
@@ -81,10 +81,27 @@ def unstable_modes(model: MultiHarmonicModel, u: np.ndarray, p: float) -> int:
     return constrained_negatives(s, lin.g)
 
 
+def outside_modes(mh: MultiHarmonicModel, full: MultiHarmonicModel, u: np.ndarray, p: float) -> int:
+    """The unstable modes of the branch state ``(u, p)`` of ``mh`` in the harmonics it does not
+    keep: the negative eigenvalues of that diagonal block of ``full``'s tangent at the lifted state
+    (:meth:`~snapjump_cli.fe.branch.model.MultiHarmonicModel.block_band`, the block alone formed
+    and factorised). At a branch state the block decouples from the branch's harmonics, and the
+    volume constraint lies in harmonic 0, inside: these are the modes ``full`` counts beyond the
+    branch's own. -1 outside the material domain or at a zero pivot."""
+    out = full.block_band(lift(mh, full, u), p, extra_harmonics(mh, full))
+    if out is None:
+        return -1
+    ab, block = out
+    return band_negatives(ab, block.ext)
+
+
 def mode_counts(mh: MultiHarmonicModel, full: MultiHarmonicModel, pt) -> tuple[int, int]:
-    """The unstable modes of the branch state ``pt`` in the branch's model and, lifted, in the
-    model with every harmonic (:func:`unstable_modes`; -1 where a factorisation failed)."""
-    return unstable_modes(mh, pt.u, pt.p), unstable_modes(full, lift(mh, full, pt.u), pt.p)
+    """The unstable modes of the branch state ``pt`` in the branch's model (:func:`unstable_modes`)
+    and in the model with every harmonic: those plus the ones outside the branch
+    (:func:`outside_modes`); -1 where a factorisation failed."""
+    own = unstable_modes(mh, pt.u, pt.p)
+    out = outside_modes(mh, full, pt.u, pt.p)
+    return own, (own + out if own >= 0 and out >= 0 else -1)
 
 
 def more_outside(own: int, nf: int) -> bool:
@@ -269,15 +286,13 @@ def stability_watch(N: int | None = None, stride: int = 5, u_axi: np.ndarray | N
 def stable_outside(N: int | None = None, u_axi: np.ndarray | None = None):
     """A ``landing_check`` for :func:`snapjump_cli.fe.branch.trace.follow_branch` (made from the branch's
     model ``mh``): whether a state of ``mh`` is stable under volume control in :func:`full_model`
-    ``(mh, N, u_axi)`` (:func:`unstable_modes` of it lifted there is 0)."""
+    ``(mh, N, u_axi)`` (:func:`mode_counts` there: none in the branch's model nor outside it)."""
 
     def make(mh: MultiHarmonicModel):
         full = full_model(mh, N, u_axi)
 
         def stable(pt) -> bool:
-            n = unstable_modes(full, lift(mh, full, pt.u), pt.p)
-            full.release_buffers()
-            return n == 0
+            return mode_counts(mh, full, pt)[1] == 0
 
         return stable
 
@@ -301,13 +316,13 @@ class LeavesBranch:
 
     def __init__(self, mh: MultiHarmonicModel, full: MultiHarmonicModel, N: int | None, u_axi) -> None:
         self.mh, self.full, self.N, self.u_axi = mh, full, N, u_axi
-        self.dofs = extra_dofs(mh, full)
+        self.harmonics = extra_harmonics(mh, full)
         self.signs = rotation_signs(mh)
         self._seen: dict = {}
 
     def __call__(self, pt: PathPoint) -> bool:
         for u in [pt.u] if self.signs is None else [pt.u, self.signs * pt.u]:
-            e = extra_eigen(self.full, lift(self.mh, self.full, u), pt.p, self.dofs)
+            e = extra_eigen(self.full, lift(self.mh, self.full, u), pt.p, self.harmonics)
             self.full.release_buffers()
             self._seen[(u.tobytes(), float(pt.p))] = e
             if e is not None and e[0] < 0.0:
@@ -424,7 +439,7 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
     if chk.first is None:
         return None
     mh, pts = fr.model, fr.path.points
-    dofs = extra_dofs(mh, full)
+    others = extra_harmonics(mh, full)
     j1 = first_extra(fr, chk, full) if first is None else first
     if start is not None:
         a, b, a_prev = start, pts[j1], None
@@ -437,14 +452,14 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
         a_prev = pts[j1 - 2] if j1 >= 2 else None
     # (the extra count is 0 at a and the eigenvalue that crosses zero on the step is the one
     # nearest zero: no inertia count at each trial)
-    ea = extra_eigen(full, lift(mh, full, a.u), a.p, dofs, smallest=False)
+    ea = extra_eigen(full, lift(mh, full, a.u), a.p, others, smallest=False)
     if ea is None or not ea[0] > 0.0:
         return None
     scale = ea[0]
     solved: dict = {id(a): (a, (ea[0] / scale, ea[1]))}  # id -> (point, eigenpair): the points kept
 
     def f(q) -> float:
-        e = extra_eigen(full, lift(mh, full, q.u), q.p, dofs, scale, smallest=False)
+        e = extra_eigen(full, lift(mh, full, q.u), q.p, others, scale, smallest=False)
         if e is None:
             return math.nan
         solved[id(q)] = (q, e)
@@ -511,7 +526,7 @@ def follow_secondary(result, fr, N: int | None = None, stride: int = 5, jump_pat
         land = jump.landing if jump is not None else fr.path.points[j1]
         e = settle.eigen(land.u, land.p) if settle is not None else None
         if e is None:
-            e = extra_eigen(full, lift(fr.model, full, land.u), land.p, extra_dofs(fr.model, full))
+            e = extra_eigen(full, lift(fr.model, full, land.u), land.p, extra_harmonics(fr.model, full))
         if jump is None or jump.landing_index is not None or e is None or e[0] < 0.0:
             return jump_off_branch(result, fr, chk, full, j1, jump, eigen=e, volume_path=jump_path)
         start = land
@@ -609,9 +624,8 @@ def jump_off_branch(result, fr, chk: SecondaryCheck, full: MultiHarmonicModel, l
     U = lift(mh, full, up_b.u)
     z = tr.zeta(U, up_b.p)[0]
     upper = PathPoint(U, up_b.p, z, up_b.tangent.copy(), lift(mh, full, up_b.du_ds), up_b.dp_ds, 0.0)
-    dofs = extra_dofs(mh, full)
     L = lift(mh, full, land.u)
-    e = extra_eigen(full, L, land.p, dofs) if eigen is None else eigen
+    e = extra_eigen(full, L, land.p, extra_harmonics(mh, full)) if eigen is None else eigen
     if e is None or not e[0] < 0.0:
         full.release_buffers()
         return None, chk, None

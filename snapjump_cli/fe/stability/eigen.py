@@ -7,9 +7,10 @@
   :func:`smallest_eigenvalue` (certified by the inertia: the margins, rigid modes projected out),
   :func:`lowest_eigen` (with its mode: the bifurcations of the axisymmetric path), and
   :func:`axis_rotation` (the rigid rotation about the axis that ``n = 0`` leaves out);
-* of a sparse symmetric block (the harmonics outside a followed branch, whose model is any object
-  with ``linearize(u, p).stiffness()`` and ``n``): :func:`extra_eigen`,
-  :func:`negative_eigenvalues` (Sylvester: the negative pivots of the band ``LDL^T``) and
+* of a symmetric band (the block of the harmonics outside a followed branch, whose model is any
+  object with ``block_band(u, p, harmonics)`` and ``n``): :func:`extra_eigen`,
+  :func:`band_smallest_eigen`, :func:`band_negatives` and :func:`negative_eigenvalues` (Sylvester:
+  the negative pivots of the band ``LDL^T``, of a band or of a sparse matrix) and
   :func:`lowest_eigen_below` (the lowest eigenvalue bracketed by inertia counts).
 
 The count of unstable modes under volume control (the bordered ``LDL^T``'s inertia) is
@@ -28,7 +29,8 @@ from snapjump_kernels.calls import band_ldlt, envelope_extents
 log = logging.getLogger(__name__)
 
 __all__ = ["harmonic_inertia", "axis_rotation", "ROTATION_COS", "ZERO_PIVOT", "eig_near", "smallest_eigenvalue",
-           "lowest_eigen", "extra_eigen", "lowest_eigen_below", "negative_eigenvalues"]
+           "lowest_eigen", "extra_eigen", "band_smallest_eigen", "band_negatives", "lowest_eigen_below",
+           "negative_eigenvalues"]
 
 
 def harmonic_inertia(model, u: np.ndarray, p: float, n: int, tol: float = ZERO_TOL,
@@ -200,29 +202,45 @@ def lowest_eigen(op: HarmonicOperator, u: np.ndarray, p: float, shift: float = 2
     return found[0] / mu, found[1]
 
 
-def extra_eigen(full, u: np.ndarray, p: float, dofs: np.ndarray, scale: float = 1.0,
-                smallest: bool = True):
-    """The smallest eigenvalue of the tangent of ``full`` at ``(u, p)`` restricted to ``dofs`` (the
-    harmonics outside a branch's subspace, decoupled from it at a state of the branch), divided by
-    ``scale``, and its eigenvector as a free vector of ``full``; ``None`` outside the domain or if
-    the eigenvalue solver does not converge.
+def extra_eigen(full, u: np.ndarray, p: float, harmonics, scale: float = 1.0, smallest: bool = True):
+    """The smallest eigenvalue of the tangent of ``full`` at ``(u, p)`` restricted to the dofs of
+    ``harmonics`` (the harmonics outside a branch's subspace, decoupled from it at a state of the
+    branch), divided by ``scale``, and its eigenvector as a free vector of ``full``; ``None``
+    outside the domain or if the eigenvalue solver does not converge.
+
+    Only that block of the tangent is formed (``full.block_band``:
+    :meth:`snapjump_cli.fe.branch.model.MultiHarmonicModel.block_band`); its eigenpair is
+    :func:`band_smallest_eigen`'s."""
+    out = full.block_band(u, p, harmonics)
+    if out is None:
+        return None
+    ab, block = out
+    found = band_smallest_eigen(ab, block.ext, smallest)
+    if found is None:
+        return None
+    x = np.zeros(full.n)
+    x[block.dofs] = found[1]
+    return found[0] / scale, x
+
+
+def band_smallest_eigen(ab: np.ndarray, ext: np.ndarray, smallest: bool = True):
+    """The smallest eigenvalue and its eigenvector of the symmetric matrix whose lower band is
+    ``ab`` (envelope ``ext``); ``None`` if the eigenvalue solver does not converge.
 
     Shift-invert Lanczos finds the eigenvalues nearest a shift just below zero: the smallest,
-    unless one lies far below zero. The number of negative eigenvalues (the inertia of the block's
-    band ``LDL^T``, exact by Sylvester's law) tells whether one was missed; then the lowest
-    eigenvalue is bracketed by inertia counts of ``K - sigma I`` (the shift moved down until none
-    is below it, then bisected) and found by shift-invert just below it
+    unless one lies far below zero. The number of negative eigenvalues (the inertia of the band's
+    ``LDL^T``, exact by Sylvester's law: :func:`band_negatives`) tells whether one was missed; then
+    the lowest eigenvalue is bracketed by inertia counts of ``K - sigma I`` (the shift moved down
+    until none is below it, then bisected) and found by shift-invert just below it
     (:func:`lowest_eigen_below`). ``smallest=False`` skips the count: the eigenvalue nearest zero is
     then what is returned (enough where it is the one that crosses zero: the roots of
     :func:`snapjump_cli.fe.branch.secondary.locate_secondary`)."""
     import scipy.sparse.linalg as spla
 
-    lin = full.linearize(u, p)
-    if lin is None:
-        return None
-    K = lin.stiffness().tocsr()[dofs][:, dofs].tocsc()
-    K.sum_duplicates()
-    n_neg = negative_eigenvalues(K) if smallest else -1
+    from snapjump_cli.fe.axisym.model import band_csr
+
+    K = band_csr(ab).tocsc()
+    n_neg = band_negatives(ab, ext) if smallest else -1
     d = np.abs(K.diagonal())
     sigma = -1e-6 * float(np.median(d))  # below the eigenvalue near zero; nearest to it = smallest
     v0 = np.random.default_rng(0).standard_normal(K.shape[0])  # fixed: reproducible answers
@@ -236,9 +254,15 @@ def extra_eigen(full, u: np.ndarray, p: float, dofs: np.ndarray, scale: float = 
     if vals is None:
         return None
     i = int(np.argmin(vals))
-    x = np.zeros(full.n)
-    x[dofs] = vecs[:, i]
-    return float(vals[i]) / scale, x
+    return float(vals[i]), vecs[:, i]
+
+
+def band_negatives(ab: np.ndarray, ext: np.ndarray) -> int:
+    """Negative eigenvalues of the symmetric matrix whose lower band is ``ab`` (envelope ``ext``):
+    the negative pivots of the band ``LDL^T`` of a copy (Sylvester); -1 if a pivot is zero to
+    round-off."""
+    ok, n_neg = band_ldlt(np.array(ab), ext)
+    return int(n_neg) if ok else -1
 
 
 def lowest_eigen_below(K, start: float, v0: np.ndarray, bisections: int = 30):
