@@ -156,3 +156,38 @@ def test_easy_steps_grow_faster_and_a_failed_step_caps_the_next(monkeypatch):
             failed += 1
             assert tried[acc + 1][1] <= max(0.8 * ds_f, tried[acc][1]) * (1 + 1e-12)
     assert easy >= 1 and failed >= 1  # design A: both rules act (2 failed correctors)
+
+
+def test_steps_are_held_to_the_contraction_aimed_at(monkeypatch):
+    """``theta_aim`` (the Python corrector, which measures a step's first contraction ``theta``,
+    its second Newton correction over its first): after an accepted step the next is at most
+    ``(theta_aim / theta)^(1/3)`` times as long; a step given up for its contraction
+    (``theta > theta_max``) is retried at that fraction of its length, between 0.25 and 0.8. The
+    answers stay those of the default control."""
+    from snapjump_cli.fe.continuation import Tracer
+
+    aim = 0.05
+    tried = []
+    orig_step = Tracer.step
+
+    def step(self, pt, ds, prev=None, tol=None, error_test=False):
+        new = orig_step(self, pt, ds, prev, tol, error_test)
+        tried.append((pt, ds, new, self.last_theta))
+        return new
+
+    ref = _solve(monkeypatch, "A")
+    monkeypatch.setattr(Tracer, "step", step)
+    res = _solve(monkeypatch, "A", fused=False, theta_aim=aim)
+    cfg = res.tracer.cfg
+    for k in ("dE_J", "dy_pole_m", "V_star_m3", "p_star_Pa"):
+        assert res.metrics[k] == pytest.approx(ref.metrics[k], rel=1e-6), k
+    held = retried = 0
+    for (pt, ds, new, theta), (nxt_pt, nxt_ds, _, _) in zip(tried[:-1], tried[1:]):
+        if new is not None and nxt_pt is new and theta:
+            bound = ds * (aim / theta) ** (1 / 3)
+            assert nxt_ds <= bound * (1 + 1e-12)
+            held += nxt_ds == pytest.approx(bound, rel=1e-12)
+        if new is None and nxt_pt is pt and theta is not None and theta > cfg.theta_max:
+            assert nxt_ds == pytest.approx(ds * min(0.8, max(0.25, (aim / theta) ** (1 / 3))), rel=1e-12)
+            retried += 1
+    assert held >= 1 and retried >= 1  # design A: both rules act

@@ -78,6 +78,19 @@ SPHERE_TOL_PATH = 1e-4
 #: snapjump_cli.fe.axisym.sphere_path.SPHERE_FAIL_CAP=0.0``, compared with ``bench.profile.answers``;
 #: the counts of the model with every harmonic from a scratch counter).
 SPHERE_GROW_EASY = 16.0
+
+
+#: The sphere path's steps are also held to a first Newton contraction of about this
+#: (``ContinuationSettings.theta_aim``; 0: off). The turn aim alone let the steps grow past Newton's
+#: basin and be cut back in turn: on ``follow_strata_n2`` row 11 six of 21 steps tried failed, each
+#: after two corrections, and the first contraction grew as ``ds^3`` (0.07 at ``ds`` 0.088, 0.57 at
+#: 0.147; the corrector gives up above 0.5). On 10 jumps of ``follow_strata_n2`` (rows 0, 1, 2, 5,
+#: 9, 11, 14, 16, 21, 22) the model with every harmonic took 489 assemblies without it and 440 with
+#: 0.25 (row 11: 71 -> 50; rows 0, 1, 5, 11: off 220, 0.1 204, 0.15 197, 0.25 184; the other six:
+#: off 269, 0.25 256, 0.35 259); on 13 sphere-path designs of ``follow_strata`` 586 and 583. The same states, every answer value within 3e-13 (``bench.profile.follow --json ...
+#: --set snapjump_cli.fe.axisym.sphere_path.SPHERE_THETA_AIM=0.0``, compared with
+#: ``bench.profile.answers``).
+SPHERE_THETA_AIM = 0.25
 SPHERE_FAIL_CAP = 0.8
 
 
@@ -267,7 +280,7 @@ def _first_state(pb: SpherePathProblem, cfg, s_w: float, starts):
             continue
         fcfg = replace(cfg, scales=(s_w, SPHERE_LOAD_SCALE * max(abs(F0), 1e-300)), step_grow=SPHERE_STEP_GROW,
                        max_turn_deg=SPHERE_TURN_DEG, tol_path=SPHERE_TOL_PATH, ds0=min(cfg.ds0, w0 / s_w),
-                       fail_cap=SPHERE_FAIL_CAP, grow_easy=SPHERE_GROW_EASY)
+                       fail_cap=SPHERE_FAIL_CAP, grow_easy=SPHERE_GROW_EASY, theta_aim=SPHERE_THETA_AIM)
         ftr = Tracer(pb, fcfg)
         res = ftr.correct(np.concatenate([c + d0, [p0]]), F0, None, None, 0.0, target=(0, w0 / s_w))
         if res is not None:

@@ -98,6 +98,11 @@ class ContinuationSettings:
         basin and being cut back)
     grow_easy : growth of the next step after a step that converged in one Newton iteration and
         turned less than a tenth of ``max_turn_deg`` (0: ``step_grow``)
+    theta_aim : the contraction aimed at in a step's first Newton iteration (the second correction
+        over the first, ``theta``; the corrector gives up above ``theta_max``): after a step whose
+        ``theta`` was measured the next is at most ``(theta_aim / theta)^(1/3)`` times as long, and
+        a step given up for its contraction is retried at that fraction (between 0.25 and 0.8) of
+        its length instead of half (0: off; the Python corrector only)
     """
 
     scales: tuple[float, float, float]
@@ -121,6 +126,7 @@ class ContinuationSettings:
     step_grow: float = 1.6
     fail_cap: float = 0.0
     grow_easy: float = 0.0
+    theta_aim: float = 0.0
 
     @classmethod
     def from_solver(cls, solver: SolverSettings, scales: tuple[float, float, float], u_unit: float = 1.0,

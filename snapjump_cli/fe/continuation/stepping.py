@@ -186,6 +186,8 @@ def trace(
                     grow = cfg.grow_easy
                 if ang > 0:
                     grow = min(grow, TURN_AIM * cfg.max_turn_deg / ang)
+                if cfg.theta_aim > 0.0 and tr.last_theta:
+                    grow = min(grow, (cfg.theta_aim / tr.last_theta) ** (1.0 / 3.0))
                 ds_done = ds
                 ds = min(cfg.ds_max, ds * max(STEP_FACTOR_MIN, grow))
                 if cfg.fail_cap > 0.0:  # not past a step that failed, but not below the one just taken
@@ -197,7 +199,11 @@ def trace(
             if cfg.fail_cap > 0.0:
                 ds_cap = cfg.fail_cap * ds
         path.n_rejected += 1
-        ds *= STEP_CUT
+        theta = tr.last_theta if new is None else None
+        if cfg.theta_aim > 0.0 and theta is not None and theta > cfg.theta_max:  # given up for its contraction
+            ds *= min(0.8, max(0.25, (cfg.theta_aim / theta) ** (1.0 / 3.0)))
+        else:
+            ds *= STEP_CUT
         log.debug("step rejected (%s); ds -> %.3g", cause, ds)
         if ds < cfg.ds_min:
             z = pt.zeta * tr.sc

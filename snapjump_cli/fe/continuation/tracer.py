@@ -45,6 +45,9 @@ class Tracer:
         self.n_newton = 0
         self.last_det_sign = 0
         self.last_n_neg = -1
+        #: the first contraction of the last correction (its second Newton correction over its
+        #: first, in the arc-length metric; None where fewer than two were computed or compiled)
+        self.last_theta: float | None = None
         # weight of the RMS displacement in the arc length (0: measures only)
         self.alpha = 1.0 / (math.sqrt(problem.n) * settings.u_scale) if settings.u_scale > 0 else 0.0
 
@@ -161,6 +164,7 @@ class Tracer:
         u = u.copy()
         step_small = False
         inc_prev = math.inf
+        self.last_theta = None
         for it in range(0, cfg.max_newton + 1):
             lin = self.pb.linearize(u, p) if aux is None else self.pb.linearize(u, p, aux=aux)
             if lin is None:
@@ -199,6 +203,8 @@ class Tracer:
                 return None
             dz = dz_du @ du + dz_dp * dp
             inc = math.sqrt(float(dz @ dz) + self.alpha**2 * float(du @ du))
+            if it == 1 and inc_prev > 0.0:
+                self.last_theta = inc / inc_prev
             if tol_inc > 0.0 and it > 0 and inc < tol_inc and inc < inc_prev:
                 aux_dir = getattr(lin, "aux_dir", None) if getattr(lin, "aux", None) is not None else None
                 aux_next = lin.aux + aux_dir(du) if aux_dir is not None else None
