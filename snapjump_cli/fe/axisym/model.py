@@ -77,7 +77,12 @@ class Linearization:
         """
         data = self.data
         if np.any(shift):
-            data = data.copy()
+            buffer = getattr(self.model, "_band_buffer", None)  # a reused band (no fresh pages to fault in)
+            if buffer is not None:
+                data = buffer().reshape(-1)
+                np.copyto(data, self.data)
+            else:
+                data = data.copy()
             data[self.model.diag_pos] += shift
         return self.model._factor(data, -self.g, c_u, c_p)
 
