@@ -24,7 +24,7 @@ import numpy as np
 
 from snapjump_cli.fe.limits import check_time
 from snapjump_cli.fe.stability.harmonics import ZERO_TOL, HarmonicOperator, harmonic_operator
-from snapjump_kernels.calls import band_ldlt, envelope_extents
+from snapjump_kernels.calls import band_ldlt, band_ldlt_solve, envelope_extents, sym_band_matvec
 
 log = logging.getLogger(__name__)
 
@@ -239,14 +239,27 @@ def band_smallest_eigen(ab: np.ndarray, ext: np.ndarray, smallest: bool = True):
 
     from snapjump_cli.fe.axisym.model import band_csr
 
-    K = band_csr(ab).tocsc()
+    n = ab.shape[0]
     n_neg = band_negatives(ab, ext) if smallest else -1
-    d = np.abs(K.diagonal())
-    sigma = -1e-6 * float(np.median(d))  # below the eigenvalue near zero; nearest to it = smallest
-    v0 = np.random.default_rng(0).standard_normal(K.shape[0])  # fixed: reproducible answers
+    sigma = -1e-6 * float(np.median(np.abs(ab[:, 0])))  # below the eigenvalue near zero; nearest to it = smallest
+    v0 = np.random.default_rng(0).standard_normal(n)  # fixed: reproducible answers
+    # shift-invert with the band LDL^T of K - sigma I (the band's own solver, not a sparse LU)
+    fac = np.array(ab)
+    fac[:, 0] -= sigma
+    ok, _ = band_ldlt(fac, ext)
+    if not ok:  # sigma an eigenvalue to round-off: the sparse LU's shift-invert
+        fac = None
+    A = spla.LinearOperator((n, n), matvec=lambda x: sym_band_matvec(ab, np.ravel(x).astype(float), ext),
+                            dtype=float)
+    inv = None if fac is None else spla.LinearOperator(
+        (n, n), matvec=lambda x: band_ldlt_solve(fac, np.ravel(x).astype(float), ext), dtype=float)
     try:
-        vals, vecs = spla.eigsh(K, k=min(3, K.shape[0] - 1), sigma=sigma, which="LM", v0=v0)
+        if inv is None:
+            vals, vecs = spla.eigsh(band_csr(ab).tocsc(), k=min(3, n - 1), sigma=sigma, which="LM", v0=v0)
+        else:
+            vals, vecs = spla.eigsh(A, k=min(3, n - 1), sigma=sigma, which="LM", v0=v0, OPinv=inv)
         if n_neg > 0 and not (n_neg <= len(vals) and int(np.sum(vals < 0.0)) >= n_neg):
+            K = band_csr(ab).tocsc()
             vals, vecs = lowest_eigen_below(K, float(np.abs(vals).max()), v0)  # one lies further below
     except spla.ArpackNoConvergence:
         log.warning("extra_eigen: the eigenvalue solver did not converge")
