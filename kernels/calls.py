@@ -6,7 +6,7 @@ ahead-of-time build. The library takes every kernel from here."""
 from __future__ import annotations
 
 from snapjump_kernels.aot import active, kernel, lazy_jit
-from snapjump_kernels.band_layout import envelope_extents
+from snapjump_kernels.band_layout import band_of_maps, envelope_extents
 from snapjump_kernels.elements import element_tables, quadrature_geometry
 
 #: kernel module -> the kernels the solver calls from Python (what the ahead-of-time build exports)
@@ -35,6 +35,6 @@ globals().update({name: lazy_jit(module, name) for module, names in JIT_KERNELS.
 #: whether the ahead-of-time compiled kernels are in use in this process
 AOT: bool = active()
 
-__all__ = ["KERNELS", "JIT_KERNELS", "AOT", "envelope_extents", "element_tables", "quadrature_geometry",
+__all__ = ["KERNELS", "JIT_KERNELS", "AOT", "band_of_maps", "envelope_extents", "element_tables", "quadrature_geometry",
            *(name for names in KERNELS.values() for name in names),
            *(name for names in JIT_KERNELS.values() for name in names)]

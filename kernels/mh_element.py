@@ -88,7 +88,8 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
     nd = Kh.shape[0]
     Df = Dq.reshape(nq, nphi, 81)
     for p in range(K * (K + 1) // 2):
-        if not (sel[_pair_k(p, K)] and sel[_pair_l(p, K)]):
+        k, l = _pair_of(p, K)
+        if not (sel[k] and sel[l]):
             continue
         for q in range(nq):
             acc = Dtp[p, q]
@@ -166,23 +167,13 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
 
 
 @njit(cache=True)
-def _pair_k(p: int, K: int) -> int:
-    """The harmonic ``k`` of the pair index ``p`` (:func:`_pair_index`)."""
+def _pair_of(p: int, K: int):
+    """The harmonics ``(k, l)`` of the pair index ``p`` (:func:`_pair_index`)."""
     k = 0
     while p >= K - k:
         p -= K - k
         k += 1
-    return k
-
-
-@njit(cache=True)
-def _pair_l(p: int, K: int) -> int:
-    """The harmonic ``l`` of the pair index ``p`` (:func:`_pair_index`)."""
-    k = 0
-    while p >= K - k:
-        p -= K - k
-        k += 1
-    return k + p
+    return k, k + p
 
 
 @njit(cache=True, inline="always")

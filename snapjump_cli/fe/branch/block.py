@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from snapjump_cli.fe.branch.layout import component_index
-from snapjump_kernels.calls import envelope_extents
+from snapjump_kernels.calls import band_of_maps
 
 __all__ = ["HarmonicBlock", "harmonic_block"]
 
@@ -61,14 +61,5 @@ def harmonic_block(model, harmonics) -> HarmonicBlock:
     to_block[dofs] = np.arange(dofs.shape[0])
     edofs = np.ascontiguousarray(to_block[model.edofs])
     gdofs = np.ascontiguousarray(to_block[model.gdofs])
-    rows, cols_ = [], []
-    for m in (edofs, gdofs):
-        nd = m.shape[1]
-        r, c = np.repeat(m, nd, axis=1).ravel(), np.tile(m, (1, nd)).ravel()
-        ok = (r >= 0) & (c >= 0)
-        rows.append(r[ok])
-        cols_.append(c[ok])
-    rows, cols_ = np.concatenate(rows), np.concatenate(cols_)
-    kl = int(np.abs(rows - cols_).max()) if len(rows) else 0
-    return HarmonicBlock(sel, dofs, edofs, model.ecoef, gdofs, model.gcoef, kl,
-                         envelope_extents(rows, cols_, dofs.shape[0], kl))
+    kl, ext = band_of_maps((edofs, gdofs), dofs.shape[0])
+    return HarmonicBlock(sel, dofs, edofs, model.ecoef, gdofs, model.gcoef, kl, ext)

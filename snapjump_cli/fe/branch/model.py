@@ -38,8 +38,8 @@ from snapjump_cli.fe.axisym.model import BorderedSolver, Linearization
 from snapjump_cli.fe.branch.block import HarmonicBlock, harmonic_block
 from snapjump_cli.fe.branch.layout import component_index
 from snapjump_kernels.calls import (
+    band_of_maps,
     bordered_factor_into,
-    envelope_extents,
     mh_assemble_band,
     mh_cavity,
     mh_elements,
@@ -178,16 +178,7 @@ class MultiHarmonicModel:
         self.ecoef = np.ascontiguousarray(coef[conn].reshape(conn.shape[0], -1))
         self.gdofs = np.ascontiguousarray(dofmap[edges].reshape(edges.shape[0], -1))
         self.gcoef = np.ascontiguousarray(coef[edges].reshape(edges.shape[0], -1))
-        rows, cols = [], []
-        for d in (self.edofs, self.gdofs):
-            nd = d.shape[1]
-            r, c = np.repeat(d, nd, axis=1).ravel(), np.tile(d, (1, nd)).ravel()
-            ok = (r >= 0) & (c >= 0)
-            rows.append(r[ok])
-            cols.append(c[ok])
-        rows, cols = np.concatenate(rows), np.concatenate(cols)
-        self.kl = int(np.abs(rows - cols).max()) if len(rows) else 0
-        self.band_ext = envelope_extents(rows, cols, ndof, self.kl)
+        self.kl, self.band_ext = band_of_maps((self.edofs, self.gdofs), ndof)
         self.diag_pos = np.arange(ndof) * (self.kl + 1)
         self.pole_node = model.pole_node
         self.pole_dof = int(dofmap[model.pole_node, 1])

@@ -51,8 +51,8 @@ import numpy as np
 from snapjump_cli.mesh.data import number_dofs
 from snapjump_cli.schema import HARMONIC_CHECK, columns, keys
 from snapjump_kernels.calls import (
+    band_of_maps,
     band_ldlt,
-    envelope_extents,
     harmonic_band,
     harmonic_cavity_matrices,
     harmonic_element_parts,
@@ -160,16 +160,7 @@ def _layout(model, fixed: np.ndarray, tied: np.ndarray) -> _Layout:
     ecoef = np.ascontiguousarray(coef[conn].reshape(conn.shape[0], -1))
     gdofs = np.ascontiguousarray(dofmap[edges].reshape(edges.shape[0], -1))
     gcoef = np.ascontiguousarray(coef[edges].reshape(edges.shape[0], -1))
-    rows, cols = [], []
-    for d in (edofs, gdofs):
-        nd = d.shape[1]
-        r, c = np.repeat(d, nd, axis=1).ravel(), np.tile(d, (1, nd)).ravel()
-        ok = (r >= 0) & (c >= 0)
-        rows.append(r[ok])
-        cols.append(c[ok])
-    rows, cols = np.concatenate(rows), np.concatenate(cols)
-    kl = int(np.abs(rows - cols).max()) if len(rows) else 0
-    ext = envelope_extents(rows, cols, ndof, kl)
+    kl, ext = band_of_maps((edofs, gdofs), ndof)
     return _Layout(dofmap, coef, ndof, kl, ext, edofs, ecoef, gdofs, gcoef)
 
 
