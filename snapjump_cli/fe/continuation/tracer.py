@@ -151,6 +151,7 @@ class Tracer:
         tol = cfg.tol if tol is None else tol
         tol_inc = tol if (error_test and target is None) else 0.0
         fused = getattr(self.pb, "newton", None) if cfg.fused else None
+        self.last_theta = None
         if fused is not None:  # the same iteration, compiled (snapjump_kernels.corrector)
             riks = None
             if target is None:
@@ -164,7 +165,6 @@ class Tracer:
         u = u.copy()
         step_small = False
         inc_prev = math.inf
-        self.last_theta = None
         for it in range(0, cfg.max_newton + 1):
             lin = self.pb.linearize(u, p) if aux is None else self.pb.linearize(u, p, aux=aux)
             if lin is None:
