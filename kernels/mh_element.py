@@ -87,19 +87,21 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
     K = hn.shape[0]
     nd = Kh.shape[0]
     Df = Dq.reshape(nq, nphi, 81)
-    for p in range(K * (K + 1) // 2):
-        k, l = _pair_of(p, K)
-        if not (sel[k] and sel[l]):
-            continue
-        for q in range(nq):
-            acc = Dtp[p, q]
-            for x in range(81):
-                acc[x] = 0.0
-            for j in range(nphi):
-                w = WT[p, j]
-                dq = Df[q, j]
+    p = -1
+    for k in range(K):
+        for l in range(k, K):
+            p += 1  # (_pair_index(k, l, K))
+            if not (sel[k] and sel[l]):
+                continue
+            for q in range(nq):
+                acc = Dtp[p, q]
                 for x in range(81):
-                    acc[x] += w[x] * dq[x]
+                    acc[x] = 0.0
+                for j in range(nphi):
+                    w = WT[p, j]
+                    dq = Df[q, j]
+                    for x in range(81):
+                        acc[x] += w[x] * dq[x]
     Kh[:, :] = 0.0
     for k in range(K):
         if not sel[k]:
@@ -164,16 +166,6 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
                     row = Kh[r0 + 2 * nen + a, r0:nd]
                     for x in range(m):
                         row[x] += nbna * D4[x] - bna * D5[x] + bxa * D6[x] + bya * D7[x]
-
-
-@njit(cache=True)
-def _pair_of(p: int, K: int):
-    """The harmonics ``(k, l)`` of the pair index ``p`` (:func:`_pair_index`)."""
-    k = 0
-    while p >= K - k:
-        p -= K - k
-        k += 1
-    return k, k + p
 
 
 @njit(cache=True, inline="always")

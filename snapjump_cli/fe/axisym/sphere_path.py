@@ -87,9 +87,10 @@ SPHERE_GROW_EASY = 16.0
 #: 0.147; the corrector gives up above 0.5). On 10 jumps of ``follow_strata_n2`` (rows 0, 1, 2, 5,
 #: 9, 11, 14, 16, 21, 22) the model with every harmonic took 489 assemblies without it and 440 with
 #: 0.25 (row 11: 71 -> 50; rows 0, 1, 5, 11: off 220, 0.1 204, 0.15 197, 0.25 184; the other six:
-#: off 269, 0.25 256, 0.35 259); on 13 sphere-path designs of ``follow_strata`` 586 and 583. The same states, every answer value within 3e-13 (``bench.profile.follow --json ...
-#: --set snapjump_cli.fe.axisym.sphere_path.SPHERE_THETA_AIM=0.0``, compared with
-#: ``bench.profile.answers``).
+#: off 269, 0.25 256, 0.35 259); on 13 sphere-path designs of ``follow_strata`` 586 and 583. The
+#: same states, every answer value within 3e-13 (``bench.profile.follow --json ... --set
+#: snapjump_cli.fe.axisym.sphere_path.SPHERE_THETA_AIM=0.0``, compared with ``bench.profile.answers``;
+#: the assemblies are the ``assemblies`` column of those runs).
 SPHERE_THETA_AIM = 0.25
 SPHERE_FAIL_CAP = 0.8
 

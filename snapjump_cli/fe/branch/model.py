@@ -311,20 +311,21 @@ class MultiHarmonicModel:
         t0 = time.perf_counter()
         M = self.base
         A = np.ascontiguousarray(self.total_amplitudes(u))
-        if want >= 2:  # the elements' tangent scattered into a band as it is formed
+        ab = None
+        if want >= 2:  # the elements' tangent scattered into a band as it is formed, the cavity's after
             ab = self._band_buffer()
-            p_geo, pb_out, H_out = aux_arrays if aux_arrays is not None else self._no_aux()
-            E, ok, re = mh_assemble_band(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
-                                         M.Minv, self.hn, self.phis, self.wphi, self.Fi, self.Jimp, self.Minvp,
-                                         self.edofs, self.ecoef, self.band_ext, ab, p_geo, pb_out, H_out,
-                                         self._sel_all)
+            out = self._band_pass(A, p, ab, self.edofs, self.ecoef, self.band_ext, self._sel_all, self.gdofs,
+                                  self.gcoef, aux_arrays)
+            if out is None:
+                return None
+            E, re, Vf, ge = out
         else:
             E, ok, re, _ = mh_elements(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
                                         M.Minv, self.hn, self.phis, self.wphi, max(want, 0), self.Fi, self.Jimp,
                                         self.Minvp)
-        if not ok:
-            return None
-        Vf, ge, He = mh_cavity(M.X, A, M.edges, self.hn, self.phis, self.wphi, want)
+            if not ok:
+                return None
+            Vf, ge, _ = mh_cavity(M.X, A, M.edges, self.hn, self.phis, self.wphi, want)
         R = np.zeros(self.n)
         g = np.zeros(self.n)
         data = None
@@ -333,13 +334,30 @@ class MultiHarmonicModel:
             scatter_vector(ge, self.gdofs, self.gcoef, 1.0, g)
             R -= p * g
         if want >= 2:
-            scatter_band(He, self.gdofs, self.gcoef, -float(p), ab)
             data = ab.ravel()
             self.n_assemblies += 1
             self.t_assembly += time.perf_counter() - t0
         else:
             self.n_residuals += 1
         return E, R, g, Vf + self.V_offset, data
+
+    def _band_pass(self, A: np.ndarray, p: float, ab: np.ndarray, edofs, ecoef, ext, sel, gdofs, gcoef,
+                   aux_arrays=None):
+        """The tangent of the harmonics ``sel`` at the nodal amplitudes ``A`` scattered into the band
+        ``ab`` by the maps ``edofs, ecoef`` (elements) and ``gdofs, gcoef`` (the cavity's load
+        stiffness, at pressure ``p``), envelope ``ext``: ``(E, re, V, ge)`` (the energy, element
+        residuals, cavity volume without the offset and its element gradients), ``None`` outside
+        the material domain."""
+        M = self.base
+        p_geo, pb_out, H_out = aux_arrays if aux_arrays is not None else self._no_aux()
+        E, ok, re = mh_assemble_band(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
+                                     M.Minv, self.hn, self.phis, self.wphi, self.Fi, self.Jimp, self.Minvp,
+                                     edofs, ecoef, ext, ab, p_geo, pb_out, H_out, sel)
+        if not ok:
+            return None
+        Vf, ge, He = mh_cavity(M.X, A, M.edges, self.hn, self.phis, self.wphi, 2)
+        scatter_band(He, gdofs, gcoef, -float(p), ab)
+        return E, re, Vf, ge
 
     def energy(self, u: np.ndarray) -> float:
         """Strain energy (scaled); ``nan`` outside the material domain."""
@@ -434,16 +452,10 @@ class MultiHarmonicModel:
         if block is None:
             block = self._blocks[key] = harmonic_block(self, key)
         check_time()
-        M = self.base
         A = np.ascontiguousarray(self.total_amplitudes(u))
         ab = np.zeros((block.n, block.kl + 1))
-        E, ok, re = mh_assemble_band(A, M.conn, M.mat, M.mu, M.jm, M.kappa, M.dNdX, M.N_ref, M.Rq, M.Wq, M.Np,
-                                     M.Minv, self.hn, self.phis, self.wphi, self.Fi, self.Jimp, self.Minvp,
-                                     block.edofs, block.ecoef, block.ext, ab, *self._no_aux(), block.sel)
-        if not ok:
+        if self._band_pass(A, p, ab, block.edofs, block.ecoef, block.ext, block.sel, block.gdofs, block.gcoef) is None:
             return None
-        _, _, He = mh_cavity(M.X, A, M.edges, self.hn, self.phis, self.wphi, 2)
-        scatter_band(He, block.gdofs, block.gcoef, -float(p), ab)
         self.n_block_assemblies += 1
         return ab, block
 
