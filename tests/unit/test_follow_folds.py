@@ -123,3 +123,30 @@ def test_the_points_passed_through_know_the_folds_traced_through():
     assert visited_points(fr, 5) == [1, 2, 3, 4, 5]
     assert not reached_along(fr, 3) and reached_along(fr, 4)  # point 3 is the landing
     assert jump_before(fr, 3) is restart
+
+
+def _step_pt(V: float, dV_ds: float) -> SimpleNamespace:
+    """A stand-in path point with a volume and the volume component of its tangent."""
+    return SimpleNamespace(u=np.zeros(1), p=0.3, zeta=np.array([V, 0.3, 0.0]), tangent=np.array([dV_ds, 0.0, 0.0]),
+                           n_neg=-1)
+
+
+@pytest.mark.parametrize("dV, slope, kind", [
+    (-2e-7, -0.02, "subcritical"),   # the volume falls: subcritical, as before
+    (3e-8, -0.02, "subcritical"),  # it rose by less than the bifurcation's location error, but falls at the step's end
+    (3e-8, 0.02, "supercritical"),   # it rises and keeps rising
+])
+def test_the_first_step_tells_a_subcritical_branch_by_the_volume_slope_too(dV, slope, kind):
+    """A symmetric pitchfork: the volume along the branch is V_b + b s^2, so the sign of b shows in the
+    volume's slope at the end of the first step. The first step's volume against the bifurcation's
+    also carries the bifurcation's location error (a located V_b 3e-7 low made a branch falling
+    from its first step look supercritical: its loop below V_b was then traced, follow_strata_n2
+    rows 0, 1, 16). A subcritical verdict makes the start the upper state."""
+    start, first = _step_pt(2.9, 0.0), _step_pt(2.9 + dV, slope)
+    tk = BranchTracker(tracer=None, p_stop=1e9, V_stop=1e9, stop_at_upper=True)
+    reason = tk(Path(points=[start, first]))
+    assert tk.kind == kind and tk.first_kind == kind
+    if kind == "subcritical":
+        assert tk.states.upper is start and tk.states.k_before == 0 and reason == "upper state located; the branch beyond it not traced"
+    else:
+        assert tk.states.upper is None and reason is None

@@ -100,7 +100,12 @@ class FollowResult:
 class BranchTracker(SnapTracker):
     """The snap tracker on a branch that starts at its bifurcation point: after the first step it
     tells a subcritical branch (the volume falls at once: the start is the volume limit) from a
-    supercritical one (it rises, and the tracker finds the branch's own limit).
+    supercritical one (it rises, and the tracker finds the branch's own limit). The volume along a
+    branch off the axisymmetric path is even in the arc length (``V_b + b s^2``: the mode and its
+    negative are the same state turned by ``pi / n``), so the first step is subcritical where its
+    end point's volume lies below the start's or, with :data:`FIRST_STEP_SLOPE`, where the volume
+    falls there (the tangent's volume component is negative): the start's volume carries the
+    bifurcation's location error, which can exceed ``|b| s^2`` of a short first step.
 
     A fold whose snap would release less than ``micro_dE`` (scaled energy) is not taken for the
     actuator's snap: the branch comes back to that volume with almost the same energy (a small
@@ -159,7 +164,7 @@ class BranchTracker(SnapTracker):
             return REJOINED
         if len(pts) == 2 and not self.kind:
             a, b = pts
-            if b.zeta[0] < a.zeta[0]:
+            if b.zeta[0] < a.zeta[0] or (FIRST_STEP_SLOPE and b.tangent[0] < 0.0):
                 self.kind = "subcritical"
                 self.states.k_before = 0
                 self.states.upper = a
@@ -215,6 +220,20 @@ LANDINGS = ("search", "axisymmetric first", "descent first")
 #: A fold of a followed branch whose snap releases less than this fraction of the axisymmetric
 #: snap's energy is traced through, not reported as the actuator's snap.
 MICRO_FOLD_DE = 1e-2
+
+
+#: :class:`BranchTracker` tells a subcritical branch also by the volume's slope at the end of its
+#: first step (the path tangent's volume component below zero), not only by that step's volume
+#: against the bifurcation's (see the class). On ``follow_strata_n2`` rows 0, 1 and 16 the first
+#: step (``ds0 / 128``) ended 3e-8 above the located bifurcation's volume (located ~3e-7 low) with
+#: the volume already falling: taken for supercritical, the branch's loop below the bifurcation's
+#: volume was traced (26-27 points) up to a state unstable outside the branch; told subcritical,
+#: the jump at the bifurcation is landed as on the other 13 such rows: 40 -> 36, 46 -> 42 and
+#: 40 -> 38 assemblies of the model with every harmonic, the followed CPU 12-20 % less, every answer
+#: value within 1.5e-6 (the fold's volume moves by ~1e-8); the other 45 designs of both samples bit
+#: for bit (``bench.profile.follow --json`` of both samples, again with ``--set
+#: snapjump_cli.fe.branch.trace.FIRST_STEP_SLOPE=False``, compared by ``bench.profile.answers``).
+FIRST_STEP_SLOPE = True
 
 
 #: :class:`BranchTracker`: "back on the axisymmetric path" means every harmonic ``n >= 1`` below
