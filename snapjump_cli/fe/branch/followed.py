@@ -24,7 +24,7 @@ from snapjump_cli.schema import FOLLOWED, keys
 if TYPE_CHECKING:
     from snapjump_cli.fe.stability.harmonics import HarmonicCheck
 
-__all__ = ["FOLLOW_MODES", "AXISYM_FIRST_ALL", "first_secondary", "record_secondary", "FOLLOW_KEYS", "REPLACED_KEYS",
+__all__ = ["FOLLOW_MODES", "AXISYM_FIRST_ALL", "WATCH_THROUGH_FOLDS", "first_secondary", "record_secondary", "FOLLOW_KEYS", "REPLACED_KEYS",
            "FollowedAnswer", "axisym_answer", "followed_metrics", "leave_at_secondary", "apply_followed"]
 
 #: How a branch is followed (:func:`followed_metrics`): ``"actuator"`` (the default: only the
@@ -37,6 +37,17 @@ FOLLOW_MODES: tuple[str, ...] = ("actuator", "full")
 #: state at its volume limit, where that state is stable with every harmonic ``0..N``, before the
 #: search at fixed volume (``False``: the search, as the reference; a switch for measurements).
 AXISYM_FIRST_ALL = True
+
+#: The actuator mode watches the trace of a branch of ``n_c >= 2`` that goes on past a fold at or
+#: near its bifurcation (one that releases almost nothing, or a micro-fold whose landing the actuator
+#: stays on) for the first state unstable outside its harmonics, and stops there, as the trace up to
+#: the first volume limit (:func:`first_secondary`) does; ``False``: such a branch is traced to its
+#: snap (and its lower state searched) before the check, as before. On grid rows 3070, 3112,
+#: 3128, 3144, 3176, 3192, 3756 and 4414 of ``configs/paper_grid_followed.yaml`` (a branch that rises
+#: by a few 1e-7 and folds at its bifurcation, then loses stability to harmonic 1): 2.7-3.4x less
+#: CPU, the answers bit for bit (docs/harmonics.md section 10.7 has the command); the samples
+#: ``follow_strata`` and ``follow_strata_n2`` bit for bit.
+WATCH_THROUGH_FOLDS = True
 
 #: Keys :func:`followed_metrics` adds to a design's metrics (SI units): the followed stage's keys
 #: of :data:`snapjump_cli.schema.FOLLOWED`, columns and diagnostics.
@@ -145,13 +156,22 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
         fr, note_sec = first_secondary(result, bif, hn, n_phi, **sec_kw)
     if fr is None:
         # the actuator mode does not trace a branch of n_c >= 2 on past a micro-fold whose landing it
-        # leaves at once (unstable outside the branch: the jump goes on, leave_at_secondary)
+        # leaves at once (unstable outside the branch: the jump goes on, leave_at_secondary), nor
+        # past its first state unstable outside it (the watch: as first_secondary's, through folds)
         settle = leaves_branch(u_axi=bif.u) if checked else None
         check = stable_outside(u_axi=bif.u) if even_first else None
+        watch = stability_watch(u_axi=bif.u) if checked and WATCH_THROUGH_FOLDS else None
         fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp, settle=settle,
-                           landing_check=check)
+                           landing_check=check, watch=watch)
         if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:
+            watched = fr
             fr, note_sec = leave_at_secondary(result, fr, **sec_kw)
+            if fr is watched and watched.path.stop_reason == UNSTABLE_OUTSIDE:
+                # the watch stopped the trace where the check finds no secondary bifurcation to leave
+                # by: the branch to its snap, as the reference traces it
+                fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp, settle=settle,
+                                   landing_check=check)
+                fr, note_sec = leave_at_secondary(result, fr, **sec_kw)
     fm = fr.metrics
     out.update({k: v for k, v in fm.items() if k in FOLLOW_KEYS})
     if note_sec or note_first:

@@ -87,7 +87,7 @@ class FollowResult:
     secondary: object = None
     #: the folds traced through on the way to the snap (:class:`FoldJump`, in path order)
     folds: list = field(default_factory=list)
-    #: the ``watch`` of a trace up to the upper state (what it computed is reused by the check)
+    #: the ``watch`` of the trace (what it computed is reused by the check)
     watch: object = None
     #: the ``settle`` check of the trace's micro-fold landings (what it computed is reused by the check)
     settle: object = None
@@ -124,8 +124,9 @@ class BranchTracker(SnapTracker):
     With ``stop_at_upper`` the trace stops at the branch's first volume limit (its upper state)
     without searching its lower state: the states the actuator passes through before it, which
     is all a check of the branch against other harmonics needs (:mod:`snapjump_cli.fe.branch.followed`).
-    With ``watch`` (path -> bool, called after every accepted step before the upper state) such a
-    trace also stops where ``watch`` says a state is unstable outside the branch's harmonics
+    With ``watch`` (path -> bool, called after every accepted step before a volume limit) the
+    trace, up to the upper state or through the folds that release almost nothing, also stops
+    where ``watch`` says a state is unstable outside the branch's harmonics
     (:data:`UNSTABLE_OUTSIDE`): the actuator leaves the branch there."""
 
     kind: str = ""
@@ -175,7 +176,7 @@ class BranchTracker(SnapTracker):
         st = self.states
         if reason is None and self.stop_at_upper and st.upper is not None and st.lower is None:
             return UPPER_LOCATED
-        if reason is None and self.stop_at_upper and st.upper is None and self.watch is not None and self.watch(path):
+        if reason is None and st.upper is None and self.watch is not None and self.watch(path):
             return UNSTABLE_OUTSIDE
         if reason == "snap characterised" and self.micro_dE > 0:
             pb = self.tracer.pb
@@ -395,8 +396,9 @@ def follow_branch(result, bif: Bifurcation, hn: list[int] | None = None, n_phi: 
     max_steps : bound on the branch's continuation steps (default: the axisymmetric trace's)
     step_grow : the continuation's step growth (:data:`FOLLOW_STEP_GROW`)
     landing, volume_path : how the lower state is found (:func:`trace_branch`)
-    watch : with ``stop_at_upper``, made from the branch's model: stops the trace at a state it
-        finds unstable outside the branch's harmonics (:class:`BranchTracker`)
+    watch : made from the branch's model: stops the trace at a state it finds unstable outside the
+        branch's harmonics (:class:`BranchTracker`), with ``stop_at_upper`` before the upper state,
+        else before the snap (the first trace; not one restarted from a fold's landing)
     settle : made from the branch's model (state -> bool): where the state a fold that releases
         almost nothing lands on is one the actuator does not stay on (unstable outside the
         branch's harmonics: the jump goes on off the branch), the branch beyond it is not traced;
@@ -556,9 +558,13 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         if fr is not None:
             return fr
 
+    # the full trace's first run is watched too (its path indices are the joined path's; a trace
+    # restarted from a fold's landing is not)
+    w_full = watch(mh) if watch is not None else None
+
     def run_on(first: PathPoint) -> tuple[Path, BranchTracker, str]:
         if first is start:
-            return run(first, "")
+            return run(first, "", watch=w_full)
         if stays is None or not stays(first):
             return run(first, "supercritical")
         # a micro-fold's landing the actuator leaves at once (off the branch): nothing beyond it
@@ -573,7 +579,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     kind = (tracker.kind if not tb.restarts else "supercritical") if st.upper is not None else ""
     first_kind = tb.first_kind
     fr = FollowResult(bif, mh, path, st, tr, kind, first_kind, failure=failure, micro_folds=micro_folds,
-                      folds=tb.folds, settle=stays)
+                      folds=tb.folds, settle=stays, watch=w_full)
     if st.upper is not None and low is not None:
         fr.lower_method, fr.lower_note = low.method, low.note or low.message
     fr.metrics = branch_metrics(fr, sc)
