@@ -78,3 +78,30 @@ def test_the_coarse_start_lands_where_the_models_own_descent_does(upper):
     assert low.zeta[0] == pytest.approx(up.zeta[0], rel=1e-9)
     assert constrained_instability(tr, mh.linearize(low.u, low.p)) == 0
     assert n_new < n_ref, (n_new, n_ref)  # the model's own iterations: fewer from the coarse state
+
+
+@pytest.mark.parametrize("own", [False, True])
+def test_a_coarse_descent_that_runs_out_of_iterations_is_not_walked_again_in_the_model(upper, monkeypatch, own):
+    """Where the descent with harmonics 0..4 stops unconverged, the model's own descent from the same
+    start (the same walk, dearer an iteration) is made only with ``OWN_AFTER_UNCONVERGED``; without it
+    nothing is found and the message says why (the callers then trace the branch). The descents are
+    stand-ins here: which model each ran in is what is checked."""
+    import snapjump_cli.fe.branch.coarse as coarse
+    from snapjump_cli.fe.axisym.descent import UNCONVERGED
+
+    tr, up = upper
+    ran = []
+
+    def fake(tracer, upper_pt, start=None, **kw):
+        ran.append(len(tracer.pb.hn))
+        if len(tracer.pb.hn) < len(tr.pb.hn):
+            return None, f"{UNCONVERGED} in 2000 iterations"
+        return up, "descent converged in 3 iterations"
+
+    monkeypatch.setattr(coarse, "descend_at_volume", fake)
+    monkeypatch.setattr(coarse, "OWN_AFTER_UNCONVERGED", own)
+    low, msg = descend_coarse_to_fine(tr, up)
+    if own:
+        assert ran == [5, 6] and low is up
+    else:
+        assert ran == [5] and low is None and msg == f"with harmonics 0-4: {UNCONVERGED} in 2000 iterations"

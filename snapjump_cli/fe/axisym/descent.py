@@ -13,7 +13,7 @@ from snapjump_cli.fe.continuation import PathPoint, Tracer
 
 log = logging.getLogger(__name__)
 
-__all__ = ["descend_at_volume", "descent_starts", "constrained_negatives"]
+__all__ = ["descend_at_volume", "descent_starts", "constrained_negatives", "UNCONVERGED"]
 
 
 def constrained_negatives(solver, g: np.ndarray, c: float = 0.0) -> int:
@@ -52,6 +52,10 @@ DESCENT_SHIFT_NEWTON = 1e-10
 
 
 DESCENT_STALL = 20
+
+
+#: The start of :func:`descend_at_volume`'s message when it runs out of iterations.
+UNCONVERGED = "descent did not converge"
 
 
 def descend_at_volume(
@@ -162,7 +166,7 @@ def descend_at_volume(
         u = u + x[:-1]
         p = p + x[-1]
         step_small = float(np.linalg.norm(dz_du @ x[:-1] + dz_dp * x[-1])) < 1e-12
-    return None, f"descent did not converge in {max_iter} iterations"
+    return None, f"{UNCONVERGED} in {max_iter} iterations"
 
 
 def _unshifted(lin, dz_du: np.ndarray, c: float, c_model: float) -> tuple:
