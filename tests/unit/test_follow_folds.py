@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from snapjump_cli.fe.branch.trace import BranchTracker, trace_through_micro_folds
+from snapjump_cli.fe.branch.trace import UPPER_LOCATED, BranchTracker, trace_through_micro_folds
 from snapjump_cli.fe.continuation.path import Path
 from snapjump_cli.fe.axisym.snap import SnapStates
 
@@ -147,6 +147,6 @@ def test_the_first_step_tells_a_subcritical_branch_by_the_volume_slope_too(dV, s
     reason = tk(Path(points=[start, first]))
     assert tk.kind == kind and tk.first_kind == kind
     if kind == "subcritical":
-        assert tk.states.upper is start and tk.states.k_before == 0 and reason == "upper state located; the branch beyond it not traced"
+        assert tk.states.upper is start and tk.states.k_before == 0 and reason == UPPER_LOCATED
     else:
         assert tk.states.upper is None and reason is None

@@ -24,8 +24,9 @@ from snapjump_cli.schema import FOLLOWED, keys
 if TYPE_CHECKING:
     from snapjump_cli.fe.stability.harmonics import HarmonicCheck
 
-__all__ = ["FOLLOW_MODES", "AXISYM_FIRST_ALL", "WATCH_THROUGH_FOLDS", "first_secondary", "record_secondary", "FOLLOW_KEYS", "REPLACED_KEYS",
-           "FollowedAnswer", "axisym_answer", "followed_metrics", "leave_at_secondary", "apply_followed"]
+__all__ = ["FOLLOW_MODES", "AXISYM_FIRST_ALL", "WATCH_THROUGH_FOLDS", "first_secondary", "record_secondary",
+           "FOLLOW_KEYS", "REPLACED_KEYS", "FollowedAnswer", "axisym_answer", "followed_metrics", "leave_at_secondary",
+           "apply_followed"]
 
 #: How a branch is followed (:func:`followed_metrics`): ``"actuator"`` (the default: only the
 #: states the actuator passes through before a secondary bifurcation are traced) or ``"full"``
@@ -168,7 +169,7 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
             fr, note_sec = leave_at_secondary(result, fr, **sec_kw)
             if fr is watched and watched.path.stop_reason == UNSTABLE_OUTSIDE:
                 # the watch stopped the trace where the check finds no secondary bifurcation to leave
-                # by: the branch to its snap, as the reference traces it
+                # by: the branch traced on to its snap without the watch (WATCH_THROUGH_FOLDS off)
                 fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp, settle=settle,
                                    landing_check=check)
                 fr, note_sec = leave_at_secondary(result, fr, **sec_kw)
