@@ -47,6 +47,7 @@ import argparse
 import cProfile
 import dataclasses
 import json
+import logging
 import pstats
 import time
 from pathlib import Path
@@ -288,8 +289,15 @@ def main(argv: list[str] | None = None) -> int:
                     help="set a module constant first (a Python literal), e.g. "
                          "snapjump_cli.fe.branch.trace.MICRO_FOLD_LANDING_FIRST=False: the run with one way "
                          "of the solver switched off, for --json runs compared by bench.profile.answers")
+    ap.add_argument("--debug", action="append", default=[], metavar="LOGGER",
+                    help="print that logger's debug messages (e.g. snapjump_cli.fe.axisym.descent: each "
+                         "descent iteration; snapjump_cli.fe.branch.trace: a branch's first step and folds)")
     ap.add_argument("--json", type=Path, default=None, help="also write the numbers here")
     a = ap.parse_args(argv)
+    if a.debug:
+        logging.basicConfig(level=logging.WARNING, format="%(name)s: %(message)s")
+        for name in a.debug:
+            logging.getLogger(name).setLevel(logging.DEBUG)
     for item in a.set:
         set_constant(item)
     if a.condensed:

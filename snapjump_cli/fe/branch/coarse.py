@@ -43,7 +43,9 @@ COARSE_HARMONICS = (4,)
 #: ``configs/paper_grid_followed.yaml`` (the landing of a subcritical secondary bifurcation, started
 #: 0.2 scaled arc lengths along its mode) the descent with harmonics ``0..4`` stopped after 2,000
 #: iterations with the volume error still 0.13 (scaled), and the one with ``0..8`` did the same, 2/3
-#: of the design's ~300 CPU-s, before the branch was traced to its landing.
+#: of the design's ~300 CPU-s, before the branch was traced to its landing (``bench.profile.follow
+#: --sample configs/paper_grid_followed.yaml --rows 3030 --debug snapjump_cli.fe.axisym.descent``,
+#: with ``--set snapjump_cli.fe.branch.coarse.OWN_AFTER_UNCONVERGED=True``).
 OWN_AFTER_UNCONVERGED = False
 
 
@@ -83,6 +85,7 @@ def descend_coarse_to_fine(tracer: Tracer, upper: PathPoint) -> tuple[PathPoint 
         small.release_buffers()
         if low is None and msg.startswith(UNCONVERGED) and not OWN_AFTER_UNCONVERGED:
             # the same walk, several times dearer an iteration: not made (the caller traces the branch)
+            log.debug("descent with harmonics 0-%d: %s; not repeated in the model itself", int(small.hn[-1]), msg)
             return None, f"with harmonics 0-{int(small.hn[-1])}: {msg}"
         if low is None:
             log.debug("descent with harmonics 0-%d: %s; the model's own descent instead", int(small.hn[-1]), msg)

@@ -161,18 +161,18 @@ def followed_metrics(result, check: HarmonicCheck, N: int | None = None, n_phi: 
         # past its first state unstable outside it (the watch: as first_secondary's, through folds)
         settle = leaves_branch(u_axi=bif.u) if checked else None
         check = stable_outside(u_axi=bif.u) if even_first else None
-        watch = stability_watch(u_axi=bif.u) if checked and WATCH_THROUGH_FOLDS else None
-        fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp, settle=settle,
-                           landing_check=check, watch=watch)
+        def trace(watch=None) -> FollowResult:
+            return follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp, settle=settle,
+                                 landing_check=check, watch=watch)
+
+        fr = trace(stability_watch(u_axi=bif.u) if checked and WATCH_THROUGH_FOLDS else None)
         if secondary and len(fr.model.hn) > 1 and int(fr.model.hn[1]) > 1:
             watched = fr
             fr, note_sec = leave_at_secondary(result, fr, **sec_kw)
             if fr is watched and watched.path.stop_reason == UNSTABLE_OUTSIDE:
                 # the watch stopped the trace where the check finds no secondary bifurcation to leave
                 # by: the branch traced on to its snap without the watch (WATCH_THROUGH_FOLDS off)
-                fr = follow_branch(result, bif, hn, n_phi=n_phi, landing=landing, volume_path=vp, settle=settle,
-                                   landing_check=check)
-                fr, note_sec = leave_at_secondary(result, fr, **sec_kw)
+                fr, note_sec = leave_at_secondary(result, trace(), **sec_kw)
     fm = fr.metrics
     out.update({k: v for k, v in fm.items() if k in FOLLOW_KEYS})
     if note_sec or note_first:

@@ -172,6 +172,8 @@ class BranchTracker(SnapTracker):
             else:
                 self.kind = "supercritical"
             self.first_kind = self.kind
+            log.debug("branch: first step V %.10g -> %.10g, dV/ds %.3g at its end: %s", a.zeta[0], b.zeta[0],
+                      b.tangent[0], self.kind)
         reason = super().__call__(path)
         st = self.states
         if reason is None and self.stop_at_upper and st.upper is not None and st.lower is None:
@@ -227,7 +229,7 @@ MICRO_FOLD_DE = 1e-2
 #: first step (the path tangent's volume component below zero), not only by that step's volume
 #: against the bifurcation's (see the class). On ``follow_strata_n2`` rows 0, 1 and 16 the first
 #: step (``ds0 / 128``) ended 3e-8 above the located bifurcation's volume (located ~3e-7 low) with
-#: the volume already falling: taken for supercritical, the branch's loop below the bifurcation's
+#: the volume already falling (``bench.profile.follow ... --debug snapjump_cli.fe.branch.trace``): taken for supercritical, the branch's loop below the bifurcation's
 #: volume was traced (26-27 points) up to a state unstable outside the branch; told subcritical,
 #: the jump at the bifurcation is landed as on the other 13 such rows: 40 -> 36, 46 -> 42 and
 #: 40 -> 38 assemblies of the model with every harmonic, the followed CPU 12-20 % less, every answer
@@ -525,8 +527,10 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
                                message=f"{low.message}; the axisymmetric path's state at that volume, stable")
         return low
 
+    # the watch: of the trace up to the upper state, or of the full trace's first run (its path
+    # indices are the joined path's; a trace restarted from a fold's landing is not watched)
+    w = watch(mh) if watch is not None else None
     if stop_at_upper:
-        w = watch(mh) if watch is not None else None
         path, tracker, failure = run(start, "", watch=w)
         st = tracker.states
         # the folds traced through (a jump past one is what the check then finds, as on the full trace)
@@ -558,13 +562,9 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         if fr is not None:
             return fr
 
-    # the full trace's first run is watched too (its path indices are the joined path's; a trace
-    # restarted from a fold's landing is not)
-    w_full = watch(mh) if watch is not None else None
-
     def run_on(first: PathPoint) -> tuple[Path, BranchTracker, str]:
         if first is start:
-            return run(first, "", watch=w_full)
+            return run(first, "", watch=w)
         if stays is None or not stays(first):
             return run(first, "supercritical")
         # a micro-fold's landing the actuator leaves at once (off the branch): nothing beyond it
@@ -579,7 +579,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     kind = (tracker.kind if not tb.restarts else "supercritical") if st.upper is not None else ""
     first_kind = tb.first_kind
     fr = FollowResult(bif, mh, path, st, tr, kind, first_kind, failure=failure, micro_folds=micro_folds,
-                      folds=tb.folds, settle=stays, watch=w_full)
+                      folds=tb.folds, settle=stays, watch=w)
     if st.upper is not None and low is not None:
         fr.lower_method, fr.lower_note = low.method, low.note or low.message
     fr.metrics = branch_metrics(fr, sc)
