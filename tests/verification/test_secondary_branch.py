@@ -161,11 +161,33 @@ def test_checked_while_traced_the_branch_stops_at_the_first_unstable_state_and_f
         assert np.array_equal(a.u, b.u) and a.p == b.p
     chk_h = branch_stability(head, stride=5, stop_at_first=True)
     chk_w = branch_stability(watched, stride=5, stop_at_first=True, full=w.full, counts=w.counts)
-    assert chk_w.index == chk_h.index and chk_w.full == chk_h.full and chk_w.own == chk_h.own
+    assert chk_w.index == chk_h.index and chk_w.outside == chk_h.outside and chk_w.own == chk_h.own
     assert sorted(w.counts) == chk_w.index and chk_w.index[-1] == n - 1
     ws, _, wsec = follow_secondary(res, watched, max_steps=8)
     assert wsec is not None and (wsec.n, wsec.index, wsec.V_m3, wsec.p_Pa) == (sec.n, sec.index, sec.V_m3, sec.p_Pa)
     assert all(np.array_equal(a.u, b.u) for a, b in zip(ws.path.points, fs.path.points))
+
+
+def test_the_own_count_is_made_only_where_modes_lie_outside_and_the_check_decides_the_same(located, head,
+                                                                                          monkeypatch):
+    """The check counts a state's unstable modes in the branch's own model only where some lie
+    outside it (``OWN_WHERE_OUTSIDE``): the states, the counts outside and the first state unstable
+    there are those of the check that counts both everywhere, the own counts where made equal, and
+    the branch's model is linearised for them only at states unstable outside."""
+    from snapjump_cli.fe.branch import secondary
+
+    calls = []
+    own_count = secondary.unstable_modes
+    monkeypatch.setattr(secondary, "unstable_modes", lambda *a: calls.append(a) or own_count(*a))
+    lazy = secondary.branch_stability(head, stride=2)
+    n_lazy = len(calls)
+    monkeypatch.setattr(secondary, "OWN_WHERE_OUTSIDE", False)
+    every = secondary.branch_stability(head, stride=2)
+    assert lazy.index == every.index and lazy.outside == every.outside and lazy.first == every.first
+    assert lazy.first is not None and any(o == 0 for o in lazy.outside)  # both kinds of state checked
+    assert all((o == 0) == (w is None) for o, w in zip(lazy.outside, lazy.own))
+    assert all(w == e for w, e in zip(lazy.own, every.own) if w is not None)
+    assert n_lazy == sum(o != 0 for o in lazy.outside) < len(calls) - n_lazy == len(every.index)
 
 
 def test_the_secondary_branch_leaves_along_the_other_harmonics(located):

@@ -95,35 +95,45 @@ def outside_modes(mh: MultiHarmonicModel, full: MultiHarmonicModel, u: np.ndarra
     return band_negatives(ab, block.ext)
 
 
-def mode_counts(mh: MultiHarmonicModel, full: MultiHarmonicModel, pt) -> tuple[int, int]:
-    """The unstable modes of the branch state ``pt`` in the branch's model (:func:`unstable_modes`)
-    and in the model with every harmonic: those plus the ones outside the branch
-    (:func:`outside_modes`); -1 where a factorisation failed."""
-    own = unstable_modes(mh, pt.u, pt.p)
+#: :func:`mode_counts` counts a state's unstable modes in the branch's own model only where some lie
+#: outside it: every decision of the check reads the count outside (a state with none there is
+#: stable outside whatever its own count), so the own count, an assembly and a factorisation of the
+#: branch's model, was made for nothing at every state checked stable outside. ``False``: counted
+#: at every state, as before (a switch for measurements; the decisions and answers are the same).
+OWN_WHERE_OUTSIDE = True
+
+
+def mode_counts(mh: MultiHarmonicModel, full: MultiHarmonicModel, pt) -> tuple[int | None, int]:
+    """``(own, outside)``: the unstable modes of the branch state ``pt`` in the branch's model
+    (:func:`unstable_modes`) and outside it (:func:`outside_modes`; together, those of the model
+    with every harmonic); -1 where a factorisation failed. The own count is made only where the
+    count outside is not zero (``None`` otherwise; :data:`OWN_WHERE_OUTSIDE`)."""
     out = outside_modes(mh, full, pt.u, pt.p)
-    return own, (own + out if own >= 0 and out >= 0 else -1)
+    own = unstable_modes(mh, pt.u, pt.p) if out != 0 or not OWN_WHERE_OUTSIDE else None
+    return own, out
 
 
-def more_outside(own: int, nf: int) -> bool:
-    """Whether the full model counts more unstable modes than the branch's (a failed count, -1,
-    is neither)."""
-    return nf >= 0 and own >= 0 and nf > own
+def more_outside(own: int | None, out: int) -> bool:
+    """Whether the model with every harmonic counts more unstable modes than the branch's (a
+    failed count, -1, is neither)."""
+    return out > 0 and own is not None and own >= 0
 
 
 @dataclass
 class SecondaryCheck:
     """The branch's states checked against the full harmonics: per state its index on the path,
-    cavity volume (m³), pressure (Pa) and the unstable modes in the branch's model (``own``) and in
-    the full one (``full``); the first state with more in the full model (``first``: index into
-    these lists, ``None`` if none; the counts are -1 where a factorisation failed, and such a state
-    counts as neither stable nor unstable)."""
+    cavity volume (m³), pressure (Pa) and the unstable modes outside the branch's harmonics
+    (``outside``) and in its model (``own``: :func:`mode_counts`, ``None`` where none lie outside);
+    the first state with some outside (``first``: index into these lists, ``None`` if none; the
+    counts are -1 where a factorisation failed, and such a state counts as neither stable nor
+    unstable)."""
 
     N: int
     index: list[int] = field(default_factory=list)
     V_m3: list[float] = field(default_factory=list)
     p_Pa: list[float] = field(default_factory=list)
-    own: list[int] = field(default_factory=list)
-    full: list[int] = field(default_factory=list)
+    own: list[int | None] = field(default_factory=list)
+    outside: list[int] = field(default_factory=list)
     first: int | None = None
     #: the first point the actuator passes through with an extra unstable mode (a path index,
     #: :func:`first_extra`; ``chk.first`` is only the first such point of the checked sample) and
@@ -286,13 +296,15 @@ def stability_watch(N: int | None = None, stride: int = 5, u_axi: np.ndarray | N
 def stable_outside(N: int | None = None, u_axi: np.ndarray | None = None):
     """A ``landing_check`` for :func:`snapjump_cli.fe.branch.trace.follow_branch` (made from the branch's
     model ``mh``): whether a state of ``mh`` is stable under volume control in :func:`full_model`
-    ``(mh, N, u_axi)`` (:func:`mode_counts` there: none in the branch's model nor outside it)."""
+    ``(mh, N, u_axi)``: none outside the branch's harmonics nor in its model."""
 
     def make(mh: MultiHarmonicModel):
         full = full_model(mh, N, u_axi)
 
         def stable(pt) -> bool:
-            return mode_counts(mh, full, pt)[1] == 0
+            # none outside the branch's harmonics, then none in its own model (the count outside first:
+            # a state unstable there needs no own count)
+            return outside_modes(mh, full, pt.u, pt.p) == 0 and unstable_modes(mh, pt.u, pt.p) == 0
 
         return stable
 
@@ -353,7 +365,7 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
         else its last point; the upper state itself, located inside the step after it, is not)
     stop_at_first : stop at the first state with an extra unstable mode
     full : the model with every harmonic (default: :func:`full_model` of the branch, ``N``)
-    counts : unstable-mode counts already made, ``{path index: (own, full)}`` (a
+    counts : unstable-mode counts already made, ``{path index: (own, outside)}`` (a
         :class:`StabilityWatch`'s)
 
     Returns
@@ -375,16 +387,16 @@ def branch_stability(fr, N: int | None = None, stride: int = 1, upto: int | None
     try:
         for i in idx:
             pt = pts[i]
-            own, nf = counts[i] if counts and i in counts else mode_counts(mh, full, pt)
+            own, n_out = counts[i] if counts and i in counts else mode_counts(mh, full, pt)
             out.index.append(i)
             out.V_m3.append(float(mh.volume(pt.u) * L3))
             out.p_Pa.append(float(pt.p * S))
             out.own.append(own)
-            out.full.append(nf)
-            if out.first is None and more_outside(own, nf):
+            out.outside.append(n_out)
+            if out.first is None and more_outside(own, n_out):
                 out.first = len(out.index) - 1
                 log.info("branch of harmonic %d: %d unstable mode(s) outside its harmonics at V = %.4g m^3 "
-                         "(path point %d)", fr.bif.n, nf - own, out.V_m3[-1], i)
+                         "(path point %d)", fr.bif.n, n_out, out.V_m3[-1], i)
                 if stop_at_first:
                     break
     finally:
