@@ -43,3 +43,24 @@ def test_the_first_located_bifurcation_is_the_one_the_path_meets_first(row8):
     lam2, _ = lowest_eigen(harmonic_operator(res.model, 2), b1.u, b1.p)
     assert lam2 < -1e-3
     assert first_bifurcation(res, [1]).n == 1 and first_bifurcation(res, []) is None
+
+
+def test_only_the_harmonic_that_crosses_first_on_the_step_is_located(row8, monkeypatch):
+    """Both harmonics are bracketed on the same path step; the one the interpolation of the
+    eigenvalue puts first (2) is located, and harmonic 1, still stable there, is not: the same
+    point, bit for bit, as locating both (``FIRST_BRACKET_ONLY`` off)."""
+    from snapjump_cli.fe.branch import bifurcation
+    from snapjump_cli.fe.branch.bifurcation import bracket_bifurcation
+
+    res, _ = row8
+    assert bracket_bifurcation(res, 1).k == bracket_bifurcation(res, 2).k
+    located = []
+    locate = bifurcation._locate
+    monkeypatch.setattr(bifurcation, "_locate", lambda r, br, **kw: located.append(br.n) or locate(r, br, **kw))
+    first = first_bifurcation(res, [1, 2])
+    assert located == [2]
+    monkeypatch.setattr(bifurcation, "FIRST_BRACKET_ONLY", False)
+    every = first_bifurcation(res, [1, 2])
+    assert located == [2, 1, 2]
+    assert (first.n, first.s, first.p, first.eig) == (every.n, every.s, every.p, every.eig)
+    assert (first.u == every.u).all() and (first.mode == every.mode).all()

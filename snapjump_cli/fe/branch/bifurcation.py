@@ -23,7 +23,8 @@ from snapjump_cli.fe.stability.harmonics import harmonic_operator
 
 log = logging.getLogger(__name__)
 
-__all__ = ["default_harmonics", "Bifurcation", "locate_bifurcation", "first_bifurcation", "harmonic1_gauge"]
+__all__ = ["default_harmonics", "Bifurcation", "Bracket", "locate_bifurcation", "bracket_bifurcation", "first_bifurcation",
+           "FIRST_BRACKET_ONLY", "harmonic1_gauge"]
 
 
 def default_harmonics(n_c: int, N: int | None = None) -> list[int]:
@@ -54,26 +55,50 @@ class Bifurcation:
 def locate_bifurcation(result, n: int, tol_eig: float = 1e-9, max_iter: int = 30) -> Bifurcation | None:
     """The bifurcation of harmonic ``n`` on the axisymmetric path before ``V*`` (``None`` if the
     harmonic stays stable up to it): the first path state whose ``K_n`` has a negative eigenvalue
-    and the last stable one before it bracket it; the smallest eigenvalue's zero (``mu_min / L^2``
-    units) is then found on that path step to ``tol_eig`` by
+    and the last stable one before it bracket it (:func:`bracket_bifurcation`); the smallest
+    eigenvalue's zero (``mu_min / L^2`` units) is then found on that path step to ``tol_eig`` by
     :func:`snapjump_cli.fe.axisym.snap.root_on_step` (secant and Illinois steps, each point re-solved on the
     path)."""
-    model, pts, st, tracer = result.model, result.path.points, result.states, result.tracer
+    return _locate(result, bracket_bifurcation(result, n), tol_eig, max_iter)
+
+
+@dataclass
+class Bracket:
+    """The path step on which harmonic ``n`` loses stability: ``states[k - 1]`` stable, ``states[k]``
+    (``k >= 1``) not, with ``op`` its operator (:func:`bracket_bifurcation`)."""
+
+    n: int
+    op: object
+    states: list
+    k: int
+
+
+def bracket_bifurcation(result, n: int) -> Bracket | None:
+    """The first state of the axisymmetric path (up to its upper state) at which ``K_n`` has a
+    negative eigenvalue, and the stable one before it; ``None`` if there is none or the path's
+    first state is already unstable."""
+    model, pts, st = result.model, result.path.points, result.states
     op = harmonic_operator(model, n)
     states = list(pts[: st.k_before + 1]) + [st.upper] if st.upper is not None else list(pts)
-    prev = None
-    for pt in states:
+    for k, pt in enumerate(states):
         if op.inertia(pt.u, pt.p) != 0:
-            break
-        prev = pt
-    else:
+            return Bracket(n, op, states, k) if k > 0 else None
+    return None
+
+
+def _locate(result, br: Bracket | None, tol_eig: float = 1e-9, max_iter: int = 30,
+            ends: tuple | None = None) -> Bifurcation | None:
+    """The zero of the bracket's smallest eigenvalue (:func:`locate_bifurcation`); ``ends``: the
+    eigenpairs at the bracket's two states where the caller has them (:func:`_ends`)."""
+    if br is None:
         return None
-    if prev is None:
+    n, op, states, k = br.n, br.op, br.states, br.k
+    a, b = states[k - 1], states[k]
+    a_prev = states[k - 2] if k > 1 else None
+    ea, eb = _ends(br) if ends is None else ends
+    if ea is None or eb is None or not (ea[0] > 0.0 > eb[0]):
         return None
-    a, b = prev, pt
-    k = next(i for i, q in enumerate(states) if q is a)
-    a_prev = states[k - 1] if k > 0 else None
-    solved: dict = {}  # id -> (point, eigenpair): the points kept, so that no id is reused
+    solved: dict = {id(a): (a, ea), id(b): (b, eb)}  # id -> (point, eigenpair): the points kept (no id reused)
 
     def f(q: PathPoint) -> float:
         ev = lowest_eigen(op, q.u, q.p)
@@ -82,13 +107,25 @@ def locate_bifurcation(result, n: int, tol_eig: float = 1e-9, max_iter: int = 30
         solved[id(q)] = (q, ev)
         return ev[0]
 
-    fa, fb = f(a), f(b)
-    if not (fa > 0.0 > fb):
-        return None
-    root = root_on_step(tracer, a, b, a_prev, f, tol_eig, max_iter, f_ends=(fa, fb))
+    root = root_on_step(result.tracer, a, b, a_prev, f, tol_eig, max_iter, f_ends=(ea[0], eb[0]))
     eig, mode = solved[id(root)][1]  # (root_on_step returns a point it evaluated)
     log.debug("bifurcation of harmonic %d at V = %.9g (scaled), eigenvalue %.2g", n, root.zeta[0], eig)
-    return Bifurcation(n, np.array(root.u), float(root.p), np.array(root.zeta), mode, eig, len(solved), float(root.s))
+    return Bifurcation(n, np.array(root.u), float(root.p), np.array(root.zeta), mode, eig, len(solved),
+                       float(root.s))
+
+
+def _ends(br: Bracket) -> tuple:
+    """The smallest eigenpairs of ``K_n`` at the bracket's two states (``None`` where not solved)."""
+    a, b = br.states[br.k - 1], br.states[br.k]
+    return lowest_eigen(br.op, a.u, a.p), lowest_eigen(br.op, b.u, b.p)
+
+
+#: :func:`first_bifurcation` locates, of the harmonics bracketed on the same step of the path, first
+#: the one whose eigenvalue the linear interpolation between the step's ends puts at zero first;
+#: another is located only where its ``K_n`` is already unstable at that point (a harmonic stable
+#: there crosses later on the step); ``False``: every one located, then the first taken (the same
+#: point, bit for bit: each is located on its bracket as before; a switch for measurements).
+FIRST_BRACKET_ONLY = True
 
 
 def first_bifurcation(result, harmonics: list[int]) -> Bifurcation | None:
@@ -97,9 +134,34 @@ def first_bifurcation(result, harmonics: list[int]) -> Bifurcation | None:
     none is located. The harmonic check reports every harmonic unstable at its first unstable
     state; where its refinement of that state did not separate them (near a fold of the volume, a
     small volume interval holds a long stretch of the path), the located points say which one the
-    actuator meets first."""
-    found = [b for b in (locate_bifurcation(result, int(n)) for n in sorted(set(harmonics))) if b is not None]
-    return min(found, key=lambda b: (b.s, b.n)) if found else None
+    actuator meets first. A harmonic bracketed on a later step than another's, or still stable at a
+    point located first on the same step, is not located (:data:`FIRST_BRACKET_ONLY`)."""
+    brackets = [br for br in (bracket_bifurcation(result, int(n)) for n in sorted(set(harmonics))) if br is not None]
+    if not FIRST_BRACKET_ONLY:
+        found = [b for b in (_locate(result, br) for br in brackets) if b is not None]
+        return min(found, key=lambda b: (b.s, b.n)) if found else None
+    for k in sorted({br.k for br in brackets}):
+        tied = [(br, _ends(br)) for br in brackets if br.k == k]
+        tied.sort(key=lambda t: (_zero_fraction(t[1]), t[0].n))
+        found: list[Bifurcation] = []
+        for br, ends in tied:
+            if found and all(br.op.inertia(b.u, b.p) == 0 for b in found):
+                continue  # stable at a point located before: its zero lies later on the step
+            b = _locate(result, br, ends=ends)
+            if b is not None:
+                found.append(b)
+        if found:
+            return min(found, key=lambda b: (b.s, b.n))
+    return None
+
+
+def _zero_fraction(ends: tuple) -> float:
+    """Where on the step the linear interpolation of the eigenvalue between its ends is zero (the
+    fraction of the step; ``inf`` where the ends do not bracket a zero)."""
+    ea, eb = ends
+    if ea is None or eb is None or not (ea[0] > 0.0 > eb[0]):
+        return math.inf
+    return ea[0] / (ea[0] - eb[0])
 
 
 def harmonic1_gauge(base, n: int, u: np.ndarray) -> list[tuple[int, int]]:
