@@ -70,7 +70,7 @@ def band_ldlt(ab: np.ndarray, ext: np.ndarray):
     -------
     (ok, n_negative) : (bool, int)
     """
-    return _ldlt(ab, ext, ab, False)
+    return _ldlt(ab, ext, ab, False, -1)
 
 
 @njit(cache=True)
@@ -86,11 +86,11 @@ def band_ldlt_into(out: np.ndarray, ext: np.ndarray, src: np.ndarray):
     -------
     (ok, n_negative) : (bool, int)
     """
-    return _ldlt(out, ext, src, True)
+    return _ldlt(out, ext, src, True, -1)
 
 
 @njit(cache=True)
-def _ldlt(ab: np.ndarray, ext: np.ndarray, src: np.ndarray, copy: bool):
+def _ldlt(ab: np.ndarray, ext: np.ndarray, src: np.ndarray, copy: bool, max_neg: int):
     """The LDL^T of :func:`band_ldlt` (in place) and :func:`band_ldlt_into` (``copy``).
 
     The trailing update of a block, ``A[r, c] -= sum_t L[r, t] d_t L[c, t]`` over the block's 6
@@ -102,6 +102,9 @@ def _ldlt(ab: np.ndarray, ext: np.ndarray, src: np.ndarray, copy: bool):
     With ``copy``, the matrix is read from ``src`` instead: the envelope of each column is copied
     into ``ab`` just before the column is first updated (while it is about to be used, instead
     of in a pass of its own over the whole band).
+
+    With ``max_neg >= 0`` the factorisation stops at the pivot that makes the negative ones more
+    than ``max_neg`` (the factors are then incomplete; the count is at least that many).
 
     Returns
     -------
@@ -144,6 +147,8 @@ def _ldlt(ab: np.ndarray, ext: np.ndarray, src: np.ndarray, copy: bool):
                 return False, nneg
             if d < 0.0:
                 nneg += 1
+                if 0 <= max_neg < nneg:
+                    return True, nneg
             dvec[j - j0] = d
             m = ext[j]
             colj = ab[j]
@@ -303,8 +308,18 @@ def bordered_factor_into(K: np.ndarray, ext: np.ndarray, b: np.ndarray, c: np.nd
     (ok, n_negative, Kib, schur)
         ``Kib = K^-1 b``, ``schur = d - c^T K^-1 b``; ``ok`` False if ``K`` is singular to round-off.
     """
-    ok, nneg = band_ldlt_into(fac, ext, K)
-    if not ok:
+    return bordered_factor_upto(K, ext, b, c, d, fac, -1)
+
+
+@njit(cache=True)
+def bordered_factor_upto(K: np.ndarray, ext: np.ndarray, b: np.ndarray, c: np.ndarray, d: float,
+                         fac: np.ndarray, max_neg: int):
+    """:func:`bordered_factor_into`, given up (``ok`` False, the count of negative pivots so far)
+    once ``K`` has more than ``max_neg >= 0`` negative pivots (``-1``: never): a caller that wants a
+    matrix positive definite on a constraint (at most one negative eigenvalue of ``K``) knows the
+    answer there, and the rest of the band is not factorised."""
+    ok, nneg = _ldlt(fac, ext, K, True, max_neg)
+    if not ok or 0 <= max_neg < nneg:
         return False, nneg, np.zeros(0), 0.0
     Kib = band_ldlt_solve(fac, b, ext)
     schur = d - np.dot(c, Kib)

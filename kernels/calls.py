@@ -21,7 +21,7 @@ KERNELS: dict[str, tuple[str, ...]] = {
 #: kernel module -> the kernels called from Python that are never compiled ahead of time (the
 #: multi-harmonic model's: a followed branch; their module is imported, with numba, on first call)
 JIT_KERNELS: dict[str, tuple[str, ...]] = {
-    "banded": ("band_ldlt_into", "bordered_factor_into"),
+    "banded": ("band_ldlt_into", "bordered_factor_into", "bordered_factor_upto"),
     "mh_basis": ("phi_rule", "point_gradients"),
     "mh_element": ("mh_elements", "mh_assemble_band", "scatter_vector"),
     "mh_cavity": ("mh_cavity",),

@@ -210,3 +210,29 @@ def test_unrolled_block_update_is_the_blocked_algorithm_bit_for_bit(n):
     assert band_ldlt(f1, ext)[0]
     _blocked_ldlt_python(f2, ext)
     assert np.array_equal(f1, f2)
+
+
+@pytest.mark.parametrize("shift", [8.0, 2.0, 0.5, -1.0])  # none, few and many negative eigenvalues
+def test_the_factorisation_given_up_past_a_count_of_negative_pivots(shift):
+    """``bordered_factor_upto`` (the descent's positive-definiteness test): with ``max_neg = 1`` it
+    gives up exactly where ``K`` has two or more negative pivots, reporting two; otherwise it is
+    ``bordered_factor_into`` bit for bit (as with ``max_neg = -1``, never given up)."""
+    from snapjump_kernels.banded import bordered_factor_into, bordered_factor_upto
+
+    n, kl = 120, 9
+    A = _random_profile_matrix(n, kl, 5, shift)
+    ext = _extents_of(A, kl)
+    ab = _to_band(A, kl)
+    rng = np.random.default_rng(2)
+    b, c = rng.standard_normal(n), rng.standard_normal(n)
+    n_neg = int((np.linalg.eigvalsh(A) < 0).sum())
+    ref = bordered_factor_into(ab, ext, b, c, 0.3, fac_ref := np.zeros_like(ab))
+    assert ref[0] and ref[1] == n_neg
+    for max_neg in (-1, 1):
+        got = bordered_factor_upto(ab, ext, b, c, 0.3, fac := np.zeros_like(ab), max_neg)
+        if max_neg == 1 and n_neg >= 2:
+            assert got[0] is False and got[1] == 2
+        else:
+            assert got[0] and got[1] == n_neg and got[3] == ref[3]
+            assert np.array_equal(got[2], ref[2]) and np.array_equal(fac, fac_ref)
+    assert shift != -1.0 or n_neg >= 2  # (the cases include a given-up one)

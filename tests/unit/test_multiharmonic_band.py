@@ -217,3 +217,26 @@ def test_a_block_of_the_tangent_is_that_block_of_the_whole_bit_for_bit(order, hn
     assert 0 < blk.n < mh.n and blk.kl < mh.kl
     B, W = band_csr(ab), whole[blk.dofs][:, blk.dofs]
     assert (B != W).nnz == 0 and abs(W).max() > 0
+
+
+def test_a_factorisation_given_up_at_its_second_negative_pivot_decides_as_the_whole_one():
+    """``Linearization.factor(..., max_negative=1)`` of the multi-harmonic model (the descent's test
+    of a shifted system): ``None`` exactly where the whole factorisation has two or more negative
+    pivots (then no shift makes it positive definite on the constraint), the same solver bit for bit
+    otherwise, and counted as a factorisation either way."""
+    mh, U = _mh_state(2, [0, 2, 4], False)  # (not an equilibrium: 77 negative pivots unshifted)
+    lin = mh.linearize(U, 0.3)
+    seen = set()
+    for s in (0.0, 2.0, 5.0, 30.0):
+        shift = s * lin.diag_abs()
+        whole = lin.factor(lin.g, 0.0, shift=shift)
+        n0 = mh.n_factorizations
+        upto = lin.factor(lin.g, 0.0, shift=shift, max_negative=1)
+        assert mh.n_factorizations == n0 + 1
+        seen.add(min(whole.n_negative, 2))
+        if whole.n_negative >= 2:
+            assert upto is None
+        else:
+            assert upto.n_negative == whole.n_negative and upto.schur == whole.schur
+            assert np.array_equal(upto.Kib, whole.Kib) and np.array_equal(upto.fac, whole.fac)
+    assert seen == {0, 1, 2}  # each kind of case reached

@@ -209,6 +209,15 @@ def _trial_step(tracer: Tracer, u: np.ndarray, p: float, accepted: tuple, V_star
     return lin, E_new, h, not ok and not feasible
 
 
+#: A shifted system whose positive definiteness on the constraint is checked (``n_unstable`` not
+#: known to be 0) is factorised only up to its second negative pivot: with two, ``K`` has two
+#: negative eigenvalues and the constraint removes at most one, so the shift must rise whatever the
+#: rest of the band holds (the same shifts and steps; ``follow_strata_n2`` row 17: 361 of its 1,591
+#: factorisations have two or more, the second at ~30 % of the band in the median). ``False``:
+#: every one factorised whole (a switch for measurements).
+DESCENT_STOP_AT_NEGATIVE = True
+
+
 def _descent_solver(lin, dz_du: np.ndarray, base, n_unstable: int | None, sigma_rel: float, c: float = 0.0,
                     c_model: float = 0.0) -> tuple:
     """The smallest shift, from ``sigma_rel`` up (by factors of 8), that makes the shifted system
@@ -221,7 +230,8 @@ def _descent_solver(lin, dz_du: np.ndarray, base, n_unstable: int | None, sigma_
     solver = None
     while sigma_rel <= DESCENT_SHIFT_MAX:
         if n_unstable != 0 or sigma_rel > DESCENT_SHIFT_NEWTON:
-            solver = lin.factor(dz_du[0], c, shift=sigma_rel * lin.diag_abs())
+            checked = n_unstable != 0 and DESCENT_STOP_AT_NEGATIVE
+            solver = lin.factor(dz_du[0], c, shift=sigma_rel * lin.diag_abs(), max_negative=1 if checked else -1)
         else:
             solver = base
         if solver is not None and (n_unstable == 0 or constrained_negatives(solver, lin.g, c_model) == 0):

@@ -69,11 +69,15 @@ class Linearization:
         xe = np.where(self.model.edofs >= 0, x[np.maximum(self.model.edofs, 0)], 0.0)
         return np.einsum("ekj,ej->ek", self._H, xe)
 
-    def factor(self, c_u: np.ndarray, c_p: float, shift: "float | np.ndarray" = 0.0) -> "BorderedSolver | None":
+    def factor(self, c_u: np.ndarray, c_p: float, shift: "float | np.ndarray" = 0.0,
+               max_negative: int = -1) -> "BorderedSolver | None":
         """Factorise ``[[K_T + diag(shift), -dV/du], [c_u^T, c_p]]``; ``None`` if it is singular.
 
         A positive ``shift`` (a scalar, or one value per dof) turns a Newton step into an
         implicit gradient-flow (pseudo-time) step, used by the volume-constrained energy descent.
+        ``max_negative >= 0``: ``None`` as well, without factorising the rest of the band, once
+        ``K_T + diag(shift)`` has more negative pivots than that (a model whose factorisation can
+        stop there; the axisymmetric model factorises it all and decides the same way).
         """
         data = self.data
         if np.any(shift):
@@ -84,7 +88,7 @@ class Linearization:
             else:
                 data = data.copy()
             data[self.model.diag_pos] += shift
-        return self.model._factor(data, -self.g, c_u, c_p)
+        return self.model._factor(data, -self.g, c_u, c_p, max_negative)
 
     def stiffness(self) -> "scipy.sparse.csr_matrix":
         """``K_T`` alone (n x n, CSR)."""
@@ -392,8 +396,9 @@ class Model:
         dz[2, self.pole_dof] = 1.0
         return np.array([V, p, u[self.pole_dof]]), dz, np.array([0.0, 1.0, 0.0])
 
-    def _factor(self, data, b, c_u, c_p) -> BorderedSolver | None:
-        return factor_bordered(self, data, b, c_u, c_p)
+    def _factor(self, data, b, c_u, c_p, max_negative: int = -1) -> BorderedSolver | None:
+        s = factor_bordered(self, data, b, c_u, c_p)
+        return None if s is not None and 0 <= max_negative < s.n_negative else s
 
     def stiffness_matrix(self, u: np.ndarray, p: float) -> "scipy.sparse.csr_matrix":
         """``K_T`` alone (n x n, CSR), for stability checks and tests."""

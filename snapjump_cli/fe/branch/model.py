@@ -39,7 +39,7 @@ from snapjump_cli.fe.branch.block import HarmonicBlock, harmonic_block
 from snapjump_cli.fe.branch.layout import component_index
 from snapjump_kernels.calls import (
     band_of_maps,
-    bordered_factor_into,
+    bordered_factor_upto,
     mh_assemble_band,
     mh_cavity,
     mh_elements,
@@ -421,18 +421,23 @@ class MultiHarmonicModel:
         dz[2, self.pole_dof] = 1.0
         return np.array([V, p, u[self.pole_dof]]), dz, np.array([0.0, 1.0, 0.0])
 
-    def _factor(self, data, b, c_u, c_p) -> BorderedSolver | None:
+    def _factor(self, data, b, c_u, c_p, max_negative: int = -1) -> BorderedSolver | None:
         """The bordered band factorisation (as :func:`snapjump_cli.fe.axisym.model.factor_bordered`, whose
         factors it returns bit for bit), into a reused band buffer
-        (:func:`snapjump_kernels.banded.bordered_factor_into`)."""
+        (:func:`snapjump_kernels.banded.bordered_factor_upto`); ``None`` where it is singular or,
+        with ``max_negative >= 0``, as soon as it has more negative pivots than that (the rest of the
+        band is not factorised; counted as a factorisation all the same)."""
         t0 = time.perf_counter()
         n = self.n
         try:
             K = data.reshape(n, self.kl + 1)
             fac = self._band_buffer()
-            ok, nneg, Kib, schur = bordered_factor_into(K, self.band_ext, np.ascontiguousarray(b, dtype=float),
-                                                        np.ascontiguousarray(c_u, dtype=float), float(c_p), fac)
+            ok, nneg, Kib, schur = bordered_factor_upto(K, self.band_ext, np.ascontiguousarray(b, dtype=float),
+                                                        np.ascontiguousarray(c_u, dtype=float), float(c_p), fac,
+                                                        int(max_negative))
             if not ok or not np.isfinite(schur) or schur == 0.0:
+                if not ok and 0 <= max_negative < nneg:
+                    self.n_factorizations += 1  # (given up at a negative pivot: counted as before)
                 return None
             s = BorderedSolver(fac, K, b, c_u, float(c_p), n, nneg, self.band_ext, Kib, schur)
         finally:
