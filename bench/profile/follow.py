@@ -23,7 +23,9 @@ For each design, in this process, process CPU time (``time.process_time``; one B
    that leaves it, the lower state; ``--mode``: ``solver.follow_mode``), with its steps and
    assemblies, every branch traced (its points and how many of them come before its upper state:
    the states the actuator passes through; how its lower state was found) and the ratio to the
-   warm axisymmetric solve and check, within the solver's ``time_limit_s`` as in a sweep;
+   warm axisymmetric solve and check, within the solver's ``time_limit_s`` as in a sweep
+   (``--json`` also holds the answer's model's factorisations, those of them a descent gave up at a
+   negative pivot, and the assemblies of the branch the answer left);
 4. with ``--cprofile [K]``, the followed answer once more under :mod:`cProfile` (CPU clock): the
    cumulative time of the stages named in :data:`STAGES` that ran, then the ``K`` (default 15)
    functions with the most exclusive time (a numba kernel's time is counted in the Python
@@ -70,7 +72,7 @@ CAPS = {
 }
 
 #: the stages whose cumulative time ``--cprofile`` reports, by function name
-STAGES = ("locate_bifurcation", "follow_branch", "trace_branch", "follow_secondary", "branch_stability",
+STAGES = ("locate_bifurcation", "first_bifurcation", "follow_branch", "trace_branch", "follow_secondary", "branch_stability",
           "locate_secondary", "jump_off_branch", "find_lower_state", "snap_at_fixed_volume", "descend_at_volume",
           "linearize", "residual", "energy", "lowest_eigen", "extra_eigen", "block_band", "outside_modes")
 
@@ -212,6 +214,12 @@ def profile_one(label: str, scene, mesh, solver, N: int, mode: str, top: int | N
     row["assemblies"] = getattr(fr.model, "n_assemblies", None) if fr is not None else None
     # (the diagonal blocks outside a branch formed for its stability checks, MultiHarmonicModel.block_band)
     row["block_assemblies"] = getattr(fr.model, "n_block_assemblies", None) if fr is not None else None
+    # (its factorisations, those given up at a negative pivot by a descent's test, and the
+    # assemblies of the branch it left, if any: the branch model's own count is among them)
+    row["factorizations"] = getattr(fr.model, "n_factorizations", None) if fr is not None else None
+    row["given_up"] = getattr(fr.model, "n_given_up", None) if fr is not None else None
+    parent = getattr(fr, "parent", None) if fr is not None else None
+    row["parent_assemblies"] = getattr(parent.model, "n_assemblies", None) if parent is not None else None
     row["branches"] = branches(fr)
     row.update({k: out.get(k) for k in ("followed", "follow_kind", "follow_sec_n", "dE_J", "dy_pole_m", "V_star_m3",
                                         "p_star_Pa", "follow_note")})

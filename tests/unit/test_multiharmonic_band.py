@@ -230,9 +230,10 @@ def test_a_factorisation_given_up_at_its_second_negative_pivot_decides_as_the_wh
     for s in (0.0, 2.0, 5.0, 30.0):
         shift = s * lin.diag_abs()
         whole = lin.factor(lin.g, 0.0, shift=shift)
-        n0 = mh.n_factorizations
+        n0, g0 = mh.n_factorizations, mh.n_given_up
         upto = lin.factor(lin.g, 0.0, shift=shift, max_negative=1)
         assert mh.n_factorizations == n0 + 1
+        assert mh.n_given_up == g0 + (whole.n_negative >= 2)
         seen.add(min(whole.n_negative, 2))
         if whole.n_negative >= 2:
             assert upto is None

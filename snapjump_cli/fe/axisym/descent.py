@@ -213,8 +213,8 @@ def _trial_step(tracer: Tracer, u: np.ndarray, p: float, accepted: tuple, V_star
 #: known to be 0) is factorised only up to its second negative pivot: with two, ``K`` has two
 #: negative eigenvalues and the constraint removes at most one, so the shift must rise whatever the
 #: rest of the band holds (the same shifts and steps; ``follow_strata_n2`` row 17: 361 of its 1,591
-#: factorisations have two or more, the second at ~30 % of the band in the median). ``False``:
-#: every one factorised whole (a switch for measurements).
+#: factorisations given up there, docs/performance.md). ``False``: every one factorised whole (a
+#: switch for measurements).
 DESCENT_STOP_AT_NEGATIVE = True
 
 

@@ -201,6 +201,7 @@ class MultiHarmonicModel:
             Mp = np.einsum("eq,eqj,qk,ql->ejkl", model.Wq, self.Jimp, model.Np, model.Np)
             self.Minvp = np.ascontiguousarray(np.linalg.inv(Mp))
         self.n_assemblies = self.n_residuals = self.n_factorizations = self.n_block_assemblies = 0
+        self.n_given_up = 0  # factorisations given up at a negative pivot (``_factor``'s ``max_negative``)
         self.t_assembly = self.t_factor = 0.0
         self._pool: list[np.ndarray] = []
         self._sel_all = np.ones(K, dtype=np.bool_)
@@ -426,7 +427,7 @@ class MultiHarmonicModel:
         factors it returns bit for bit), into a reused band buffer
         (:func:`snapjump_kernels.banded.bordered_factor_upto`); ``None`` where it is singular or,
         with ``max_negative >= 0``, as soon as it has more negative pivots than that (the rest of the
-        band is not factorised; counted as a factorisation all the same)."""
+        band is not factorised; counted as a factorisation all the same, and in ``n_given_up``)."""
         t0 = time.perf_counter()
         n = self.n
         try:
@@ -435,9 +436,11 @@ class MultiHarmonicModel:
             ok, nneg, Kib, schur = bordered_factor_upto(K, self.band_ext, np.ascontiguousarray(b, dtype=float),
                                                         np.ascontiguousarray(c_u, dtype=float), float(c_p), fac,
                                                         int(max_negative))
+            if not ok and 0 <= max_negative < nneg:  # given up there: counted, as a whole one was
+                self.n_factorizations += 1
+                self.n_given_up += 1
+                return None
             if not ok or not np.isfinite(schur) or schur == 0.0:
-                if not ok and 0 <= max_negative < nneg:
-                    self.n_factorizations += 1  # (given up at a negative pivot: counted as before)
                 return None
             s = BorderedSolver(fac, K, b, c_u, float(c_p), n, nneg, self.band_ext, Kib, schur)
         finally:
