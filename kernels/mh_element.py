@@ -29,38 +29,117 @@ from snapjump_kernels.mh_material import gent3, imperfect_point
 
 
 @njit(cache=True)
-def _pair_weights(t: np.ndarray, wphi: np.ndarray, K: int) -> np.ndarray:
-    """``WT[p, j, 9 c + d] = (w_j t_k(phi_j, c)) t_l(phi_j, d)`` for the harmonic pairs
-    ``p = (k, l)``, ``k <= l`` (``k`` outer): the weights of the phi-moments of the tangent,
-    ``Dt_kl = sum_j WT[p, j] * D(phi_j)`` (``t`` is ``cos`` for the components ``c < 5``, ``sin``
-    after)."""
-    nphi = t.shape[0]
-    WT = np.empty((K * (K + 1) // 2, nphi, 81))
-    p = 0
-    for k in range(K):
-        for l in range(k, K):
-            for j in range(nphi):
-                wj = wphi[j]
-                ck = wj * t[j, k, 0]
-                sk = wj * t[j, k, 5]
-                cl = t[j, l, 0]
-                sl = t[j, l, 5]
-                wcc = ck * cl
-                wcs = ck * sl
-                wsc = sk * cl
-                wss = sk * sl
-                for c in range(9):
-                    for d in range(9):
-                        if c < 5:
-                            WT[p, j, 9 * c + d] = wcc if d < 5 else wcs
-                        else:
-                            WT[p, j, 9 * c + d] = wsc if d < 5 else wss
-            p += 1
-    return WT
+def _fourier_tables(phis: np.ndarray, wphi: np.ndarray, hn: np.ndarray):
+    """The tables of :func:`_pair_moments`: ``TC[m, j] = w_j cos(m phi_j)`` and ``TS[m, j] = w_j
+    sin(m phi_j)`` for ``m = 0 .. 2 max(hn)``, and the flat components ``9 c + d`` of ``D`` in the
+    order ``perm``: first the ``ncos`` whose two factors are alike (``cos cos``: ``c, d < 5``;
+    ``sin sin``: ``c, d >= 5``), whose pair moments are cosine moments, then the mixed ones (sine
+    moments)."""
+    nphi = phis.shape[0]
+    mm = 2 * hn[-1] + 1
+    TC = np.empty((mm, nphi))
+    TS = np.empty((mm, nphi))
+    for m in range(mm):
+        for j in range(nphi):
+            TC[m, j] = wphi[j] * np.cos(m * phis[j])
+            TS[m, j] = wphi[j] * np.sin(m * phis[j])
+    perm = np.empty(81, np.int64)
+    n = 0
+    for c in range(9):
+        for d in range(9):
+            if (c < 5) == (d < 5):
+                perm[n] = 9 * c + d
+                n += 1
+    ncos = n
+    for c in range(9):
+        for d in range(9):
+            if (c < 5) != (d < 5):
+                perm[n] = 9 * c + d
+                n += 1
+    return TC, TS, perm, ncos
 
 
 @njit(cache=True, error_model="numpy")
-def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.ndarray, bnq: np.ndarray,
+def _pair_moments(Df: np.ndarray, tabs, hn: np.ndarray, sel: np.ndarray, Dtp: np.ndarray) -> None:
+    """The phi-moments of the pointwise tangent for every harmonic pair ``p = (k, l)``, ``k <= l``
+    of the harmonics ``sel`` (``k`` outer): ``Dtp[p, q, 9 c + d] = sum_j w_j t_k(phi_j, c)
+    t_l(phi_j, d) D[q, j, c, d]`` (``t`` is ``cos n phi`` for the components ``c < 5``, ``sin n phi``
+    after), from the Fourier moments of ``D`` by the product formulas (``a = n_k <= b = n_l``)::
+
+        cos a cos b = (cos(b - a) + cos(a + b)) / 2     sin a sin b = (cos(b - a) - cos(a + b)) / 2
+        cos a sin b = (sin(a + b) + sin(b - a)) / 2     sin a cos b = (sin(a + b) - sin(b - a)) / 2
+
+    so that each component needs the moments of the ``2 max(hn) + 1`` multiples of phi (those the
+    pairs use), not one per pair (45 pairs for the harmonics ``0..8``, 17 moments). Equal to the
+    pair-by-pair sums to round-off (``tests/unit/test_multiharmonic_kernel.py``). ``Df (nq, nphi,
+    81)``; ``tabs`` from :func:`_fourier_tables`."""
+    TC, TS, perm, ncos = tabs
+    nq, nphi = Df.shape[0], Df.shape[1]
+    K = hn.shape[0]
+    mm = TC.shape[0]
+    nsin = 81 - ncos
+    P = np.empty((nphi, 81))
+    MC = np.empty((mm, ncos))
+    MS = np.empty((mm, nsin))
+    need = np.zeros(mm, np.bool_)
+    for k in range(K):
+        if not sel[k]:
+            continue
+        for l in range(k, K):
+            if sel[l]:
+                need[hn[l] - hn[k]] = True
+                need[hn[l] + hn[k]] = True
+    for q in range(nq):
+        for j in range(nphi):
+            dq = Df[q, j]
+            pj = P[j]
+            for x in range(81):
+                pj[x] = dq[perm[x]]
+        for m in range(mm):
+            if not need[m]:
+                continue
+            mc = MC[m]
+            ms = MS[m]
+            for x in range(ncos):
+                mc[x] = 0.0
+            for x in range(nsin):
+                ms[x] = 0.0
+            for j in range(nphi):
+                wc = TC[m, j]
+                ws = TS[m, j]
+                pj = P[j]
+                for x in range(ncos):
+                    mc[x] += wc * pj[x]
+                ps = P[j, ncos:]
+                for x in range(nsin):
+                    ms[x] += ws * ps[x]
+        p = -1
+        for k in range(K):
+            for l in range(k, K):
+                p += 1
+                if not (sel[k] and sel[l]):
+                    continue
+                a = hn[k]
+                b = hn[l]
+                dlt = b - a  # >= 0
+                sm = a + b
+                acc = Dtp[p, q]
+                for x in range(ncos):
+                    f = perm[x]
+                    if f < 45:  # c < 5 (and d < 5): cos a cos b
+                        acc[f] = 0.5 * (MC[dlt, x] + MC[sm, x])
+                    else:  # sin a sin b
+                        acc[f] = 0.5 * (MC[dlt, x] - MC[sm, x])
+                for x in range(nsin):
+                    f = perm[ncos + x]
+                    if f < 45:  # cos a sin b = (sin(a + b) - sin(a - b)) / 2 = (S[sm] + S[dlt]) / 2
+                        acc[f] = 0.5 * (MS[sm, x] + MS[dlt, x])
+                    else:  # sin a cos b = (sin(a + b) + sin(a - b)) / 2 = (S[sm] - S[dlt]) / 2
+                        acc[f] = 0.5 * (MS[sm, x] - MS[dlt, x])
+
+
+@njit(cache=True, error_model="numpy")
+def _elastic_tangent(Dq: np.ndarray, tabs, bxq: np.ndarray, byq: np.ndarray, bnq: np.ndarray,
                      hn: np.ndarray, Dtp: np.ndarray, DB: np.ndarray, Kh: np.ndarray, sel: np.ndarray) -> None:
     """The elastic tangent ``sum_q B_k^T Dt_kl B_l`` of one element, harmonic pair by pair
     (``k <= l``), into ``Kh`` in the *harmonic-major* element order: dof ``(k, i, a)`` (harmonic,
@@ -68,14 +147,13 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
     ``l >= k`` are contiguous and the rows below run over all of them (126 - 18 k columns for
     ``K = 5`` on Q9; LLVM vectorises them).
 
-    First the phi-moments ``Dtp[p, q] = sum_j WT[p, j] Dq[q, j]`` (flat 81); then, per harmonic
-    ``k`` and point, ``DB = Dt_kl B_l`` of every node and
+    First the phi-moments ``Dtp[p, q]`` of every pair (flat 81, :func:`_pair_moments`); then, per
+    harmonic ``k`` and point, ``DB = Dt_kl B_l`` of every node and
     every ``l >= k`` side by side (``DB[c, nen offset(l) - nen offset(k) + i nen + b]``), then the
     rows ``B_k^T DB`` of every node of harmonic ``k`` over all of them (a node's B is sparse: its
     columns a, b, c have 4, 3 and 4 non-zeros). Every entry receives the terms of the points in
-    the order of ``q``, each summed as in
-    the element pass of 2026-11-27 (the same terms in the same order, bit for bit; its rows ran over
-    one pair's 18 or 27 columns; the test oracle ``tests/unit/mh_reference.py``).
+    the order of ``q``. The element pass that forms each node pair's block alone is the test
+    oracle (``tests/unit/mh_reference.py``; equal to round-off).
 
     ``Dq (nq, nphi, 9, 9)`` the pointwise ``W (d2psi + p d2J)``; ``bxq, byq, bnq (nq, nen)`` the
     node values ``dN/dR, dN/dZ, N / R`` at each point; ``Dtp (npair, nq, 81)``, ``DB (9, nen nc)``
@@ -87,21 +165,7 @@ def _elastic_tangent(Dq: np.ndarray, WT: np.ndarray, bxq: np.ndarray, byq: np.nd
     K = hn.shape[0]
     nd = Kh.shape[0]
     Df = Dq.reshape(nq, nphi, 81)
-    p = -1
-    for k in range(K):
-        for l in range(k, K):
-            p += 1  # (_pair_index(k, l, K))
-            if not (sel[k] and sel[l]):
-                continue
-            for q in range(nq):
-                acc = Dtp[p, q]
-                for x in range(81):
-                    acc[x] = 0.0
-                for j in range(nphi):
-                    w = WT[p, j]
-                    dq = Df[q, j]
-                    for x in range(81):
-                        acc[x] += w[x] * dq[x]
+    _pair_moments(Df, tabs, hn, sel, Dtp)
     Kh[:, :] = 0.0
     for k in range(K):
         if not sel[k]:
@@ -178,16 +242,13 @@ def _pair_index(k: int, l: int, K: int) -> int:
 def _volumetric_tangent(e: int, dJq: np.ndarray, t: np.ndarray, Wq: np.ndarray, Np: np.ndarray, Minv: np.ndarray,
                         Minvp: np.ndarray, imperfect: bool, wphi: np.ndarray, ka: float, bxq: np.ndarray,
                         byq: np.ndarray, bnq: np.ndarray, hn: np.ndarray, Gv: np.ndarray, Hv: np.ndarray,
-                        KL: np.ndarray, tmp: np.ndarray, Ke: np.ndarray, sel: np.ndarray, dsel: np.ndarray) -> None:
+                        tmp: np.ndarray, Ke: np.ndarray, sel: np.ndarray, dsel: np.ndarray) -> None:
     """Add the volumetric-constraint stiffness ``sum_j w_j kappa G_j^T M^-1 G_j`` of element ``e``
-    to its node-major tangent ``Ke`` (both triangles, each entry's terms in the order of the
-    element pass of 2026-11-27, ``tests/unit/mh_reference.py``). ``G_j`` is formed from
-    the sparse B (``B^T (dJ t)`` per node) and ``H_j = w_j kappa M^-1 G_j`` for every phi point
-    first; then each row ``i`` of the upper triangle receives the terms ``G_j[:, i]^T H_j`` of
-    every point in turn (``j`` in order, each summed over the pressure dofs from 0), the row
-    staying in the L1 cache (it was one pass over the whole element matrix per phi point). The
-    lower triangle is accumulated transposed in ``KL`` (rows contiguous) and written back at the
-    end. ``Gv, Hv (nphi, npr, nd)``, ``KL (nd, nd)``, ``tmp (nd,)`` are work arrays. ``sel (K,)``
+    to the upper triangle of its node-major tangent ``Ke`` (the caller mirrors it). ``G_j`` is
+    formed from the sparse B (``B^T (dJ t)`` per node) and ``H_j = w_j kappa M^-1 G_j`` for every
+    phi point first; then each row ``i`` of the upper triangle receives the terms ``G_j[:, i]^T
+    H_j`` of every point in turn (``j`` in order, each summed over the pressure dofs from 0), the
+    row staying in the L1 cache. ``Gv, Hv (nphi, npr, nd)``, ``tmp (nd,)`` are work arrays. ``sel (K,)``
     the harmonics wanted and ``dsel (nd,)`` the element dofs of them: the rows of the others are
     not formed (rows and columns of unselected dofs hold anything finite)."""
     nd = Ke.shape[0]
@@ -196,9 +257,6 @@ def _volumetric_tangent(e: int, dJq: np.ndarray, t: np.ndarray, Wq: np.ndarray, 
     K = hn.shape[0]
     nen = bxq.shape[1]
     nc = 2 + 3 * (K - 1)
-    for i in range(nd):
-        for jj in range(i + 1, nd):
-            KL[i, jj] = Ke[jj, i]
     for j in range(nphi):
         Gj = Gv[j]
         Gj[:, :] = 0.0
@@ -246,7 +304,6 @@ def _volumetric_tangent(e: int, dJq: np.ndarray, t: np.ndarray, Wq: np.ndarray, 
         if not dsel[i]:
             continue
         ru = Ke[i, i:]
-        rl = KL[i, i:]  # KL[i, i] is not written back
         w = nd - i
         for j in range(nphi):
             if npr == 3:
@@ -262,7 +319,6 @@ def _volumetric_tangent(e: int, dJq: np.ndarray, t: np.ndarray, Wq: np.ndarray, 
                     tv += g1 * h1[x]
                     tv += g2 * h2[x]
                     ru[x] += tv
-                    rl[x] += tv
             else:
                 tv = tmp[:w]
                 for x in range(w):
@@ -274,10 +330,6 @@ def _volumetric_tangent(e: int, dJq: np.ndarray, t: np.ndarray, Wq: np.ndarray, 
                         tv[x] += gi * h[x]
                 for x in range(w):
                     ru[x] += tv[x]
-                    rl[x] += tv[x]
-    for i in range(nd):
-        for jj in range(i + 1, nd):
-            Ke[jj, i] = KL[i, jj]
 
 
 @njit(cache=True)
@@ -307,7 +359,8 @@ def mh_elements(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray
     Returns
     -------
     (E, ok, re, Ke) : the energy, False if some point left the Gent domain, the element residuals
-        (ne, nen nc) and tangents (ne, nen nc, nen nc; empty unless ``want >= 2``)
+        (ne, nen nc) and tangents (ne, nen nc, nen nc; empty unless ``want >= 2``; symmetric: the
+        lower triangle is the upper's mirror image)
     """
     npr = Np.shape[1]
     nphi = phis.shape[0]
@@ -372,20 +425,21 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
     hk = np.empty(nd, np.int64)  # harmonic index of each element dof
     # the tangent's work arrays (docstring of _elastic_tangent)
     npair = K * (K + 1) // 2
-    WT = _pair_weights(t, wphi, K) if want >= 2 else np.empty((0, nphi, 81))
+    tabs = _fourier_tables(phis, wphi, hn)
     Dtp = np.empty((npair, nq, 81))
     DB = np.zeros((9, nd))  # (zero: the columns of unselected harmonics are read, not written)
     Kh = np.zeros((nd, nd))
-    KL = np.empty((nd, nd))
     tmp = np.empty(nd)
     bxq = np.empty((nq, nen))
     byq = np.empty((nq, nen))
     bnq = np.empty((nq, nen))
     hperm = np.empty(nd, np.int64)  # node-major element dof of each harmonic-major one
+    hinv = np.empty(nd, np.int64)  # harmonic-major element dof of each node-major one
     for k in range(K):
         for dof in range(harmonic_ndof(k)):
             for a in range(nen):
                 hperm[nen * dof_offset(k) + dof * nen + a] = a * nc + dof_offset(k) + dof
+                hinv[a * nc + dof_offset(k) + dof] = nen * dof_offset(k) + dof * nen + a
     imperfect = Fi.shape[0] > 0
     use_geo = p_geo.shape[0] == ne
     keep_pb = pb_out.shape[0] == ne
@@ -506,22 +560,20 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
                         Dq[q, j, c, d] += pw * d2Jq[q, j, c, d]
         if want < 2:
             continue
-        _elastic_tangent(Dq, WT, bxq, byq, bnq, hn, Dtp, DB, Kh, sel)
-        # harmonic-major blocks -> node-major Ke; the blocks of harmonics k < l were formed once:
-        # their transposes are the (l, k) blocks (as the element dofs' harmonics say)
+        _elastic_tangent(Dq, tabs, bxq, byq, bnq, hn, Dtp, DB, Kh, sel)
+        # harmonic-major blocks -> the upper triangle of the node-major Ke; the blocks of harmonics
+        # k < l were formed once: their transposes are the (l, k) blocks (as the dofs' harmonics say)
         Ke_e = Ke[0] if fuse else Ke[e]
-        for r in range(nd):
-            pr = hperm[r]
+        for pr in range(nd):
+            r = hinv[pr]
             kr = hk[pr]
-            for c in range(nd):
-                pc = hperm[c]
+            for pc in range(pr, nd):
+                c = hinv[pc]
                 if kr <= hk[pc]:
                     Ke_e[pr, pc] = Kh[r, c]
-        for i in range(nd):
-            for jj in range(nd):
-                if hk[i] < hk[jj]:
-                    Ke_e[jj, i] = Ke_e[i, jj]
-        _volumetric_tangent(e, dJq, t, Wq, Np, Minv, Minvp, imperfect, wphi, ka, bxq, byq, bnq, hn, Gv, Hv, KL,
+                else:
+                    Ke_e[pr, pc] = Kh[c, r]
+        _volumetric_tangent(e, dJq, t, Wq, Np, Minv, Minvp, imperfect, wphi, ka, bxq, byq, bnq, hn, Gv, Hv,
                             tmp, Ke_e, sel, dsel)
         if keep_H:  # kappa M^-1 G_j: the element pressures' derivative at every phi point
             for j in range(nphi):
@@ -532,6 +584,9 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
                         for l2 in range(npr):
                             s += Mi[k2, l2] * Gv[j, l2, i]
                         H_out[e, j, k2, i] = ka * s
+        for i in range(nd):  # the lower triangle: the upper's mirror image
+            for jj in range(i + 1, nd):
+                Ke_e[jj, i] = Ke_e[i, jj]
         if fuse:
             _scatter_element(Ke_e, edofs[e], ecoef[e], ab)
     return E, True, re, Ke
@@ -610,3 +665,4 @@ def scatter_vector(ve: np.ndarray, dofs: np.ndarray, coef: np.ndarray, factor: f
             if d >= 0:
                 out[d] += factor * coef[e, i] * ve[e, i]
     return out
+

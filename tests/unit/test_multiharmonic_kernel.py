@@ -4,8 +4,9 @@
 in contiguous, vectorised loops (docs/harmonics.md, section 10.4); the test oracle
 ``tests/unit/mh_reference.py`` keeps the element-by-element, node-pair-by-node-pair kernel it replaced. On random
 non-axisymmetric states, with and without an imperfection, Q4 and Q9, several harmonic sets, the
-energy, residuals and tangents must agree to round-off (they are formed from the same terms in the
-same order: bit for bit today; the test allows 1e-12 of each array's largest entry).
+energy, residuals and tangents must agree to round-off, 1e-12 of each array's largest entry (the
+fast kernel forms the phi-moments of the tangent from Fourier moments and mirrors the element
+matrix's upper triangle; the oracle sums every pair's terms over the phi points).
 """
 from __future__ import annotations
 
@@ -65,3 +66,33 @@ def test_a_point_outside_the_gent_domain_is_reported():
     U = mh.embed(_state(M, 4), _smooth_modes(M, hn, 50.0))  # far outside the Gent domain
     (E, ok, re, Ke), (E0, ok0, re0, Ke0) = _both(mh, U, 0.0, 2)
     assert not ok and not ok0
+
+
+@pytest.mark.parametrize("hn", [[0, 1, 2, 3, 4], [0, 2, 4, 6, 8], [0, 3, 6]])
+def test_pair_moments_are_the_pair_by_pair_sums(hn):
+    """The phi-moments of every harmonic pair from the Fourier moments of the pointwise tangent
+    (``_pair_moments``) against the direct sums ``sum_j w_j t_k t_l D_j`` (``t = cos`` for the
+    components ``c < 5``, ``sin`` after), for all harmonics and for a selection of them."""
+    from snapjump_kernels.mh_basis import phi_rule
+    from snapjump_kernels.mh_element import _fourier_tables, _pair_moments
+
+    hn = np.asarray(hn, np.int64)
+    n1, K = int(hn[1]), len(hn)
+    phis, wphi = phi_rule(n1, 2 * (int(hn[-1]) // n1) + 2)
+    rng = np.random.default_rng(5)
+    nq, nphi = 4, len(phis)
+    D = rng.standard_normal((nq, nphi, 81))
+    for sel in (np.ones(K, np.bool_), np.arange(K) % 2 == 1):
+        Dtp = np.full((K * (K + 1) // 2, nq, 81), np.nan)
+        _pair_moments(D, _fourier_tables(phis, wphi, hn), hn, sel, Dtp)
+        p = -1
+        for k in range(K):
+            for l in range(k, K):
+                p += 1
+                if not (sel[k] and sel[l]):
+                    continue
+                tk = np.where(np.arange(9)[:, None] < 5, np.cos(hn[k] * phis), np.sin(hn[k] * phis))  # (9, nphi)
+                tl = np.where(np.arange(9)[:, None] < 5, np.cos(hn[l] * phis), np.sin(hn[l] * phis))
+                w = (wphi[None, None, :] * tk[:, None, :] * tl[None, :, :]).reshape(81, nphi)
+                direct = np.einsum("xj,qjx->qx", w, D)
+                np.testing.assert_allclose(Dtp[p], direct, rtol=0, atol=1e-13 * np.abs(D).max() * nphi)
