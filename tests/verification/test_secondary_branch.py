@@ -27,6 +27,7 @@ from snapjump_cli.fe.branch.trace import follow_branch
 from snapjump_cli.fe.branch.followed import followed_metrics
 from snapjump_cli.fe.stability.harmonics import check_harmonics
 from snapjump_cli.fe.branch.secondary import (
+    LOCATE_STEP_FRACTION,
     extra_harmonics,
     follow_secondary,
     jump_before,
@@ -90,9 +91,29 @@ def test_the_secondary_bifurcation_is_bracketed_and_located(located):
     assert extra(pts[sec.index]) == 0 and extra(pts[sec.index + 1]) > 0
     ex = extra_harmonics(fr.model, full)
     e_a = extra_eigen(full, lift(fr.model, full, pts[sec.index].u), pts[sec.index].p, ex)[0]
+    e_b = extra_eigen(full, lift(fr.model, full, pts[sec.index + 1].u), pts[sec.index + 1].p, ex)[0]
     e_c = extra_eigen(full, lift(fr.model, full, sec.point.u), sec.point.p, ex)[0]
-    assert e_a > 0 and abs(e_c) < 1e-6 * e_a
+    # located to LOCATE_STEP_FRACTION of the eigenvalue's change over the step (or 1e-7 of e_a)
+    assert e_a > 0 > e_b and abs(e_c) < max(1e-7 * e_a, LOCATE_STEP_FRACTION * (e_a - e_b))
     assert fr.states.upper is not None and sec.index < fr.states.k_before  # before the branch's own snap
+
+
+def test_the_located_point_is_the_root_to_the_step_fraction(located, monkeypatch):
+    """The root finding stops at LOCATE_STEP_FRACTION of the eigenvalue's change over the step: the
+    point lies within about that fraction of the step's volume change from the one located with the
+    eigenvalue's tolerance alone (1e-7 of its value at the stable end), on the same step."""
+    import snapjump_cli.fe.branch.secondary as secondary
+    from snapjump_cli.fe.branch.secondary import SecondaryCheck, locate_secondary
+
+    res, fr, fs, sec = located
+    full = fs.model
+    pts = fr.path.points
+    monkeypatch.setattr(secondary, "LOCATE_STEP_FRACTION", 0.0)
+    tight = locate_secondary(fr, SecondaryCheck(N=int(full.hn[-1]), first=0), full, first=sec.index + 1)
+    assert tight is not None and tight.index == sec.index and tight.n == sec.n
+    L3 = fr.model.L**3
+    dV = abs(fr.model.volume(pts[sec.index + 1].u) - fr.model.volume(pts[sec.index].u)) * L3
+    assert abs(tight.V_m3 - sec.V_m3) <= 2.0 * LOCATE_STEP_FRACTION * dV
 
 
 def test_a_bracket_started_inside_the_step_finds_the_same_point(located):

@@ -438,13 +438,27 @@ class Secondary:
     p_Pa: float
 
 
+#: The secondary bifurcation is located where the eigenvalue outside the branch has fallen below
+#: this fraction of its change over the path step that brackets it (about this fraction of the
+#: step's length from its zero, for an eigenvalue that varies linearly along the step), or below
+#: ``tol`` of its value at the stable end, whichever is larger. ``tol`` alone (1e-7) asked more of
+#: the eigenvalue than its round-off: on ``follow_strata`` row 9 the trials' eigenvalues fell from
+#: -8.4e-8 and -2.6e-10 to +1.6e-12 and +1.3e-12 (the block's largest row sum 1.3e6), two trial
+#: points spent on round-off, three on row 8; with 1e-4 each of ``follow_strata`` rows 8, 9 and
+#: ``follow_strata_n2`` rows 2, 22 stops at its second trial (``bench.profile.follow --json``, the
+#: blocks and CPU, with ``--set snapjump_cli.fe.branch.secondary.LOCATE_STEP_FRACTION=0.0`` for
+#: ``tol`` alone; docs/performance.md).
+LOCATE_STEP_FRACTION = 1e-4
+
+
 def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: float = 1e-7,
                      max_iter: int = 30, first: int | None = None, start=None) -> Secondary | None:
     """The secondary bifurcation that :func:`branch_stability` bracketed (``chk.first``): the
     consecutive path points on either side of it (``first``: the first point with an extra
     unstable mode, :func:`first_extra`, when already known), then the zero of the smallest
     eigenvalue of the harmonics outside the branch (:func:`extra_eigen`, relative to its value at
-    the stable side) on that step (:func:`snapjump_cli.fe.axisym.snap.root_on_step`); ``None`` without a
+    the stable side) on that step (:func:`snapjump_cli.fe.axisym.snap.root_on_step`), to ``tol`` of that
+    value or :data:`LOCATE_STEP_FRACTION` of its change over the step; ``None`` without a
     bracket of two consecutive points the actuator passes through (:func:`visited_points`).
     ``start``: the stable state the bracket starts from instead of the point before ``first`` (the
     state a jump past a fold lands on, on the path between that point and ``first``)."""
@@ -480,6 +494,7 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
     fb = f(b)
     if not fb < 0.0:
         return None
+    tol = max(tol, LOCATE_STEP_FRACTION * (1.0 - fb))  # (f(a) = 1: 1 - fb is the change over the step)
     root = root_on_step(fr.tracer, a, b, a_prev, f, tol, max_iter, f_ends=(ea[0] / scale, fb))
     eig, mode = solved[id(root)][1]  # (root_on_step returns a point it evaluated)
     if not abs(eig) < 100.0 * tol:  # root_on_step returns its last point on b's side if it does not converge
