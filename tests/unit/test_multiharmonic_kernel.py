@@ -85,14 +85,12 @@ def test_pair_moments_are_the_pair_by_pair_sums(hn):
     for sel in (np.ones(K, np.bool_), np.arange(K) % 2 == 1):
         Dtp = np.full((K * (K + 1) // 2, nq, 81), np.nan)
         _pair_moments(D, _fourier_tables(phis, wphi, hn), hn, sel, Dtp)
-        p = -1
-        for k in range(K):
-            for l in range(k, K):
-                p += 1
-                if not (sel[k] and sel[l]):
-                    continue
-                tk = np.where(np.arange(9)[:, None] < 5, np.cos(hn[k] * phis), np.sin(hn[k] * phis))  # (9, nphi)
-                tl = np.where(np.arange(9)[:, None] < 5, np.cos(hn[l] * phis), np.sin(hn[l] * phis))
+        pairs = [(k, l) for k in range(K) for l in range(k, K)]  # the kernel's pair order
+        comp_cos = np.arange(9)[:, None] < 5
+        for p, (k, l) in enumerate(pairs):
+            if sel[k] and sel[l]:
+                tk = np.where(comp_cos, np.cos(hn[k] * phis), np.sin(hn[k] * phis))  # (9, nphi)
+                tl = np.where(comp_cos, np.cos(hn[l] * phis), np.sin(hn[l] * phis))
                 w = (wphi[None, None, :] * tk[:, None, :] * tl[None, :, :]).reshape(81, nphi)
                 direct = np.einsum("xj,qjx->qx", w, D)
                 np.testing.assert_allclose(Dtp[p], direct, rtol=0, atol=1e-13 * np.abs(D).max() * nphi)
