@@ -93,3 +93,20 @@ def test_answers_compares_the_designs_followed_in_both_runs() -> None:
     assert [r["design"] for r in out] == ["0", "1"]
     assert out[0]["dE_J"] == pytest.approx(0.01) and out[0]["dy_pole_m"] == 0.0 and out[0]["same_way"]
     assert not out[1]["same_way"]
+
+
+def test_follow_profile_repeats_the_followed_solve(tmp_path) -> None:
+    """``--repeat-followed K``: the followed answer computed K times (the same answer values each
+    time, else the tool stops), the least CPU the ratio's numerator."""
+    import json
+
+    from bench.profile import follow
+
+    out = tmp_path / "f.json"
+    assert follow.main(["--sample", "bench/harmonics_sample/follow_strata.yaml", "--rows", "7", "--repeat", "1",
+                        "--repeat-followed", "2", "--json", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    (row,) = doc["rows"] if isinstance(doc, dict) else doc
+    assert row["followed"] and len(row["cpu_followed_runs_s"]) == 2
+    assert row["cpu_followed_s"] == min(row["cpu_followed_runs_s"])
+    assert row["ratio"] == pytest.approx(row["cpu_followed_s"] / row["cpu_axisym_check_s"])
