@@ -29,13 +29,16 @@ from snapjump_kernels.mh_material import gent3, imperfect_point
 
 
 @njit(cache=True)
-def _fourier_tables(phis: np.ndarray, wphi: np.ndarray, hn: np.ndarray):
-    """The tables of :func:`_pair_moments`: ``TC[m, j] = w_j cos(m phi_j)`` and ``TS[m, j] = w_j
-    sin(m phi_j)`` for ``m = 0 .. 2 max(hn)``, and the flat components ``9 c + d`` of ``D`` in the
-    order ``perm``: first the ``ncos`` whose two factors are alike (``cos cos``: ``c, d < 5``;
-    ``sin sin``: ``c, d >= 5``), whose pair moments are cosine moments, then the mixed ones (sine
-    moments)."""
+def _fourier_tables(phis: np.ndarray, wphi: np.ndarray, hn: np.ndarray, sel: np.ndarray):
+    """The tables and work arrays of :func:`_pair_moments`, made once per element pass:
+    ``TC[m, j] = w_j cos(m phi_j)`` and ``TS[m, j] = w_j sin(m phi_j)`` for ``m = 0 .. 2 max(hn)``;
+    the flat components ``9 c + d`` of ``D`` in the order ``perm``: first the ``ncos`` whose two
+    factors are alike (``cos cos``: ``c, d < 5``; ``sin sin``: ``c, d >= 5``), whose pair moments
+    are cosine moments, then the mixed ones (sine moments); ``need[m]``: whether a pair of the
+    harmonics ``sel`` uses the multiple ``m``; then the work arrays ``P`` (one point's components in
+    that order, every phi point), ``MC`` and ``MS`` (the moments)."""
     nphi = phis.shape[0]
+    K = hn.shape[0]
     mm = 2 * hn[-1] + 1
     TC = np.empty((mm, nphi))
     TS = np.empty((mm, nphi))
@@ -56,7 +59,15 @@ def _fourier_tables(phis: np.ndarray, wphi: np.ndarray, hn: np.ndarray):
             if (c < 5) != (d < 5):
                 perm[n] = 9 * c + d
                 n += 1
-    return TC, TS, perm, ncos
+    need = np.zeros(mm, np.bool_)
+    for k in range(K):
+        if not sel[k]:
+            continue
+        for l in range(k, K):
+            if sel[l]:
+                need[hn[l] - hn[k]] = True
+                need[hn[l] + hn[k]] = True
+    return TC, TS, perm, ncos, need, np.empty((nphi, 81)), np.empty((mm, ncos)), np.empty((mm, 81 - ncos))
 
 
 @njit(cache=True, error_model="numpy")
@@ -73,22 +84,11 @@ def _pair_moments(Df: np.ndarray, tabs, hn: np.ndarray, sel: np.ndarray, Dtp: np
     pairs use), not one per pair (45 pairs for the harmonics ``0..8``, 17 moments). Equal to the
     pair-by-pair sums to round-off (``tests/unit/test_multiharmonic_kernel.py``). ``Df (nq, nphi,
     81)``; ``tabs`` from :func:`_fourier_tables`."""
-    TC, TS, perm, ncos = tabs
+    TC, TS, perm, ncos, need, P, MC, MS = tabs
     nq, nphi = Df.shape[0], Df.shape[1]
     K = hn.shape[0]
     mm = TC.shape[0]
     nsin = 81 - ncos
-    P = np.empty((nphi, 81))
-    MC = np.empty((mm, ncos))
-    MS = np.empty((mm, nsin))
-    need = np.zeros(mm, np.bool_)
-    for k in range(K):
-        if not sel[k]:
-            continue
-        for l in range(k, K):
-            if sel[l]:
-                need[hn[l] - hn[k]] = True
-                need[hn[l] + hn[k]] = True
     for q in range(nq):
         for j in range(nphi):
             dq = Df[q, j]
@@ -425,7 +425,8 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
     hk = np.empty(nd, np.int64)  # harmonic index of each element dof
     # the tangent's work arrays (docstring of _elastic_tangent)
     npair = K * (K + 1) // 2
-    tabs = _fourier_tables(phis, wphi, hn)
+    # (the tangent's tables; a pass without the tangent makes them for harmonic 0 alone)
+    tabs = _fourier_tables(phis, wphi, hn, sel) if want >= 2 else _fourier_tables(phis, wphi, hn[:1], sel[:1])
     Dtp = np.empty((npair, nq, 81))
     DB = np.zeros((9, nd))  # (zero: the columns of unselected harmonics are read, not written)
     Kh = np.zeros((nd, nd))
@@ -433,12 +434,10 @@ def _mh_pass(A: np.ndarray, conn: np.ndarray, mat: np.ndarray, mu: np.ndarray, j
     bxq = np.empty((nq, nen))
     byq = np.empty((nq, nen))
     bnq = np.empty((nq, nen))
-    hperm = np.empty(nd, np.int64)  # node-major element dof of each harmonic-major one
     hinv = np.empty(nd, np.int64)  # harmonic-major element dof of each node-major one
     for k in range(K):
         for dof in range(harmonic_ndof(k)):
             for a in range(nen):
-                hperm[nen * dof_offset(k) + dof * nen + a] = a * nc + dof_offset(k) + dof
                 hinv[a * nc + dof_offset(k) + dof] = nen * dof_offset(k) + dof * nen + a
     imperfect = Fi.shape[0] > 0
     use_geo = p_geo.shape[0] == ne
@@ -665,4 +664,3 @@ def scatter_vector(ve: np.ndarray, dofs: np.ndarray, coef: np.ndarray, factor: f
             if d >= 0:
                 out[d] += factor * coef[e, i] * ve[e, i]
     return out
-

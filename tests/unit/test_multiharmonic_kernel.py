@@ -84,7 +84,7 @@ def test_pair_moments_are_the_pair_by_pair_sums(hn):
     D = rng.standard_normal((nq, nphi, 81))
     for sel in (np.ones(K, np.bool_), np.arange(K) % 2 == 1):
         Dtp = np.full((K * (K + 1) // 2, nq, 81), np.nan)
-        _pair_moments(D, _fourier_tables(phis, wphi, hn), hn, sel, Dtp)
+        _pair_moments(D, _fourier_tables(phis, wphi, hn, sel), hn, sel, Dtp)
         pairs = [(k, l) for k in range(K) for l in range(k, K)]  # the kernel's pair order
         comp_cos = np.arange(9)[:, None] < 5
         for p, (k, l) in enumerate(pairs):

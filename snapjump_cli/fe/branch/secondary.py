@@ -442,12 +442,14 @@ class Secondary:
 #: this fraction of its change over the path step that brackets it (about this fraction of the
 #: step's length from its zero, for an eigenvalue that varies linearly along the step), or below
 #: ``tol`` of its value at the stable end, whichever is larger. ``tol`` alone (1e-7) asked more of
-#: the eigenvalue than its round-off: on ``follow_strata`` row 9 the trials' eigenvalues fell from
-#: -8.4e-8 and -2.6e-10 to +1.6e-12 and +1.3e-12 (the block's largest row sum 1.3e6), two trial
-#: points spent on round-off, three on row 8; with 1e-4 each of ``follow_strata`` rows 8, 9 and
-#: ``follow_strata_n2`` rows 2, 22 stops at its second trial (``bench.profile.follow --json``, the
-#: blocks and CPU, with ``--set snapjump_cli.fe.branch.secondary.LOCATE_STEP_FRACTION=0.0`` for
-#: ``tol`` alone; docs/performance.md).
+#: the eigenvalue than its round-off: on ``follow_strata`` row 9 the trials' eigenvalues fell
+#: -8.4e-8, -2.6e-10, then +1.6e-12 and +1.3e-12, on row 8 -1.1e-7, -6.7e-10, then +2.9e-12,
+#: -3.2e-12, -1.8e-13, the sign no longer following the position: two and three trial points
+#: spent on round-off (``bench.profile.follow --sample bench/harmonics_sample/follow_strata.yaml
+#: --rows 8 9 --set snapjump_cli.fe.branch.secondary.LOCATE_STEP_FRACTION=0.0 --debug
+#: snapjump_cli.fe.branch.secondary``). With 1e-4 each of ``follow_strata`` rows 8, 9 and
+#: ``follow_strata_n2`` rows 2, 22 stops at its second trial (the blocks and CPU of ``--json``,
+#: with and without that ``--set``; docs/performance.md).
 LOCATE_STEP_FRACTION = 1e-4
 
 
@@ -489,6 +491,8 @@ def locate_secondary(fr, chk: SecondaryCheck, full: MultiHarmonicModel, tol: flo
         if e is None:
             return math.nan
         solved[id(q)] = (q, e)
+        log.debug("secondary bifurcation: eigenvalue outside the branch %.3e (%.3e of the stable end's) at %.6g "
+                  "of the step's %.6g", e[0] * scale, e[0], q.s - a.s, b.s - a.s)
         return e[0]
 
     fb = f(b)
