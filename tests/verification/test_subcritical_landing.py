@@ -33,7 +33,7 @@ def landed():
 def test_the_sphere_path_lands_the_subcritical_secondary_branch_where_the_descent_does(landed):
     out, fs = landed.values, landed.branch
     assert out["followed"] and fs.kind == "subcritical" and fs.parent is not None
-    assert len(fs.path.points) == 2  # the secondary branch's first step only
+    assert len(fs.path.points) == 1  # the secondary branch's bifurcation alone (landed before its first step)
     assert fs.lower_note.startswith("sphere path: stable state"), fs.lower_note
     up, low, full, tr = fs.states.upper, fs.states.lower, fs.model, fs.tracer
     assert full.volume(low.u) == pytest.approx(full.volume(up.u), rel=1e-8)

@@ -49,7 +49,7 @@ from snapjump_cli.fe.axisym.snap import root_on_step
 
 log = logging.getLogger(__name__)
 
-__all__ = ["SpherePathProblem", "descend_on_spheres"]
+__all__ = ["SpherePathProblem", "descend_on_spheres", "NOT_FALLING"]
 
 #: Step growth, largest turn per step and Newton tolerance (the error test's) of the sphere path:
 #: its points are not an answer (the state it ends on is polished to the residual test and checked),
@@ -107,6 +107,11 @@ SPHERE_ZERO_GUESS = True
 #: The polish of a zero of the load takes the mixed Newton matrix, with the element pressures
 #: interpolated along the step as the state is (as the path's own corrector does).
 SPHERE_POLISH_MIXED = True
+
+
+#: The message of :func:`descend_on_spheres` with ``falling`` where the first state's load is not
+#: negative (its start: callers tell that case by it).
+NOT_FALLING = "sphere path: the energy does not fall along the kick"
 
 
 #: Volumes closer than this (relative) are the same: the centre's volume and ``V*`` that differ only
@@ -183,8 +188,8 @@ class SpherePathProblem:
 
 
 def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick: np.ndarray,
-                       max_steps: int = 400, max_zeros: int = 6, climb: float | None = None
-                       ) -> tuple[PathPoint | None, str]:
+                       max_steps: int = 400, max_zeros: int = 6, climb: float | None = None,
+                       falling: bool = False) -> tuple[PathPoint | None, str]:
     """The stable state at the volume of ``upper`` reached from the saddle ``centre`` along ``kick``.
 
     Parameters
@@ -199,6 +204,9 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
         (default ``1e-9 max(1, |W_c|)``: round-off). From a nearly degenerate saddle, a barely
         subcritical bifurcation, the path can rise above it and come down to the state the branch
         comes back to (docs/harmonics.md section 10.7)
+    falling : give up at once where the load ``F`` of the first state is not negative (the energy
+        does not fall from the centre along the kick: at a bifurcation, a branch that is not
+        subcritical)
 
     Returns
     -------
@@ -228,6 +236,8 @@ def descend_on_spheres(tracer: Tracer, upper: PathPoint, centre: PathPoint, kick
     if first is None:
         return None, "sphere path: no first state"
     ftr, lin_s = first
+    if falling and not lin_s.p < 0.0:
+        return None, f"{NOT_FALLING} (first state F {lin_s.p:.3g})"
     climb = 1e-9 * max(1.0, abs(W_c)) if climb is None else float(climb)
     found, (why, n_steps) = _follow(tracer, ftr, pb, lin_s, W_c, V_c / sV, max_zeros, climb)
     log.debug("sphere path: %s after %d steps (first state w %.3g, F %.3g)", why, n_steps,

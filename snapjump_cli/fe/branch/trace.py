@@ -35,7 +35,8 @@ import numpy as np
 from snapjump_cli.fe.axisym.lower_state import LowerState, constrained_instability, find_lower_state
 from snapjump_cli.fe.axisym.snap import SnapStates, SnapTracker
 from snapjump_cli.fe.branch.bifurcation import Bifurcation, default_harmonics, harmonic1_gauge
-from snapjump_cli.fe.branch.landing import land_from_bifurcation
+from snapjump_cli.fe.axisym.sphere_path import NOT_FALLING
+from snapjump_cli.fe.branch.landing import land_from_bifurcation, sphere_landing
 from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, AXISYM_LOWER_LANDING, multiharmonic_snap_metrics
 from snapjump_cli.fe.branch.model import MultiHarmonicModel
 from snapjump_cli.fe.continuation import ContinuationFailed, Path, PathPoint, Tracer, start_point, trace
@@ -545,6 +546,18 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
         # bifurcation itself, and where the axisymmetric path's inverted state at that volume is
         # stable with every harmonic kept, the actuator lands there (axisym_landing); or where the
         # descent from it at that volume comes to rest below it
+        early = None
+        if landing == "descent first" and SPHERES_BEFORE_PROBE:
+            # the sphere path first: where the energy falls from the bifurcation along its mode, at
+            # its volume, to a stable state that releases at least the micro-fold energy, the branch
+            # is subcritical and that state is its landing (the probe's step is not needed)
+            early = sphere_landing(tr, start, falling=True)
+            if early[0] is not None and mh.energy(start.u) - mh.energy(early[0].u) >= micro_dE:
+                log.debug("branch: landed from the bifurcation by the sphere path before the probe")
+                return _landed_at_bifurcation(bif, mh, Path(points=[start]), SnapStates(k_before=0, upper=start),
+                                              tr, early[0], early[1], sc)
+            if early[0] is None and early[1].startswith(NOT_FALLING):
+                early = None  # (the probe decides; a subcritical branch's path is then followed as before)
         path, tracker, failure = run(start, "", stop=True, steps=1)
         st = tracker.states
         if tracker.kind == "subcritical" and st.upper is not None:
@@ -554,7 +567,7 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
                     alt, note = land_from_bifurcation(tr, st.upper, descent=False)
             else:  # (where the sphere path gives up, the axisymmetric inverted state if stable, then the descent)
                 known = (lambda: axisym_inverted_state(result, mh, tr, st.upper)) if AXISYM_BEFORE_DESCENT else None
-                alt, note = land_from_bifurcation(tr, st.upper, before_descent=known)
+                alt, note = land_from_bifurcation(tr, st.upper, before_descent=known, on_spheres=early)
             if alt is not None and mh.energy(st.upper.u) - mh.energy(alt.u) >= micro_dE:
                 return _landed_at_bifurcation(bif, mh, path, st, tr, alt, note, sc)
     if stays is not None and MICRO_FOLD_LANDING_FIRST:
@@ -585,6 +598,19 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     fr.metrics = branch_metrics(fr, sc)
     mh.release_buffers()  # the result keeps the model (plots, shapes): not its ~60 MB of band buffers
     return fr
+
+
+#: ``landing="descent first"`` (a secondary branch in the actuator mode) seeks the landing by the
+#: sphere path from the bifurcation before the one-step probe that tells a subcritical branch: where
+#: the energy falls from the bifurcation along the mode at its volume (the path's first state has a
+#: negative load ``F``: a subcritical pitchfork) to a stable state that releases at least the
+#: micro-fold energy, that state is the landing, as the probe and the same path would find it
+#: (``False``: the probe first, as before; a switch for measurements). ``follow_strata`` rows 8, 9
+#: and ``follow_strata_n2`` rows 2, 22: 45 -> 43, 46 -> 43, 43 -> 41 and 39 -> 37 assemblies of the
+#: model with every harmonic; the grid's 20-row sample of the class (docs/performance.md) 950 -> 893;
+#: every answer value bit for bit (``bench.profile.follow ... --json A.json``, again with ``--set
+#: snapjump_cli.fe.branch.trace.SPHERES_BEFORE_PROBE=False``, compared by ``bench.profile.answers``).
+SPHERES_BEFORE_PROBE = True
 
 
 #: A branch checked against the other harmonics (``settle``) whose first step lowers the volume (a
