@@ -88,12 +88,12 @@ REF_CPU_S_PER_DESIGN = 0.196
 #: against 800 CPU-s over the same grid.
 REF_CHECK_FACTOR = 1.32
 #: With ``solver.follow``: per followed harmonic, the share of the paper grid's valid designs whose
-#: branch is followed (2128 and 787 of 4079) and the mean seconds of one followed design of that
-#: class, both from the grid's own followed run (``make run-followed``; its rows but the re-solves on
-#: a finer mesh that a followed solve no longer makes, two workers on the two cores: wall ~ CPU;
-#: ``python -m bench.followed_grid_time results/paper_grid_followed.parquet``, docs/performance.md),
-#: each at most the solver's ``time_limit_s``.
-REF_FOLLOW = {1: (2128 / 4079, 2.5), 2: (787 / 4079, 16.3)}
+#: branch is followed (2128 and 789 of 4079) and the mean seconds of one followed design of that
+#: class, both from the grid's own followed run (``make run-followed``, one run of the whole grid,
+#: two workers on the two cores: wall ~ CPU; ``python -m bench.followed_grid_time
+#: results/paper_grid_followed.parquet``, docs/performance.md), each at most the solver's
+#: ``time_limit_s``.
+REF_FOLLOW = {1: (2128 / 4079, 1.45), 2: (789 / 4079, 10.47)}
 #: Seconds of a sweep that do not depend on the number of designs: the imports and the kernels
 #: loaded in the parent, the workers started, each worker's first solve (``configs/smoke.yaml``:
 #: 2 designs of ~0.07 CPU-s each on 2 workers, 3.8 CPU-s for the whole command).

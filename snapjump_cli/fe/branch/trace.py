@@ -466,7 +466,9 @@ def trace_branch(result, bif: Bifurcation, mh: MultiHarmonicModel, U_c: np.ndarr
     the sphere path, else the energy descent, the start the reference search tries first), before
     tracing the branch: where it lies below the bifurcation by at least the micro-fold energy, the
     branch beyond its first step is not needed; it traces and searches as the reference where it
-    does not. ``landing_check`` (made from ``mh``; a branch of ``n_c >= 2``): whether a state of ``mh``
+    does not. The sphere path goes before that first step where its first load is negative
+    (:data:`SPHERES_BEFORE_PROBE`): a state it lands on then makes the branch subcritical and its
+    path the bifurcation alone. ``landing_check`` (made from ``mh``; a branch of ``n_c >= 2``): whether a state of ``mh``
     is also stable with every harmonic (:func:`snapjump_cli.fe.branch.secondary.stable_outside`); with it, a branch that
     passed back through the axisymmetric path without a lower state (:data:`REJOINED`) takes that
     state (:func:`axisym_inverted_state`) before the search at fixed volume, as ``"axisymmetric
