@@ -22,8 +22,10 @@ __all__ = ["KICK", "kick_along", "sphere_landing", "land_from_bifurcation"]
 KICK = 1e-3
 
 
-def kick_along(model: MultiHarmonicModel, u: np.ndarray, mode: np.ndarray, frac: float = KICK) -> np.ndarray:
-    """``mode`` scaled so that its largest nodal amplitude is ``frac`` of the state ``u``'s."""
+def kick_along(model: MultiHarmonicModel, u: np.ndarray, mode: np.ndarray, frac: float | None = None) -> np.ndarray:
+    """``mode`` scaled so that its largest nodal amplitude is ``frac`` (default :data:`KICK`, read
+    at the call) of the state ``u``'s."""
+    frac = KICK if frac is None else frac
     return mode * (frac * float(np.abs(model.amplitudes(u)).max()) / float(np.abs(model.amplitudes(mode)).max()))
 
 
