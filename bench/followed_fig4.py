@@ -189,6 +189,22 @@ def sample_report(grid: pd.DataFrame, followed: list[pd.DataFrame]) -> list[str]
     return out
 
 
+def followed_or_not(followed: list[pd.DataFrame]) -> list[str]:
+    """Of the followed sweeps' ``ok`` rows that go asymmetric first: how many follow another
+    harmonic than the check's (another bifurcates first) and how many of those are followed; and
+    each design not followed, by its index, with the last part of its note (why)."""
+    rows = pd.concat(followed, ignore_index=True)
+    rows = rows[(rows["status"] == "ok") & rows["asym_first"].astype("boolean").fillna(False).to_numpy(bool)]
+    fol = rows["followed"].astype("boolean").fillna(False).to_numpy(bool)
+    other = (rows["follow_n"].astype("float64") != rows["asym_n"].astype("float64")).to_numpy(bool) \
+        & rows["follow_n"].notna().to_numpy(bool)
+    out = [f"\nasymmetric first: {len(rows)}, followed {int(fol.sum())}; another harmonic than the check's "
+           f"followed (it bifurcates first): {int(other.sum())}, {int((other & fol).sum())} of them followed"]
+    for _, r in rows[~fol].iterrows():
+        out.append(f"not followed: index {r.get('index')}: {str(r.get('follow_note') or '').split('; ')[-1]}")
+    return out
+
+
 def main(argv: Iterable[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.followed_fig4", description=__doc__.split("\n\n")[0])
     ap.add_argument("grid", type=Path, help="the grid's result table (with the harmonic check)")
@@ -208,6 +224,7 @@ def main(argv: Iterable[str] | None = None) -> int:
     ranked = rank_results(merged)
     print("\n".join(report(ranked, a.top, axisym=rank_results(grid))))
     print("\n".join(sample_report(grid, tables)))
+    print("\n".join(followed_or_not(tables)))
     if a.plots is not None:
         from snapjump_cli.viz.figures import make_plots
 

@@ -54,3 +54,16 @@ def test_report_counts_lift_offs_with_both_answers():
     axi["jumped"] = pd.array([True, True, False, True], dtype="boolean")
     text = "\n".join(ff.report(r, top=2, axisym=axi))
     assert "lift off: 1 of 3 (with their axisymmetric answers: 2)" in text
+
+
+def test_the_designs_not_followed_are_listed_with_why():
+    r = _grid(4)
+    r["index"] = [10, 11, 12, 13]
+    r["asym_n"] = [1, 1, 2, 2]
+    r["follow_n"] = [1, 2, 2, 2]
+    r["followed"] = pd.array([True, True, True, False], dtype="boolean")
+    r["follow_note"] = ["", "harmonic 2 bifurcates first", "", "sphere path: stable state; the pole moves up"]
+    text = "\n".join(ff.followed_or_not([r]))
+    assert "asymmetric first: 4, followed 3; another harmonic than the check's followed (it bifurcates first): " \
+           "1, 1 of them followed" in text
+    assert "not followed: index 13: the pole moves up" in text and "index 12" not in text
