@@ -81,9 +81,9 @@ class Linearization:
         """
         data = self.data
         if np.any(shift):
-            buffer = getattr(self.model, "_band_buffer", None)  # a reused band (no fresh pages to fault in)
+            buffer = self.model.band_buffer()  # a reused band (no fresh pages to fault in), if the model keeps any
             if buffer is not None:
-                data = buffer().reshape(-1)
+                data = buffer.reshape(-1)
                 np.copyto(data, self.data)
             else:
                 data = data.copy()
@@ -395,6 +395,11 @@ class Model:
                                 np.zeros(1)) + self.V_offset
         dz[2, self.pole_dof] = 1.0
         return np.array([V, p, u[self.pole_dof]]), dz, np.array([0.0, 1.0, 0.0])
+
+    def band_buffer(self) -> np.ndarray | None:
+        """A band array to reuse for a shifted copy of a linearisation's band (the multi-harmonic
+        model keeps a pool of them); ``None``: this model keeps none (a fresh copy is made)."""
+        return None
 
     def _factor(self, data, b, c_u, c_p, max_negative: int = -1) -> BorderedSolver | None:
         s = factor_bordered(self, data, b, c_u, c_p)

@@ -217,7 +217,7 @@ class MultiHarmonicModel:
         ~15 MB while the model lives); they are allocated again when needed."""
         self._pool.clear()
 
-    def _band_buffer(self) -> np.ndarray:
+    def band_buffer(self) -> np.ndarray:
         """A band array ``(n, kl + 1)`` that nothing else refers to, zero outside the envelope
         ``band_ext`` (its envelope holds anything: the kernels that fill it write all of it).
 
@@ -314,7 +314,7 @@ class MultiHarmonicModel:
         A = np.ascontiguousarray(self.total_amplitudes(u))
         ab = None
         if want >= 2:  # the elements' tangent scattered into a band as it is formed, the cavity's after
-            ab = self._band_buffer()
+            ab = self.band_buffer()
             out = self._band_pass(A, p, ab, self.edofs, self.ecoef, self.band_ext, self._sel_all, self.gdofs,
                                   self.gcoef, aux_arrays)
             if out is None:
@@ -432,7 +432,7 @@ class MultiHarmonicModel:
         n = self.n
         try:
             K = data.reshape(n, self.kl + 1)
-            fac = self._band_buffer()
+            fac = self.band_buffer()
             ok, nneg, Kib, schur = bordered_factor_upto(K, self.band_ext, np.ascontiguousarray(b, dtype=float),
                                                         np.ascontiguousarray(c_u, dtype=float), float(c_p), fac,
                                                         int(max_negative))

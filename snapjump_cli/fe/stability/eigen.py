@@ -249,14 +249,14 @@ def band_smallest_eigen(ab: np.ndarray, ext: np.ndarray, smallest: bool = True):
     ok, _ = band_ldlt(fac, ext)
     if not ok:  # sigma an eigenvalue to round-off: the sparse LU's shift-invert
         fac = None
-    A = spla.LinearOperator((n, n), matvec=lambda x: sym_band_matvec(ab, np.ravel(x).astype(float), ext),
-                            dtype=float)
-    inv = None if fac is None else spla.LinearOperator(
-        (n, n), matvec=lambda x: band_ldlt_solve(fac, np.ravel(x).astype(float), ext), dtype=float)
     try:
-        if inv is None:
+        if fac is None:
             vals, vecs = spla.eigsh(band_csr(ab).tocsc(), k=min(3, n - 1), sigma=sigma, which="LM", v0=v0)
         else:
+            A = spla.LinearOperator((n, n), matvec=lambda x: sym_band_matvec(ab, np.ravel(x).astype(float), ext),
+                                    dtype=float)
+            inv = spla.LinearOperator((n, n), matvec=lambda x: band_ldlt_solve(fac, np.ravel(x).astype(float), ext),
+                                      dtype=float)
             vals, vecs = spla.eigsh(A, k=min(3, n - 1), sigma=sigma, which="LM", v0=v0, OPinv=inv)
         if n_neg > 0 and not (n_neg <= len(vals) and int(np.sum(vals < 0.0)) >= n_neg):
             K = band_csr(ab).tocsc()
