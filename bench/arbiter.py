@@ -24,6 +24,8 @@ import numpy as np
 from snapjump_cli.fe.branch.dynamics import damped_snap, lowest_frequency
 from snapjump_cli.fe.continuation import PathPoint
 from snapjump_cli.fe.branch.followed import followed_metrics
+from snapjump_cli.fe.axisym.snap import SnapTracker
+from snapjump_cli.fe.branch.model import transfer
 from snapjump_cli.fe.branch.trace import axisym_crossings
 from snapjump_cli.fe.solve import solve_scene
 from snapjump_cli.fe.stability.harmonics import check_harmonics
@@ -39,6 +41,34 @@ def mirror(mh, u: np.ndarray) -> np.ndarray:
             o = 2 + 3 * (k - 1)
             A[:, o:o + 3] *= -1.0
     return mh.free_vector(A)
+
+
+def past_bifurcation(res, fr, V1: float) -> PathPoint:
+    """The state at scaled volume ``V1`` (just past the bifurcation of ``fr``, a subcritical
+    branch) on the path that the branch leaves, as a state of ``fr``'s model: the axisymmetric
+    path's, or for a secondary bifurcation (``fr.parent``) the parent branch's, located on its step
+    that crosses ``V1`` nearest the bifurcation."""
+    mh, tr, up = fr.model, fr.tracer, fr.states.upper
+    if fr.parent is None:
+        q = next(q for _, q in axisym_crossings(res, V1))
+        U, p = mh.embed(q.u), q.p
+    else:
+        par = fr.parent
+        Vp = V1 * float(tr.sc[0]) / float(par.tracer.sc[0])
+        pts = par.path.points
+        ks = [k for k in range(1, len(pts)) if (pts[k - 1].zeta[0] - Vp) * (pts[k].zeta[0] - Vp) <= 0.0]
+        if not ks:
+            raise SystemExit(f"the parent branch does not reach V = {Vp:.6g} (scaled)")
+        U_b = transfer(mh, par.model, up.u, strict=False)
+        k = min(ks, key=lambda k: float(np.linalg.norm(pts[k].u - U_b)))
+        q = SnapTracker(par.tracer, p_stop=math.inf, V_stop=math.inf).locate_volume(pts[k - 1], pts[k], Vp,
+                                                                                    pts[k - 2] if k > 1 else None)
+        if q is None:
+            raise SystemExit(f"the parent branch's state at V = {Vp:.6g} (scaled) was not found")
+        U, p = transfer(par.model, mh, q.u), q.p
+    lin = mh.linearize(U, p)
+    t_, v_, q_, z_ = tr.tangent(lin, (up.tangent, tr.alpha * up.du_ds))
+    return PathPoint(U, p, z_, t_, v_, q_, float("nan"), 0)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -73,14 +103,11 @@ def main(argv: list[str] | None = None) -> int:
     start = up
     if fr.kind == "subcritical":
         # the bifurcation is degenerate (the energy falls along its mode only at fourth order): the
-        # motion starts from the axisymmetric state just past it, where the mode is unstable
-        V1 = float(up.zeta[0]) * (1.0 + a.past)
-        q = next(q for _, q in axisym_crossings(res, V1))
-        U = mh.embed(q.u)
-        lin = mh.linearize(U, q.p)
-        t_, v_, q_, z_ = tr.tangent(lin, (up.tangent, tr.alpha * up.du_ds))
-        start = PathPoint(U, q.p, z_, t_, v_, q_, float("nan"), 0)
-        print(f"started at V = (1 + {a.past:g}) V_b on the axisymmetric path")
+        # motion starts from the state just past it on the path it leaves (the axisymmetric path,
+        # or for a secondary bifurcation the branch of n_c >= 2), where the mode is unstable
+        start = past_bifurcation(res, fr, float(up.zeta[0]) * (1.0 + a.past))
+        print(f"started at V = (1 + {a.past:g}) V_b on the "
+              + ("axisymmetric path" if fr.parent is None else f"branch of harmonic {int(fr.parent.bif.n)}"))
     print("| zeta | sign | rests at | steps | time (t0) | dE / reference dE | distance to actuator's / reference's landing (or mirror) |")
     print("|---|---|---|---|---|---|---|")
     dE_ref = E_up - mh.energy(lows["full"])

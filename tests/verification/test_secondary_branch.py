@@ -228,6 +228,30 @@ def test_the_secondary_branch_leaves_along_the_other_harmonics(located):
         assert np.linalg.norm(lin.R) < 1e-6 * abs(pt.p) * np.linalg.norm(lin.g)
 
 
+def test_the_arbiter_starts_a_secondary_snap_on_the_branch_it_leaves_just_past_the_point(located):
+    """``bench.arbiter`` starts the damped motion of a subcritical secondary snap from the parent
+    branch's state at ``(1 + past) V_sec``: an equilibrium of the model with every harmonic at that
+    volume, on the parent branch (no other harmonics), unstable outside it, next to the point."""
+    from types import SimpleNamespace
+
+    from bench.arbiter import past_bifurcation
+
+    res, fr, fs, sec = located
+    full, up = fs.model, fs.path.points[0]
+    stub = SimpleNamespace(model=full, tracer=fs.tracer, parent=fr, states=SimpleNamespace(upper=up))
+    pts = fr.path.points
+    V_next = float(pts[sec.index + 1].zeta[0]) * float(fr.tracer.sc[0]) / float(fs.tracer.sc[0])
+    V1 = 0.5 * (float(up.zeta[0]) + V_next)  # past the point, inside the bracket's step
+    st = past_bifurcation(res, stub, V1)
+    lin = full.linearize(st.u, st.p)
+    assert np.linalg.norm(lin.R) < 1e-6 * abs(st.p) * np.linalg.norm(lin.g)
+    assert abs(float(fs.tracer.zeta(st.u, st.p)[0][0]) - V1) < 1e-8 * V1
+    assert max(float(np.abs(full.harmonic_part(st.u, n)).max()) for n in extra_harmonics(fr.model, full)) == 0.0
+    ex = extra_harmonics(fr.model, full)
+    assert extra_eigen(full, st.u, st.p, ex)[0] < 0.0
+    assert 0.0 < np.linalg.norm(st.u - up.u) < np.linalg.norm(lift(fr.model, full, pts[sec.index + 1].u) - up.u)
+
+
 def test_a_jump_onto_a_state_unstable_outside_the_branch_goes_on_outside_it(jumped):
     res, out, fs = jumped
     fr, sec, full = fs.parent, fs.secondary, fs.model
