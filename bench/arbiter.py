@@ -24,7 +24,6 @@ import numpy as np
 from snapjump_cli.fe.branch.dynamics import damped_snap, lowest_frequency
 from snapjump_cli.fe.continuation import PathPoint
 from snapjump_cli.fe.branch.followed import followed_metrics
-from snapjump_cli.fe.axisym.snap import SnapTracker
 from snapjump_cli.fe.branch.model import transfer
 from snapjump_cli.fe.branch.trace import axisym_crossings
 from snapjump_cli.fe.solve import solve_scene
@@ -46,8 +45,8 @@ def mirror(mh, u: np.ndarray) -> np.ndarray:
 def past_bifurcation(res, fr, V1: float) -> PathPoint:
     """The state at scaled volume ``V1`` (just past the bifurcation of ``fr``, a subcritical
     branch) on the path that the branch leaves, as a state of ``fr``'s model: the axisymmetric
-    path's, or for a secondary bifurcation (``fr.parent``) the parent branch's, located on its step
-    that crosses ``V1`` nearest the bifurcation."""
+    path's, or for a secondary bifurcation (``fr.parent``) the parent branch's crossing of ``V1``
+    (:func:`~snapjump_cli.fe.branch.trace.axisym_crossings` on the branch) nearest the bifurcation."""
     mh, tr, up = fr.model, fr.tracer, fr.states.upper
     if fr.parent is None:
         q = next(q for _, q in axisym_crossings(res, V1))
@@ -55,16 +54,11 @@ def past_bifurcation(res, fr, V1: float) -> PathPoint:
     else:
         par = fr.parent
         Vp = V1 * float(tr.sc[0]) / float(par.tracer.sc[0])
-        pts = par.path.points
-        ks = [k for k in range(1, len(pts)) if (pts[k - 1].zeta[0] - Vp) * (pts[k].zeta[0] - Vp) <= 0.0]
-        if not ks:
-            raise SystemExit(f"the parent branch does not reach V = {Vp:.6g} (scaled)")
         U_b = transfer(mh, par.model, up.u, strict=False)
-        k = min(ks, key=lambda k: float(np.linalg.norm(pts[k].u - U_b)))
-        q = SnapTracker(par.tracer, p_stop=math.inf, V_stop=math.inf).locate_volume(pts[k - 1], pts[k], Vp,
-                                                                                    pts[k - 2] if k > 1 else None)
-        if q is None:
-            raise SystemExit(f"the parent branch's state at V = {Vp:.6g} (scaled) was not found")
+        found = [q for _, q in axisym_crossings(par, Vp) if q is not None]
+        if not found:
+            raise SystemExit(f"the parent branch has no state at V = {Vp:.6g} (scaled)")
+        q = min(found, key=lambda q: float(np.linalg.norm(q.u - U_b)))
         U, p = transfer(par.model, mh, q.u), q.p
     lin = mh.linearize(U, p)
     t_, v_, q_, z_ = tr.tangent(lin, (up.tangent, tr.alpha * up.du_ds))

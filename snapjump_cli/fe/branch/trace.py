@@ -34,8 +34,8 @@ import numpy as np
 
 from snapjump_cli.fe.axisym.lower_state import LowerState, constrained_instability, find_lower_state
 from snapjump_cli.fe.axisym.snap import SnapStates, SnapTracker
-from snapjump_cli.fe.branch.bifurcation import Bifurcation, default_harmonics, harmonic1_gauge
 from snapjump_cli.fe.axisym.sphere_path import NOT_FALLING
+from snapjump_cli.fe.branch.bifurcation import Bifurcation, default_harmonics, harmonic1_gauge
 from snapjump_cli.fe.branch.landing import land_from_bifurcation, sphere_landing
 from snapjump_cli.fe.branch.metrics import AXISYM_LANDING, AXISYM_LOWER_LANDING, multiharmonic_snap_metrics
 from snapjump_cli.fe.branch.model import MultiHarmonicModel
@@ -691,7 +691,8 @@ def _micro_fold_left_at_once(run: Callable, start: PathPoint, tr: Tracer, mh: Mu
 def axisym_crossings(result, V: float, beyond_snap: bool = False) -> Iterator[tuple[int, PathPoint | None]]:
     """The axisymmetric path's states at scaled volume ``V``, each located on its path step of
     ``result`` (``None`` where that fails) with the step's end index: before the path's volume
-    limit, the one crossing (the volume rises there); with ``beyond_snap``, every crossing after it."""
+    limit, each crossing where the volume rises; with ``beyond_snap``, every crossing after it.
+    (Any result with a ``path``, its ``tracer`` and ``states`` will do: a followed branch too.)"""
     st0 = result.states
     pts = result.path.points
     k_before = st0.k_before if st0 is not None and st0.k_before is not None else len(pts) - 1
